@@ -1,0 +1,287 @@
+"""In-fence navigation for a UAV confined to a (possibly concave) geofence polygon.
+
+All coordinates are local planar metres (x east, y north); distances are metres.
+
+Shortest paths use the classical visibility-graph construction (Lozano-Pérez & Wesley,
+"An algorithm for planning collision-free paths among polyhedral obstacles",
+Commun. ACM 22(10), 1979; see also de Berg et al., *Computational Geometry*, ch. 15):
+a shortest path inside a polygonal domain is a polyline whose interior bend points
+are reflex vertices of the domain, so it suffices to search the graph whose nodes are
+the reflex vertices plus the two endpoints and whose edges are the mutually visible
+(segment covered by the domain) pairs.  The vertex-to-vertex part of that graph, and
+its all-pairs shortest paths, are computed once per fence in :class:`Navigator`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import shapely
+from scipy.sparse.csgraph import csgraph_from_dense
+from scipy.sparse.csgraph import shortest_path as _csgraph_shortest_path
+from shapely.geometry import Point, Polygon
+from shapely.geometry.polygon import orient
+from shapely.ops import nearest_points
+
+XY = tuple[float, float]
+
+#: Outward tolerance (m) of the polygon used for segment-visibility tests, so that paths may
+#: run along edges and graze reflex vertices despite floating-point round-off.
+COVER_TOLERANCE_M = 1e-6
+
+#: Cross-product threshold (m^2) below which a vertex is treated as collinear (not reflex).
+_COLLINEAR_EPS = 1e-12
+
+#: A hover point with reduced clearance is accepted only if it lies within this many
+#: ``margin_m`` of the sensor's distance to the fence (see :func:`hover_point`).
+_HOVER_DETOUR_MARGINS = 4.0
+
+#: Number of times :func:`hover_point` halves the clearance before giving up on it.
+_HOVER_HALVINGS = 10
+
+
+def _as_xy(p: XY | np.ndarray) -> XY:
+    return (float(p[0]), float(p[1]))
+
+
+def hover_point(fence: Polygon, sensor_xy: XY, margin_m: float = 1.0) -> XY:
+    """Where the UAV should hover to serve a sensor at ``sensor_xy``.
+
+    Returns the point with clearance ``c`` from the fence boundary that is closest to the
+    sensor, where ``c`` is the largest of ``margin_m, margin_m/2, margin_m/4, ...`` for
+    which that point is no more than ``4 * margin_m`` farther from the sensor than the
+    fence itself is.  Hence:
+
+    * a sensor inside the fence with at least ``margin_m`` clearance is returned unchanged;
+    * a sensor outside (or too close to the boundary) is mapped to the nearest in-fence
+      point, nudged ``margin_m`` inward (exactly ``margin_m`` along the inward normal when
+      the nearest boundary feature is an edge);
+    * near sharp corners or thin necks the clearance is reduced so the hover point does
+      not jump to a distant part of the fence.  If no clearance works the nearest point
+      on the boundary itself is returned.
+
+    Args:
+        fence: geofence polygon, metres.
+        sensor_xy: sensor position ``(x, y)``, metres.
+        margin_m: desired clearance from the fence boundary, metres (``>= 0``).
+
+    Returns:
+        Hover position ``(x, y)`` in metres, covered by ``fence``.
+    """
+    if margin_m < 0:
+        raise ValueError(f"margin_m must be >= 0, got {margin_m}")
+    sensor = Point(sensor_xy)
+    boundary_dist = fence.exterior.distance(sensor)
+    for ring in fence.interiors:
+        boundary_dist = min(boundary_dist, ring.distance(sensor))
+    if fence.contains(sensor) and boundary_dist >= margin_m:
+        return _as_xy(sensor_xy)
+
+    nearest = nearest_points(fence, sensor)[0]
+    allowed = fence.distance(sensor) + _HOVER_DETOUR_MARGINS * margin_m
+    clearance = margin_m
+    for _ in range(_HOVER_HALVINGS + 1):
+        if clearance <= 0:
+            break
+        inset = fence.buffer(-clearance)
+        if not inset.is_empty:
+            candidate = nearest_points(inset, sensor)[0]
+            if candidate.distance(sensor) <= allowed and fence.contains(candidate):
+                return (candidate.x, candidate.y)
+        clearance /= 2.0
+    return (nearest.x, nearest.y)
+
+
+def path_length(path: list[XY] | np.ndarray) -> float:
+    """Total Euclidean length (m) of a polyline given as a sequence of ``(x, y)`` points."""
+    pts = np.asarray(path, dtype=float).reshape(-1, 2)
+    if len(pts) < 2:
+        return 0.0
+    return float(np.hypot(*np.diff(pts, axis=0).T).sum())
+
+
+def advance_along(path: list[XY], distance_m: float) -> tuple[XY, list[XY]]:
+    """Move up to ``distance_m`` metres along a polyline.
+
+    Args:
+        path: polyline ``[p0, p1, ..., pn]`` of ``(x, y)`` points in metres (non-empty).
+        distance_m: distance to travel, metres (``>= 0``).
+
+    Returns:
+        ``(position, remaining)`` where ``position`` is the point reached (exactly the last
+        point if ``distance_m >= path_length(path)``) and ``remaining`` is the rest of the
+        polyline starting at ``position`` (``[position]`` once the end is reached).
+    """
+    if not path:
+        raise ValueError("path must contain at least one point")
+    if distance_m < 0:
+        raise ValueError(f"distance_m must be >= 0, got {distance_m}")
+    left = float(distance_m)
+    for i in range(len(path) - 1):
+        (x0, y0), (x1, y1) = path[i], path[i + 1]
+        seg = math.hypot(x1 - x0, y1 - y0)
+        if left < seg:
+            t = left / seg
+            pos = (x0 + t * (x1 - x0), y0 + t * (y1 - y0))
+            return pos, [pos, *(_as_xy(p) for p in path[i + 1 :])]
+        left -= seg
+    end = _as_xy(path[-1])
+    return end, [end]
+
+
+def _ring_reflex_vertices(coords: np.ndarray) -> np.ndarray:
+    """Reflex vertices, shape (k, 2), of a closed ring oriented with the domain on its left."""
+    pts = coords[:-1]
+    if len(pts) < 3:
+        return np.empty((0, 2))
+    prev = np.roll(pts, 1, axis=0)
+    nxt = np.roll(pts, -1, axis=0)
+    a = pts - prev
+    b = nxt - pts
+    cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return pts[cross < -_COLLINEAR_EPS]
+
+
+def reflex_vertices(fence: Polygon) -> np.ndarray:
+    """Vertices (m), shape (k, 2), at which the fence's interior angle exceeds 180°.
+
+    These are the reflex corners of the outer ring and the convex corners of any holes:
+    the only points at which a shortest in-fence path can bend.
+    """
+    oriented = orient(fence, sign=1.0)  # exterior CCW, holes CW: domain always on the left
+    rings = [oriented.exterior, *oriented.interiors]
+    parts = [_ring_reflex_vertices(np.asarray(r.coords)[:, :2]) for r in rings]
+    return np.concatenate(parts, axis=0) if parts else np.empty((0, 2))
+
+
+@dataclass(frozen=True)
+class Navigator:
+    """Shortest-path navigation inside one geofence, with the vertex graph cached.
+
+    The reflex vertices, their pairwise visibility and all-pairs shortest distances are
+    computed once in ``__post_init__``; each query then only tests visibility from the
+    two endpoints to those vertices (vectorised shapely ``covers``) and minimises
+    ``|s - i| + D[i, j] + |j - g|`` over visible vertex pairs with numpy.
+
+    Attributes:
+        fence: geofence polygon in local metres.
+    """
+
+    fence: Polygon
+    _cover: Polygon = field(init=False, repr=False, compare=False)
+    _vertices: np.ndarray = field(init=False, repr=False, compare=False)
+    _dist: np.ndarray = field(init=False, repr=False, compare=False)
+    _pred: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.fence, Polygon) or self.fence.is_empty:
+            raise ValueError("fence must be a non-empty shapely Polygon")
+        if not self.fence.is_valid:
+            raise ValueError("fence polygon is not valid")
+        cover = self.fence.buffer(COVER_TOLERANCE_M, join_style="mitre")
+        shapely.prepare(cover)
+        verts = reflex_vertices(self.fence)
+        n = len(verts)
+        weights = np.full((n, n), np.inf)
+        if n:
+            ii, jj = np.triu_indices(n, k=1)
+            segs = np.stack([verts[ii], verts[jj]], axis=1)
+            visible = np.asarray(shapely.covers(cover, shapely.linestrings(segs)), dtype=bool)
+            lengths = np.hypot(*(verts[jj] - verts[ii]).T)
+            weights[ii[visible], jj[visible]] = lengths[visible]
+            weights[jj[visible], ii[visible]] = lengths[visible]
+            graph = csgraph_from_dense(weights, null_value=np.inf)
+            dist, pred = _csgraph_shortest_path(
+                graph, method="D", directed=False, return_predecessors=True
+            )
+        else:
+            dist, pred = np.empty((0, 0)), np.empty((0, 0), dtype=np.int32)
+        object.__setattr__(self, "_cover", cover)
+        object.__setattr__(self, "_vertices", verts)
+        object.__setattr__(self, "_dist", dist)
+        object.__setattr__(self, "_pred", pred)
+
+    @property
+    def vertices(self) -> np.ndarray:
+        """Reflex vertices used as graph nodes, shape (k, 2), metres (read-only copy)."""
+        return self._vertices.copy()
+
+    def _check_inside(self, xy: XY, name: str) -> None:
+        if not self._cover.covers(Point(xy)):
+            raise ValueError(f"{name} {xy} is outside the fence")
+
+    def _visible_from(self, xy: XY) -> tuple[np.ndarray, np.ndarray]:
+        """(visible mask (k,), distances (k,) in m) from ``xy`` to every graph vertex."""
+        p = np.asarray(xy, dtype=float)
+        verts = self._vertices
+        d = np.hypot(verts[:, 0] - p[0], verts[:, 1] - p[1])
+        segs = np.empty((len(verts), 2, 2))
+        segs[:, 0] = p
+        segs[:, 1] = verts
+        vis = np.asarray(shapely.covers(self._cover, shapely.linestrings(segs)), dtype=bool)
+        return vis | (d == 0.0), d
+
+    def _segment_visible(self, a: XY, b: XY) -> bool:
+        if a == b:
+            return True
+        return bool(self._cover.covers(shapely.linestrings([a, b])))
+
+    def _vertex_route(self, i: int, j: int) -> list[XY]:
+        """Vertex polyline from graph node ``i`` to ``j`` (inclusive)."""
+        nodes = [j]
+        while nodes[-1] != i:
+            nodes.append(int(self._pred[i, nodes[-1]]))
+        return [_as_xy(self._vertices[k]) for k in reversed(nodes)]
+
+    def shortest_path(self, start_xy: XY, goal_xy: XY) -> list[XY]:
+        """Shortest in-fence polyline ``[start, ..., goal]`` (metres).
+
+        Raises:
+            ValueError: if either endpoint is outside the fence or no path exists.
+        """
+        start, goal = _as_xy(start_xy), _as_xy(goal_xy)
+        self._check_inside(start, "start")
+        self._check_inside(goal, "goal")
+        if self._segment_visible(start, goal):
+            return [start, goal]
+        n = len(self._vertices)
+        if n == 0:
+            raise ValueError("no in-fence path between start and goal")
+        vis_s, d_s = self._visible_from(start)
+        vis_g, d_g = self._visible_from(goal)
+        total = np.where(vis_s, d_s, np.inf)[:, None] + self._dist
+        total = total + np.where(vis_g, d_g, np.inf)[None, :]
+        flat = int(np.argmin(total))
+        if not np.isfinite(total.flat[flat]):
+            raise ValueError("no in-fence path between start and goal")
+        i, j = divmod(flat, n)
+        return [start, *self._vertex_route(i, j), goal]
+
+    def travel_distance(self, a_xy: XY, b_xy: XY) -> float:
+        """Length (m) of the shortest in-fence path from ``a_xy`` to ``b_xy``."""
+        return path_length(self.shortest_path(a_xy, b_xy))
+
+    def step(self, position_xy: XY, goal_xy: XY, max_step_m: float) -> XY:
+        """New position after flying at most ``max_step_m`` metres toward ``goal_xy``.
+
+        Follows the shortest in-fence path; returns exactly ``goal_xy`` when it is within
+        ``max_step_m`` of path distance.
+        """
+        if max_step_m < 0:
+            raise ValueError(f"max_step_m must be >= 0, got {max_step_m}")
+        pos, _ = advance_along(self.shortest_path(position_xy, goal_xy), max_step_m)
+        return pos
+
+
+def shortest_path(fence: Polygon, start_xy: XY, goal_xy: XY) -> list[XY]:
+    """Shortest polyline ``[start, ..., goal]`` (metres) from start to goal inside ``fence``.
+
+    Convenience wrapper that builds a :class:`Navigator`; reuse a ``Navigator`` for many
+    queries on the same fence.
+
+    Raises:
+        ValueError: if either endpoint lies outside the fence.
+    """
+    return Navigator(fence).shortest_path(start_xy, goal_xy)

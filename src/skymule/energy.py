@@ -13,7 +13,7 @@ flight at constant speed ``V`` (m/s):
 with blade-profile power :math:`P_0 = \frac{\delta}{8} \rho s A \Omega^3 R^3`, induced
 hover power :math:`P_i = (1 + k) W^{3/2} / \sqrt{2 \rho A}`, rotor tip speed
 :math:`U_{tip} = \Omega R` and mean rotor induced velocity in hover
-:math:`v_0 = \sqrt{W / (2 \rho A)}` (paper eq. (11)-(12) and Table I).
+:math:`v_0 = \sqrt{W / (2 \rho A)}` (paper eq. (12) and Table I).
 """
 
 from __future__ import annotations

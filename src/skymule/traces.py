@@ -40,6 +40,8 @@ from typing import Literal
 import numpy as np
 import pandas as pd
 
+from skymule.errors import SkymuleError
+
 __all__ = [
     "DT_MISSING",
     "Trace",
@@ -72,7 +74,7 @@ _UNNAMED_RE = re.compile(r"unnamed: \d+", re.IGNORECASE)
 _MAX_LISTED = 12
 
 
-class TraceError(ValueError):
+class TraceError(SkymuleError):
     """A trace or volume file cannot be used; the message is one user-facing line."""
 
 

@@ -1,0 +1,189 @@
+"""The ``skymule`` command line.
+
+User mistakes (bad scenario, trace, flag) print one line and exit with status 2; the
+library raises :class:`~skymule.errors.SkymuleError` for them and this module turns it into
+that line. Anything else is a bug and keeps its traceback.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import pandas as pd
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from skymule.errors import SkymuleError
+
+app = typer.Typer(
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    no_args_is_help=True,
+    help="UAV data-mule missions: simulate, replay, compare and plot.",
+)
+console = Console()
+
+SUMMARY_COLUMNS = (
+    "policy",
+    "total_downloaded_mbit",
+    "completion",
+    "handovers",
+    "hover_time_s",
+    "distance_m",
+)
+
+
+def _table(title: str, rows: list[dict], columns: tuple[str, ...]) -> Table:
+    table = Table(title=title)
+    for column in columns:
+        table.add_column(column, justify="left" if column == "policy" else "right")
+    for row in rows:
+        table.add_row(*(_fmt(row.get(c, "")) for c in columns))
+    return table
+
+
+def _fmt(value: object) -> str:
+    if isinstance(value, float):
+        return f"{value:.3f}" if abs(value) < 10 else f"{value:.1f}"
+    return str(value)
+
+
+def _per_sensor_table(summary: dict) -> Table:
+    table = Table(title=f"{summary['scenario']} - {summary['policy']}")
+    for column in ("sensor", "buffer [Mbit]", "downloaded [Mbit]"):
+        table.add_column(column, justify="right")
+    for name, buffer in summary["per_sensor_buffer_mbit"].items():
+        table.add_row(name, f"{buffer:.1f}", f"{summary['per_sensor_downloaded_mbit'][name]:.1f}")
+    table.add_row(
+        "total", f"{summary['total_buffer_mbit']:.1f}", f"{summary['total_downloaded_mbit']:.1f}"
+    )
+    return table
+
+
+@app.command()
+def run(
+    scenario: Annotated[str, typer.Argument(help="Scenario TOML path or preset name.")],
+    out: Annotated[Path | None, typer.Option("--out", help="Run folder to write.")] = None,
+    policy: Annotated[str | None, typer.Option("--policy", help="Override the policy.")] = None,
+) -> None:
+    """Run one mission and print its summary."""
+    from skymule.runner import simulate
+    from skymule.scenario import load_scenario
+
+    result = simulate(load_scenario(scenario), policy)
+    if out is not None:
+        result.write(out)
+    console.print(_per_sensor_table(result.summary))
+    console.print(_table("summary", [result.summary], SUMMARY_COLUMNS))
+    if out is not None:
+        console.print(f"wrote {out}/summary.json, slots.csv, scenario.json")
+
+
+@app.command()
+def compare(
+    scenario: Annotated[str, typer.Argument(help="Scenario TOML path or preset name.")],
+    policies: Annotated[
+        str, typer.Option("--policies", help="Comma-separated policy names.")
+    ] = "greedy,hgad",
+    out: Annotated[Path | None, typer.Option("--out", help="Folder to write.")] = None,
+) -> None:
+    """Run one scenario under several policies on identical signal draws."""
+    from skymule.policies import POLICIES
+    from skymule.runner import simulate
+    from skymule.scenario import load_scenario
+    from skymule.world import build_mission
+
+    names = [p.strip() for p in policies.split(",") if p.strip()]
+    unknown = [p for p in names if p not in POLICIES]
+    if not names or unknown:
+        raise SkymuleError(
+            f"--policies {policies!r}: unknown {', '.join(unknown) or '(empty)'}; "
+            f"allowed: {', '.join(sorted(POLICIES))}"
+        )
+    base = load_scenario(scenario)
+    mission = build_mission(base)
+    rows = []
+    for name in names:
+        result = simulate(base, name, mission=mission)
+        if out is not None:
+            result.write(out / name)
+        rows.append(_flat(result.summary))
+    table = pd.DataFrame(rows)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        table.to_csv(out / "comparison.csv", index=False)
+    console.print(_table(f"{base.name}: comparison", rows, SUMMARY_COLUMNS))
+    if out is not None:
+        console.print(f"wrote {out}/comparison.csv and one folder per policy")
+
+
+def _flat(summary: dict) -> dict:
+    row = {k: v for k, v in summary.items() if not isinstance(v, dict | list)}
+    for name, value in summary["per_sensor_downloaded_mbit"].items():
+        row[f"downloaded_mbit_{name}"] = value
+    return row
+
+
+@app.command()
+def plot(
+    run_dir: Annotated[Path, typer.Argument(help="A run folder (or compare folder).")],
+) -> None:
+    """Draw a run's figures from its files (never re-simulates)."""
+    from skymule.report.figures import plot_run
+    from skymule.runio import is_run_dir, read_run
+
+    folders = (
+        [run_dir]
+        if is_run_dir(run_dir)
+        else sorted(p for p in run_dir.iterdir() if p.is_dir() and is_run_dir(p))
+        if run_dir.is_dir()
+        else []
+    )
+    if not folders:
+        read_run(run_dir)  # raises the clear "not a run folder" error
+    for folder in folders:
+        summary, slots = read_run(folder)
+        for path in plot_run(folder, summary, slots):
+            console.print(f"wrote {path}")
+
+
+@app.command()
+def scenarios() -> None:
+    """List the built-in scenario presets."""
+    from skymule.scenario import load_scenario, preset_names
+
+    table = Table(title="built-in scenarios")
+    table.add_column("name")
+    table.add_column("mode")
+    table.add_column("source")
+    table.add_column("duration [s]", justify="right")
+    table.add_column("sensors")
+    for name in preset_names():
+        spec = load_scenario(name)
+        table.add_row(
+            name,
+            spec.trajectory.mode,
+            spec.signal.source,
+            _fmt(spec.mission.duration_s),
+            ", ".join(f"{s.name}:{s.buffer_mbit:g}" for s in spec.sensors),
+        )
+    console.print(table)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point: run the app, turning user mistakes into one line and exit status 2.
+
+    Click handles bad flags itself (usage line, exit 2); library errors that are the
+    user's doing arrive as SkymuleError.
+    """
+    try:
+        app(args=argv)
+    except SkymuleError as exc:
+        print(f"skymule: error: {exc}", file=sys.stderr)
+        sys.exit(2)
+    except KeyboardInterrupt:
+        print("skymule: interrupted", file=sys.stderr)
+        sys.exit(130)

@@ -1,0 +1,86 @@
+"""The policy contract: observations in, actions out.
+
+A policy sees a :class:`MissionContext` once per mission (``reset``) and an
+:class:`Observation` every slot (``act``) and returns an :class:`Action`. It never touches
+engine state: buffers, position and the clock belong to the engine.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class MissionContext:
+    """What a policy may know before the mission starts.
+
+    Attributes:
+        sensor_names: the N sensor names, in index order.
+        slot_s: slot length [s].
+        n_slots: number of slots T.
+        buffers_bit: (N,) initial buffers [bit].
+        peak_rate_bps: (N,) largest rate each sensor reaches over the historical data (the
+            whole recorded trace, or the nominal path sampled at slot_s) [bit/s].
+        mode: "fixed" or "autonomous".
+        sensor_m: (N, 3) sensor antenna positions [m] (NaN where unknown).
+    """
+
+    sensor_names: tuple[str, ...]
+    slot_s: float
+    n_slots: int
+    buffers_bit: np.ndarray
+    peak_rate_bps: np.ndarray
+    mode: str
+    sensor_m: np.ndarray
+
+
+@dataclass(frozen=True)
+class Observation:
+    """What the UAV knows at the start of slot ``slot``.
+
+    Attributes:
+        slot: slot index t.
+        position_m: (3,) UAV position r_t [m].
+        snr_db: (N,) SNR to each sensor at r_t [dB] (-inf where there is no link).
+        rate_bps: (N,) rate to each sensor at r_t [bit/s].
+        remaining_bit: (N,) data left in each buffer at the start of the slot [bit].
+    """
+
+    slot: int
+    position_m: np.ndarray
+    snr_db: np.ndarray
+    rate_bps: np.ndarray
+    remaining_bit: np.ndarray
+
+
+@dataclass(frozen=True)
+class Action:
+    """What the UAV does in a slot.
+
+    Attributes:
+        serve: index of the sensor to download from, or None.
+        hover: True to stay where it is after this slot (fixed trajectories: do not advance).
+        goto_m: autonomous trajectories: the point (x, y) [m] to fly toward, or None to stay.
+    """
+
+    serve: int | None
+    hover: bool = False
+    goto_m: tuple[float, float] | None = None
+
+
+class Policy(Protocol):
+    """A per-mission decision maker. Create a fresh one (or ``reset``) for every mission."""
+
+    name: str
+
+    def reset(self, context: MissionContext) -> None: ...
+
+    def act(self, observation: Observation) -> Action: ...
+
+
+def slot_download_bit(observation: Observation, sensor: int, slot_s: float) -> float:
+    """Bits sensor ``sensor`` would deliver this slot: min(R * dt, Q) (the slot contract)."""
+    return float(min(observation.rate_bps[sensor] * slot_s, observation.remaining_bit[sensor]))

@@ -1,0 +1,46 @@
+"""One call from scenario to results: build the mission, run the policy, summarise."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from skymule.engine import MissionLog, run_mission
+from skymule.metrics import summarize
+from skymule.policies import make_policy
+from skymule.runio import slots_frame, write_run
+from skymule.scenario import Scenario
+from skymule.world import Mission, build_mission
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """A finished mission: what was run, what happened, and its summary."""
+
+    mission: Mission
+    log: MissionLog
+    summary: dict[str, Any]
+
+    def write(self, out_dir: Path) -> None:
+        """Write the run folder (summary.json, slots.csv, scenario.json)."""
+        write_run(
+            out_dir,
+            self.summary,
+            slots_frame(self.log, self.mission.frame),
+            self.mission.scenario.to_toml_dict(),
+        )
+
+
+def simulate(
+    scenario: Scenario, policy: str | None = None, mission: Mission | None = None
+) -> RunResult:
+    """Run ``scenario`` under its own policy, or under ``policy`` (a registry name).
+
+    Pass a prebuilt ``mission`` to compare several policies on identical signal draws.
+    """
+    if policy is not None:
+        scenario = scenario.with_policy(policy)
+    mission = build_mission(scenario) if mission is None else replace(mission, scenario=scenario)
+    log = run_mission(mission, make_policy(scenario.policy))
+    return RunResult(mission, log, summarize(log, scenario.name))

@@ -65,7 +65,7 @@ def write_run(
 ) -> None:
     """Write a run folder (creating it)."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    _atomic_write(out_dir / SLOTS_FILE, slots.to_csv(index=False, float_format="%.6g"))
+    _atomic_write(out_dir / SLOTS_FILE, slots.to_csv(index=False, float_format="%.10g"))
     _atomic_write(out_dir / SCENARIO_FILE, json.dumps(scenario, indent=2))
     _atomic_write(out_dir / SUMMARY_FILE, json.dumps(summary, indent=2))
 

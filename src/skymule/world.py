@@ -205,3 +205,54 @@ def build_mission(scenario: Scenario) -> Mission:
         source=source,
         track=track,
     )
+
+
+def mission_from_track(
+    track: Track,
+    buffers_mbit: list[float] | np.ndarray,
+    *,
+    n_slots: int,
+    slot_s: float = 1.0,
+    sensor_names: tuple[str, ...] | None = None,
+    bandwidth_hz: float = 1.4e6,
+    rate_table: str = "aadm-lte-cqi",
+    policy: str = "hgad",
+    hover_threshold: float = 1.0,
+    max_hover_s: float = 60.0,
+) -> Mission:
+    """A fixed-trajectory mission straight from a track (no scenario file, no geodesy).
+
+    Handy for experiments and tests: the track's SNR is what the UAV observes.
+    """
+    n_sensors = track.snr_db.shape[1]
+    names = sensor_names or tuple(f"S{i + 1}" for i in range(n_sensors))
+    scenario = Scenario.model_validate(
+        {
+            "name": "track",
+            "mission": {"duration_s": n_slots * slot_s, "slot_s": slot_s},
+            "sensors": [
+                {"name": n, "buffer_mbit": float(b)}
+                for n, b in zip(names, buffers_mbit, strict=True)
+            ],
+            "radio": {"bandwidth_hz": bandwidth_hz, "rate_table": rate_table},
+            "policy": {
+                "name": policy,
+                "hover_threshold": hover_threshold,
+                "max_hover_s": max_hover_s,
+            },
+        }
+    )
+    return Mission(
+        scenario=scenario,
+        frame=LocalFrame(scenario.site.origin.lat, scenario.site.origin.lon),
+        fence=None,
+        sensor_names=names,
+        sensor_m=np.full((n_sensors, 3), np.nan),
+        buffers_bit=np.asarray(buffers_mbit, float) * BITS_PER_MBIT,
+        slot_s=slot_s,
+        n_slots=n_slots,
+        rate_table=resolve_rate_table(rate_table),
+        bandwidth_hz=bandwidth_hz,
+        source=None,
+        track=track,
+    )

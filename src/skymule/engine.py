@@ -13,7 +13,7 @@ Faster engines (batched over missions) must agree with this one value for value.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -42,6 +42,10 @@ class MissionLog:
         downloaded_bit: (T',) bits downloaded in each slot.
         remaining_bit: (T', N) buffers after each slot's download [bit].
         hovering: (T',) True where the UAV held its position after the slot by choice.
+        home_m: (2,) home point [m] (trajectory.home or the site origin), or None.
+        hover_points_m: (N, 2) point inside the geofence each sensor is served from [m]
+            (NaN where unknown), or None.
+        visit_radius_m: a sensor counts as visited within this distance of its hover point [m].
     """
 
     policy: str
@@ -56,6 +60,9 @@ class MissionLog:
     downloaded_bit: np.ndarray
     remaining_bit: np.ndarray
     hovering: np.ndarray
+    home_m: np.ndarray | None = None
+    hover_points_m: np.ndarray | None = None
+    visit_radius_m: float = 50.0
 
     @property
     def n_slots(self) -> int:
@@ -147,9 +154,14 @@ def run_fixed(mission: Mission, policy: Policy) -> MissionLog:
 
 
 def run_mission(mission: Mission, policy: Policy) -> MissionLog:
-    """Run one mission under ``policy`` (fixed trajectories; autonomous ones when supported)."""
+    """Run one mission under ``policy`` (fixed or autonomous trajectory)."""
+    # imported here: engine_autonomous builds on this module
+    from skymule.engine_autonomous import fixed_geometry_fields, run_autonomous
+
     if mission.scenario.trajectory.mode == "fixed":
-        return run_fixed(mission, policy)
+        return replace(run_fixed(mission, policy), **fixed_geometry_fields(mission))
+    if mission.scenario.trajectory.mode == "autonomous":
+        return run_autonomous(mission, policy)
     raise SkymuleError(
         f"trajectory.mode = {mission.scenario.trajectory.mode!r} is not supported yet; "
         "allowed: fixed"

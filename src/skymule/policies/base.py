@@ -8,9 +8,12 @@ engine state: buffers, position and the clock belong to the engine.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from skymule.flight.navigation import Navigator
 
 
 @dataclass(frozen=True)
@@ -26,6 +29,14 @@ class MissionContext:
             whole recorded trace, or the nominal path sampled at slot_s) [bit/s].
         mode: "fixed" or "autonomous".
         sensor_m: (N, 3) sensor antenna positions [m] (NaN where unknown).
+        hover_points_m: autonomous: (N, 2) point inside the geofence closest to each sensor,
+            where the UAV serves it from [m] (NaN where unknown); None on fixed paths.
+        home_m: autonomous: (2,) home point [m]; None on fixed paths.
+        max_step_m: autonomous: longest move in one slot, max_speed_mps * slot_s [m].
+        visit_radius_m: autonomous: a sensor counts as visited within this distance of its
+            hover point [m].
+        navigator: autonomous: in-fence shortest paths (read-only use: ``travel_distance``,
+            ``shortest_path``); None on fixed paths.
     """
 
     sensor_names: tuple[str, ...]
@@ -35,6 +46,11 @@ class MissionContext:
     peak_rate_bps: np.ndarray
     mode: str
     sensor_m: np.ndarray
+    hover_points_m: np.ndarray | None = None
+    home_m: np.ndarray | None = None
+    max_step_m: float = 0.0
+    visit_radius_m: float = 50.0
+    navigator: Navigator | None = None
 
 
 @dataclass(frozen=True)

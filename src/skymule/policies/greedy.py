@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from skymule.policies.autonomous import GreedyTour
 from skymule.policies.base import Action, MissionContext, Observation
 
 
@@ -16,12 +17,23 @@ def greedy_choice(snr_db: np.ndarray, remaining_bit: np.ndarray) -> int | None:
 
 
 class Greedy:
-    """Serve argmax SNR among sensors with data; never hover."""
+    """Serve argmax SNR among sensors with data; never hover.
+
+    On an autonomous trajectory it also steers: a nearest-first tour of the hover points,
+    then home (paper Alg. 1; see :mod:`skymule.policies.autonomous`).
+    """
 
     name = "greedy"
 
+    def __init__(self) -> None:
+        self._tour: GreedyTour | None = None
+
     def reset(self, context: MissionContext) -> None:
-        """Greedy keeps no state."""
+        """Fixed paths: no state. Autonomous: a fresh tour."""
+        self._tour = GreedyTour(context) if context.mode == "autonomous" else None
 
     def act(self, observation: Observation) -> Action:
-        return Action(serve=greedy_choice(observation.snr_db, observation.remaining_bit))
+        serve = greedy_choice(observation.snr_db, observation.remaining_bit)
+        if self._tour is None:
+            return Action(serve=serve)
+        return Action(serve=serve, goto_m=self._tour.goto(observation))

@@ -11,12 +11,16 @@ Follows the slot contract in DESIGN.md exactly (the paper's Section IV-B as we p
 * while hovering, serve that sensor and count dt off the budget; the hover ends after the slot
   in which the budget reaches 0 or the buffer empties, and the sensor then cools down;
 * the trigger slot and every hover slot keep the UAV where it is.
+
+On an autonomous trajectory it follows the paper's Alg. 2 instead (buffer-priority tour,
+hovering at each target's hover point; see :mod:`skymule.policies.autonomous`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from skymule.policies.autonomous import HGADTour, Priority
 from skymule.policies.base import Action, MissionContext, Observation, slot_download_bit
 
 
@@ -38,9 +42,16 @@ class HGAD:
 
     name = "hgad"
 
-    def __init__(self, hover_threshold: float = 1.0, max_hover_s: float = 60.0) -> None:
+    def __init__(
+        self,
+        hover_threshold: float = 1.0,
+        max_hover_s: float = 60.0,
+        priority: Priority = "initial",
+    ) -> None:
         self.hover_threshold = hover_threshold
         self.max_hover_s = max_hover_s
+        self.priority: Priority = priority
+        self._tour: HGADTour | None = None
         self._slot_s = 1.0
         self._threshold_bps = np.zeros(0)
         self._peak_bps = np.zeros(0)
@@ -55,9 +66,14 @@ class HGAD:
         self._cooling = np.zeros(len(self._peak_bps), bool)
         self._hover_sensor = None
         self._budget_s = 0.0
+        autonomous = context.mode == "autonomous"
+        self._tour = HGADTour(context, self.max_hover_s, self.priority) if autonomous else None
 
     def act(self, observation: Observation) -> Action:
         rate = observation.rate_bps
+        if self._tour is not None:
+            en_route = hgad_choice(rate, observation.snr_db, observation.remaining_bit)
+            return self._tour.act(observation, en_route)
         self._cooling &= ~(rate < self._threshold_bps)
 
         if self._hover_sensor is not None:

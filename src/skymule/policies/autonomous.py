@@ -1,0 +1,139 @@
+"""Autonomous navigation for Greedy (paper Alg. 1) and HGAD (paper Alg. 2).
+
+Both steer by returning ``Action.goto_m``; the engine moves the UAV at most
+``max_speed_mps * slot_s`` per slot along the in-fence shortest path and enforces the
+geofence and the return-home deadline, so these tours only decide *where to go next*.
+
+Greedy (Alg. 1; Hossen et al.'s framework): tour the sensors nearest-first (smallest in-fence
+travel distance from where the UAV is to a hover point), a sensor counting as visited once
+the UAV is within ``visit_radius_m`` of its hover point; never hover; every slot serve the
+highest-SNR sensor with data; after the tour, or once every buffer is empty, fly home.
+
+HGAD (Alg. 2): fly at full speed to the hover point of the target sensor, serving the
+highest-rate sensor with data on the way (opportunistic download); at the hover point hover
+and serve the target for T_hover = min(Q_i / R*_i, max_hover_s) (R*_i the rate at that hover
+point, eq. (3) of the paper), then go to the next target; once every buffer is empty, fly
+home. Targets are taken in *priority by buffer*: the order of the initial buffers, largest
+first (paper Table II, column "Priority by buffer"; Alg. 2 line "a sensor i has higher data
+buffer"), skipping sensors whose buffer is already empty. Ranking by the data *left* instead
+(``priority="remaining"``) lets opportunistic downloads en route reorder the tour and does not
+reproduce the Table II orders (see ``tests/test_autonomous.py``). When every sensor with data
+has been hovered over once and data is left, a new round starts.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+
+from skymule.policies.base import Action, MissionContext, Observation, slot_download_bit
+
+Priority = Literal["initial", "remaining"]
+
+
+def _xy(point: np.ndarray) -> tuple[float, float]:
+    return (float(point[0]), float(point[1]))
+
+
+def _require(context: MissionContext) -> tuple[np.ndarray, np.ndarray]:
+    if context.hover_points_m is None or context.home_m is None or context.navigator is None:
+        raise ValueError("autonomous policies need hover_points_m, home_m and navigator")
+    return context.hover_points_m, context.home_m
+
+
+class GreedyTour:
+    """Nearest-first tour of hover points, serving argmax SNR (Alg. 1)."""
+
+    def __init__(self, context: MissionContext) -> None:
+        self._hover, self._home = _require(context)
+        self._navigator = context.navigator
+        self._radius_m = context.visit_radius_m
+        self._known = np.all(np.isfinite(self._hover), axis=1)
+        self._visited = ~self._known
+        self._target: int | None = None
+
+    def _nearest(self, position: tuple[float, float], pending: np.ndarray) -> int:
+        assert self._navigator is not None
+        candidates = np.flatnonzero(pending)
+        distances = [
+            self._navigator.travel_distance(position, _xy(self._hover[i])) for i in candidates
+        ]
+        return int(candidates[int(np.argmin(distances))])
+
+    def goto(self, observation: Observation) -> tuple[float, float]:
+        """Where to fly this slot [m]: the current tour target's hover point, or home."""
+        position = _xy(observation.position_m)
+        offset = np.where(self._known[:, None], self._hover - observation.position_m[:2], np.inf)
+        self._visited |= np.hypot(offset[:, 0], offset[:, 1]) <= self._radius_m
+        pending = ~self._visited & (observation.remaining_bit > 0)
+        if not pending.any():
+            return _xy(self._home)
+        if self._target is None or not pending[self._target]:
+            self._target = self._nearest(position, pending)
+        return _xy(self._hover[self._target])
+
+
+class HGADTour:
+    """Buffer-priority tour with hovering at each target's hover point (Alg. 2)."""
+
+    def __init__(
+        self, context: MissionContext, max_hover_s: float, priority: Priority = "initial"
+    ) -> None:
+        self._hover, self._home = _require(context)
+        self._peak_bps = np.asarray(context.peak_rate_bps, float)
+        self._slot_s = context.slot_s
+        self._max_hover_s = max_hover_s
+        self._priority = priority
+        # stable sort: equal buffers go to the lower index first
+        self._order = np.argsort(-np.asarray(context.buffers_bit, float), kind="stable")
+        self._known = np.all(np.isfinite(self._hover), axis=1)
+        self._hovered = np.zeros(len(self._peak_bps), bool)
+        self._target: int | None = None
+        self._hovering = False
+        self._budget_s = 0.0
+
+    def _next_target(self, remaining: np.ndarray) -> int | None:
+        candidates = self._known & (remaining > 0) & ~self._hovered
+        if not candidates.any():
+            self._hovered[:] = False  # every sensor with data hovered over once: new round
+            candidates = self._known & (remaining > 0)
+        if not candidates.any():
+            return None
+        if self._priority == "remaining":
+            return int(np.argmax(np.where(candidates, remaining, -np.inf)))
+        return int(next(i for i in self._order if candidates[i]))
+
+    def _hover_slot(self, observation: Observation, sensor: int) -> Action:
+        """Serve ``sensor`` without moving; end the hover when the budget or buffer runs out."""
+        self._budget_s -= self._slot_s
+        left = observation.remaining_bit[sensor] - slot_download_bit(
+            observation, sensor, self._slot_s
+        )
+        if self._budget_s <= 1e-12 or left <= 0:
+            self._hovering = False
+            self._hovered[sensor] = True
+            self._target = None
+        return Action(serve=sensor, hover=True, goto_m=None)
+
+    def act(self, observation: Observation, en_route_serve: int | None) -> Action:
+        remaining = observation.remaining_bit
+        if not np.any(remaining > 0):
+            return Action(serve=None, goto_m=_xy(self._home))
+        if self._hovering and self._target is not None:
+            return self._hover_slot(observation, self._target)
+        if self._target is None or remaining[self._target] <= 0:
+            self._target = self._next_target(remaining)
+        if self._target is None:
+            return Action(serve=en_route_serve, goto_m=_xy(self._home))
+        target = self._target
+        goal = _xy(self._hover[target])
+        if _xy(observation.position_m) == goal:
+            if self._peak_bps[target] <= 0:
+                self._hovered[target] = True  # nothing to gain here: move on
+                self._target = None
+                return Action(serve=en_route_serve, goto_m=None)
+            self._hovering = True
+            self._budget_s = min(remaining[target] / self._peak_bps[target], self._max_hover_s)
+            return self._hover_slot(observation, target)
+        return Action(serve=en_route_serve, goto_m=goal)

@@ -88,12 +88,28 @@ class RadioSpec(_Spec):
     """log-distance: reference distance d0 [m]."""
     reference_loss_db: float | None = None
     """log-distance: loss at d0 [dB]; default free space at d0."""
+    ground_reflection: Annotated[float, Field(ge=-1, le=1)] = -1.0
+    """two-ray: ground reflection coefficient Gamma (-1: perfect reflector, grazing)."""
+    environment: Literal["suburban", "urban", "dense-urban", "high-rise-urban"] = "suburban"
+    """al-hourani: built-up environment (Al-Hourani et al. 2014, Table I)."""
+    shadowing_std_db: Annotated[float, Field(ge=0, le=30)] = 0.0
+    """Log-normal shadowing standard deviation [dB] (0: none); model sources only."""
+    shadowing_decorrelation_m: PositiveFloat = 50.0
+    """Shadowing decorrelation distance d_corr [m] (Gudmundson: rho(d) = exp(-d / d_corr))."""
+    fading: Literal["none", "rician", "rayleigh"] = "none"
+    """Small-scale fading, drawn per slot and sensor."""
+    rician_k_db: Annotated[float, Field(ge=-30, le=40)] = 10.0
+    """rician: K factor [dB] (power of the specular part over the scattered part)."""
 
 
 class SignalSpec(_Spec):
-    source: Literal["model", "trace"] = "model"
+    source: Literal["model", "trace", "radiomap"] = "model"
     trace: str | None = None
     """Recorded flight (AADM merged log or digital-twin export)."""
+    traces: list[str] | None = None
+    """radiomap: recorded flights to fit the radio map to."""
+    map: str | None = None
+    """radiomap: a map fitted earlier (``skymule fit-radiomap ... --out map.json``)."""
     sensors_from_trace: list[str] | None = None
     """Trace SNR column for each scenario sensor, in sensor order (default: by name)."""
 
@@ -101,6 +117,11 @@ class SignalSpec(_Spec):
     def _trace_given(self) -> SignalSpec:
         if self.source == "trace" and not self.trace:
             raise ValueError("source = 'trace' needs trace = 'FILE.csv'")
+        if self.source == "radiomap" and bool(self.traces) == bool(self.map):
+            raise ValueError(
+                "source = 'radiomap' needs either traces = ['FLIGHT.csv', ...] or "
+                "map = 'map.json' (exactly one of them)"
+            )
         return self
 
 

@@ -14,7 +14,15 @@ from typing import Protocol
 import numpy as np
 
 from skymule.errors import ScenarioError
-from skymule.radio.pathloss import FreeSpace, LogDistance, PathLossModel
+from skymule.radio.pathloss import (
+    AL_HOURANI_ENVIRONMENTS,
+    Aerial3GPP,
+    AlHourani,
+    FreeSpace,
+    LogDistance,
+    PathLossModel,
+    TwoRay,
+)
 from skymule.scenario import RadioSpec
 
 
@@ -63,7 +71,31 @@ def _log_distance(radio: RadioSpec) -> PathLossModel:
     )
 
 
-PATHLOSS_BUILDERS = {"fspl": _fspl, "free-space": _fspl, "log-distance": _log_distance}
+def _two_ray(radio: RadioSpec) -> PathLossModel:
+    return TwoRay(radio.frequency_hz, reflection=radio.ground_reflection)
+
+
+def _al_hourani(radio: RadioSpec) -> PathLossModel:
+    return AlHourani(radio.frequency_hz, AL_HOURANI_ENVIRONMENTS[radio.environment])
+
+
+def _rma_av(radio: RadioSpec) -> PathLossModel:
+    return Aerial3GPP(radio.frequency_hz, "rma")
+
+
+def _uma_av(radio: RadioSpec) -> PathLossModel:
+    return Aerial3GPP(radio.frequency_hz, "uma")
+
+
+PATHLOSS_BUILDERS = {
+    "fspl": _fspl,
+    "free-space": _fspl,
+    "log-distance": _log_distance,
+    "two-ray": _two_ray,
+    "al-hourani": _al_hourani,
+    "3gpp-rma-av": _rma_av,
+    "3gpp-uma-av": _uma_av,
+}
 """Path-loss model registry: ``[radio] model`` name -> builder from the radio section."""
 
 

@@ -1,0 +1,41 @@
+"""Slots simulated per second by the reference single-mission engine on the presets.
+
+Run: python benchmarks/bench_single.py [--repeat N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+from skymule.engine import run_mission
+from skymule.policies import make_policy
+from skymule.scenario import load_scenario
+from skymule.world import build_mission
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--repeat", type=int, default=50)
+    args = parser.parse_args()
+    for preset in ("paper-sim-fixed", "aadm-default"):
+        scenario = load_scenario(preset)
+        start = time.perf_counter()
+        mission = build_mission(scenario)
+        build_s = time.perf_counter() - start
+        for policy in ("greedy", "hgad"):
+            spec = scenario.with_policy(policy).policy
+            slots = 0
+            start = time.perf_counter()
+            for _ in range(args.repeat):
+                slots += run_mission(mission, make_policy(spec)).n_slots
+            elapsed = time.perf_counter() - start
+            print(
+                f"{preset:16s} {policy:7s} {slots / elapsed:10,.0f} slots/s "
+                f"({elapsed / args.repeat * 1e3:.1f} ms per {slots // args.repeat}-slot mission; "
+                f"build {build_s * 1e3:.1f} ms)"
+            )
+
+
+if __name__ == "__main__":
+    main()

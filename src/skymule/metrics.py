@@ -6,9 +6,16 @@ from typing import Any
 
 import numpy as np
 
+from skymule.energy import propulsion_power_w
 from skymule.engine import NO_SENSOR, MissionLog
 
 BITS_PER_MBIT = 1e6
+
+#: AADM challenge scoring (AERPAW AADM rules): mission reference time [s], landing
+#: tolerance [m] and penalty per metre beyond it.
+AADM_REFERENCE_S = 600.0
+AADM_LANDING_TOLERANCE_M = 3.0
+AADM_PENALTY_PER_M = 20.0
 
 
 def step_lengths_m(log: MissionLog) -> np.ndarray:
@@ -26,6 +33,78 @@ def handovers(served: np.ndarray) -> int:
 def per_sensor_downloaded_bit(log: MissionLog) -> np.ndarray:
     """(N,) bits downloaded from each sensor."""
     return log.buffers_bit - (log.remaining_bit[-1] if log.n_slots else log.buffers_bit)
+
+
+def speed_mps(log: MissionLog) -> np.ndarray:
+    """(T',) horizontal-plus-vertical speed flown during each slot [m/s]."""
+    return step_lengths_m(log) / log.slot_s
+
+
+def power_w(log: MissionLog) -> np.ndarray:
+    """(T',) rotary-wing propulsion power in each slot [W] (Zeng, Xu & Zhang 2019, eq. 12)."""
+    return np.asarray(propulsion_power_w(speed_mps(log)), float).reshape(-1)
+
+
+def energy_j(log: MissionLog) -> float:
+    """Propulsion energy of the mission [J]: sum over slots of P(V_t) * slot_s."""
+    return float(power_w(log).sum() * log.slot_s)
+
+
+def distance_to_home_m(log: MissionLog) -> float:
+    """Horizontal distance from the UAV's end position to home [m] (NaN without a home)."""
+    if log.home_m is None:
+        return float("nan")
+    return float(np.hypot(*(log.end_position_m[:2] - log.home_m)))
+
+
+def visit_order(log: MissionLog) -> list[str]:
+    """Sensor names in the order they were first visited.
+
+    A run in which the UAV hovered while serving (HGAD) counts a sensor as visited at the
+    first slot it hovered serving it; otherwise (Greedy never hovers) at the first slot the
+    UAV was within ``visit_radius_m`` of the sensor's hover point.
+    """
+    n_sensors = len(log.sensor_names)
+    hovered = log.hovering & (log.served != NO_SENSOR)
+    if hovered.any():
+        hits = hovered[:, None] & (log.served[:, None] == np.arange(n_sensors)[None, :])
+    elif log.hover_points_m is not None and log.n_slots:
+        offset = log.position_m[:, None, :2] - log.hover_points_m[None, :, :]
+        hits = np.hypot(offset[..., 0], offset[..., 1]) <= log.visit_radius_m  # NaN -> False
+    else:
+        return []
+    first = np.where(hits.any(axis=0), hits.argmax(axis=0), log.n_slots)
+    order = [int(i) for i in np.argsort(first, kind="stable") if first[i] < log.n_slots]
+    return [log.sensor_names[i] for i in order]
+
+
+def completion_time_s(log: MissionLog) -> float | None:
+    """End of the slot in which the last buffered bit was downloaded [s]; None if never."""
+    if not log.n_slots:
+        return 0.0 if not log.buffers_bit.any() else None
+    empty = np.flatnonzero(log.remaining_bit.sum(axis=1) <= 0)
+    if not log.buffers_bit.any():
+        return 0.0
+    return float((empty[0] + 1) * log.slot_s) if empty.size else None
+
+
+def aadm_score(log: MissionLog) -> float:
+    """The AADM challenge score.
+
+    100 * downloaded / total, plus max(0, 600 - t) when every buffer was emptied by time t,
+    minus 20 per metre the UAV ends more than 3 m from home (no penalty without a home).
+    The completion bonus is clipped at 0 so that finishing late never scores below not
+    finishing.
+    """
+    total = float(log.buffers_bit.sum())
+    score = 100.0 * float(log.downloaded_bit.sum()) / total if total > 0 else 100.0
+    done = completion_time_s(log)
+    if done is not None:
+        score += max(0.0, AADM_REFERENCE_S - done)
+    distance = distance_to_home_m(log)
+    if np.isfinite(distance):
+        score -= AADM_PENALTY_PER_M * max(0.0, distance - AADM_LANDING_TOLERANCE_M)
+    return float(score)
 
 
 def summarize(log: MissionLog, scenario_name: str) -> dict[str, Any]:
@@ -52,4 +131,9 @@ def summarize(log: MissionLog, scenario_name: str) -> dict[str, Any]:
         "handovers": handovers(log.served),
         "hover_time_s": float(np.count_nonzero(log.hovering) * log.slot_s),
         "distance_m": float(step_lengths_m(log).sum()),
+        "energy_kj": energy_j(log) / 1e3,
+        "visit_order": visit_order(log),
+        "landed_at_home": bool(distance_to_home_m(log) <= AADM_LANDING_TOLERANCE_M),
+        "distance_to_home_m": distance_to_home_m(log),
+        "aadm_score": aadm_score(log),
     }

@@ -17,7 +17,7 @@ import pandas as pd
 from skymule.engine import NO_SENSOR, MissionLog
 from skymule.errors import SkymuleError
 from skymule.geo import LocalFrame
-from skymule.metrics import BITS_PER_MBIT, step_lengths_m
+from skymule.metrics import BITS_PER_MBIT, power_w, speed_mps, step_lengths_m
 
 SUMMARY_FILE = "summary.json"
 SLOTS_FILE = "slots.csv"
@@ -50,6 +50,8 @@ def slots_frame(log: MissionLog, frame: LocalFrame) -> pd.DataFrame:
     columns["downloaded_mbit"] = log.downloaded_bit / BITS_PER_MBIT
     columns["hovering"] = log.hovering.astype(int)
     columns["distance_m"] = np.cumsum(step_lengths_m(log))
+    columns["speed_mps"] = speed_mps(log)
+    columns["power_w"] = power_w(log)
     return pd.DataFrame(columns)
 
 

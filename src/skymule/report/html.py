@@ -1,0 +1,322 @@
+"""``skymule report DIR``: one self-contained HTML file from a run or compare folder.
+
+The report reads the folder's files only (summary.json, slots.csv, scenario.json,
+comparison.csv). Every figure is drawn with matplotlib in the paper style, written to
+``DIR/figures/<name>.png`` and ``.pdf`` and embedded in ``DIR/report.html`` as a base64 PNG;
+the interactive trajectory view is inline SVG + inline JS. Nothing is fetched: the file works
+offline and can be mailed around.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+from matplotlib.axes import Axes
+
+from skymule.report.figures import draw_cumulative_download, draw_snr_cdf
+from skymule.report.inputs import (
+    ReportInput,
+    RunData,
+    ScoreBreakdown,
+    load_input,
+    score_breakdown,
+)
+from skymule.report.interactive import SCRIPT, payload_script, trajectory_svg
+from skymule.report.panels import (
+    draw_flight_map,
+    draw_policy_bars,
+    draw_remaining,
+    draw_score,
+    draw_snr_time,
+)
+from skymule.report.style import paper_style, save_figure
+
+REPORT_FILE = "report.html"
+FIGURES_DIR = "figures"
+
+
+@dataclass(frozen=True)
+class PanelSpec:
+    """A per-run figure: one panel per run, runs side by side in a compare report."""
+
+    key: str
+    title: str
+    caption: str
+    draw: Callable[[Axes, RunData], object]
+    size_in: tuple[float, float]
+
+
+PER_RUN_PANELS: tuple[PanelSpec, ...] = (
+    PanelSpec(
+        "trajectory",
+        "Trajectory",
+        "Flown path over the geofence (dashed) and towers (triangles), coloured by the sensor "
+        "served; circles are hover points (larger: longer), the star is home.",
+        lambda ax, run: draw_flight_map(ax, run, run.label),
+        (5.5, 5.0),
+    ),
+    PanelSpec(
+        "download",
+        "Cumulative download",
+        "Data downloaded from each sensor by the end of every slot; distance flown on the "
+        "right axis.",
+        lambda ax, run: draw_cumulative_download(ax, run.slots, run.label),
+        (6.0, 3.8),
+    ),
+    PanelSpec(
+        "remaining",
+        "Remaining data",
+        "Data left in each sensor's buffer at the end of every slot.",
+        lambda ax, run: draw_remaining(ax, run, run.label),
+        (6.0, 3.5),
+    ),
+    PanelSpec(
+        "snr",
+        "SNR over time",
+        "SNR to each sensor at the start of every slot; thick where that sensor is served.",
+        lambda ax, run: draw_snr_time(ax, run, run.label),
+        (6.0, 3.5),
+    ),
+    PanelSpec(
+        "snr-cdf",
+        "SNR distribution",
+        "Empirical CDF of the SNR to each sensor over the mission.",
+        lambda ax, run: draw_snr_cdf(ax, run.slots, run.label),
+        (5.0, 3.5),
+    ),
+)
+
+STYLE = """
+body{font-family:system-ui,-apple-system,"Segoe UI",sans-serif;margin:0 auto;max-width:1200px;
+padding:1rem 1.5rem;color:#222;line-height:1.4}
+h1{font-size:1.5rem;margin-bottom:.2rem}h2{font-size:1.15rem;border-bottom:1px solid #ddd;
+padding-bottom:.2rem;margin-top:2rem}nav a{margin-right:.8rem}
+table{border-collapse:collapse;font-size:.85rem;margin:.5rem 0}
+th,td{border:1px solid #ccc;padding:.2rem .5rem;text-align:right}th:first-child,td:first-child
+{text-align:left}figure{margin:.5rem 0}figure img{max-width:100%;height:auto}
+figcaption{font-size:.85rem;color:#555}pre{background:#f6f6f6;padding:.6rem;font-size:.75rem;
+max-height:24rem;overflow:auto}.views{display:flex;flex-wrap:wrap;gap:1rem}
+.view{border:1px solid #ddd;padding:.4rem}.tip{font-size:.8rem;min-height:2.4em;max-width:560px}
+svg.traj{background:#fff;cursor:crosshair;touch-action:none}.note{color:#a33}
+"""
+
+SUMMARY_FIELDS: tuple[tuple[str, str, str], ...] = (
+    ("total_downloaded_mbit", "downloaded [Mbit]", "{:.1f}"),
+    ("total_buffer_mbit", "buffer [Mbit]", "{:.1f}"),
+    ("completion", "completion", "{:.3f}"),
+    ("handovers", "handovers", "{:d}"),
+    ("hover_time_s", "hover [s]", "{:.0f}"),
+    ("distance_m", "distance [m]", "{:.0f}"),
+    ("mission_time_s", "mission time [s]", "{:.0f}"),
+    ("energy_kj", "energy [kJ]", "{:.1f}"),
+    ("landed_at_home", "landed at home", "{}"),
+    ("distance_to_home_m", "end distance to home [m]", "{:.1f}"),
+    ("aadm_score", "AADM score (run)", "{:.1f}"),
+)
+
+
+def _fmt(template: str, value: object) -> str:
+    try:
+        if template == "{:d}":
+            return str(int(value))  # type: ignore[call-overload]
+        return template.format(value)
+    except (TypeError, ValueError):
+        return html.escape(str(value))
+
+
+def _table(header: list[str], rows: list[list[str]], table_id: str) -> str:
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
+    body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>" for row in rows)
+    return f'<table id="{table_id}"><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>'
+
+
+def summary_table(runs: tuple[RunData, ...]) -> str:
+    """Key metrics, one column per run (only rows some run has)."""
+    fields = [f for f in SUMMARY_FIELDS if any(f[0] in r.summary for r in runs)]
+    rows = [
+        [html.escape(label)]
+        + [_fmt(fmt, r.summary[key]) if key in r.summary else "-" for r in runs]
+        for key, label, fmt in fields
+    ]
+    visit = [r for r in runs if "visit_order" in r.summary]
+    if visit:
+        rows.append(
+            ["visit order"]
+            + [html.escape(" → ".join(map(str, r.summary.get("visit_order", [])))) for r in runs]
+        )
+    return _table(["metric", *(r.label for r in runs)], rows, "summary-table")
+
+
+def sensor_table(runs: tuple[RunData, ...]) -> str:
+    """Buffer and downloaded data per sensor, one column per run."""
+    names = list(
+        dict.fromkeys(n for r in runs for n in r.summary.get("per_sensor_buffer_mbit", {}))
+    )
+    rows = []
+    for name in names:
+        buffer = runs[0].summary.get("per_sensor_buffer_mbit", {}).get(name)
+        rows.append(
+            [html.escape(name), _fmt("{:.1f}", buffer)]
+            + [
+                _fmt("{:.1f}", r.summary.get("per_sensor_downloaded_mbit", {}).get(name))
+                for r in runs
+            ]
+        )
+    header = ["sensor", "buffer [Mbit]", *(f"{r.label} [Mbit]" for r in runs)]
+    return _table(header, rows, "sensor-table")
+
+
+def score_table(runs: tuple[RunData, ...], scores: list[ScoreBreakdown]) -> str:
+    rows = [
+        ["100 x completion", *(f"{s.download_points:.1f}" for s in scores)],
+        [
+            "all data by [s]",
+            *("-" if s.completed_at_s is None else f"{s.completed_at_s:.0f}" for s in scores),
+        ],
+        ["time bonus (600 - t)", *(f"{s.time_bonus:.1f}" for s in scores)],
+        ["end distance to home [m]", *(f"{s.end_distance_m:.1f}" for s in scores)],
+        ["landing penalty (20/m beyond 3 m)", *(f"{s.landing_penalty:.1f}" for s in scores)],
+        ["score", *(f"<b>{s.total:.1f}</b>" for s in scores)],
+    ]
+    if any(s.reported is not None for s in scores):
+        rows.append(
+            [
+                "score in summary.json",
+                *("-" if s.reported is None else f"{s.reported:.1f}" for s in scores),
+            ]
+        )
+    return _table(["AADM score", *(r.label for r in runs)], rows, "score-table")
+
+
+def _img(png: Path, alt: str) -> str:
+    data = base64.b64encode(png.read_bytes()).decode("ascii")
+    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
+
+
+def _figure(key: str, png: Path, caption: str) -> str:
+    files = f"{FIGURES_DIR}/{png.name}, {FIGURES_DIR}/{png.with_suffix('.pdf').name}"
+    return (
+        f'<figure class="fig" data-fig="{key}">{_img(png, caption)}'
+        f"<figcaption>{html.escape(caption)} (files: {html.escape(files)})</figcaption></figure>"
+    )
+
+
+def render_panel(spec: PanelSpec, runs: tuple[RunData, ...], folder: Path) -> Path:
+    """Draw ``spec`` for every run side by side; returns the PNG path (PDF next to it)."""
+    width, height = spec.size_in
+    with paper_style():
+        fig, axes = plt.subplots(1, len(runs), figsize=(width * len(runs), height), squeeze=False)
+        for ax, run in zip(axes[0], runs, strict=True):
+            spec.draw(ax, run)
+        fig.tight_layout()
+        png, _ = save_figure(fig, folder, spec.key)
+    return png
+
+
+def render_bars(runs: tuple[RunData, ...], folder: Path) -> Path:
+    with paper_style():
+        fig, ax = plt.subplots(figsize=(max(4.0, 1.4 * len(runs) + 2), 3.8))
+        draw_policy_bars(ax, runs, "Downloaded data per policy")
+        png, _ = save_figure(fig, folder, "policies")
+    return png
+
+
+def render_score(runs: tuple[RunData, ...], scores: list[ScoreBreakdown], folder: Path) -> Path:
+    with paper_style():
+        fig, ax = plt.subplots(figsize=(max(4.0, 1.4 * len(runs) + 2), 3.5))
+        draw_score(ax, [r.label for r in runs], scores)
+        png, _ = save_figure(fig, folder, "score")
+    return png
+
+
+def _section(section_id: str, title: str, content: str) -> str:
+    return f'<section id="{section_id}"><h2>{html.escape(title)}</h2>{content}</section>'
+
+
+def _scenario_block(report: ReportInput) -> str:
+    first = report.runs[0]
+    intro = ""
+    if report.kind == "compare":
+        intro = (
+            f"<p>Scenario of <code>{html.escape(first.path.name)}</code>; the runs differ in "
+            f"policy: {html.escape(', '.join(r.label for r in report.runs))}.</p>"
+        )
+    text = json.dumps(first.scenario, indent=2) if first.scenario else "(no scenario.json)"
+    return intro + f"<pre>{html.escape(text)}</pre>"
+
+
+def build_report(folder: Path) -> Path:
+    """Write ``folder/report.html`` (and ``folder/figures/*.png|pdf``); returns the HTML path."""
+    report = load_input(folder)
+    runs = report.runs
+    figures = folder / FIGURES_DIR
+    scores = [score_breakdown(r) for r in runs]
+    first = runs[0].summary
+    title = f"{first.get('scenario', folder.name)}: " + (
+        f"{runs[0].label}" if report.kind == "run" else f"{', '.join(r.label for r in runs)}"
+    )
+    sections: list[tuple[str, str, str]] = [
+        ("summary", "Summary", summary_table(runs) + sensor_table(runs)),
+        (
+            "score",
+            "AADM score",
+            _figure("score", render_score(runs, scores, figures), "AADM score breakdown")
+            + score_table(runs, scores),
+        ),
+    ]
+    if report.kind == "compare":
+        sections.append(
+            (
+                "comparison",
+                "Policy comparison",
+                _figure(
+                    "policies",
+                    render_bars(runs, figures),
+                    "Data downloaded per policy, stacked by sensor; dotted: total buffer.",
+                ),
+            )
+        )
+    for spec in PER_RUN_PANELS:
+        sections.append(
+            (
+                spec.key,
+                spec.title,
+                _figure(spec.key, render_panel(spec, runs, figures), spec.caption),
+            )
+        )
+    views = "".join(
+        f'<div class="view"><b>{html.escape(r.label)}</b><br>{trajectory_svg(r, i)}'
+        '<div class="tip">hover over the map for slot details</div></div>'
+        for i, r in enumerate(runs)
+    )
+    sections.insert(
+        3 if report.kind == "run" else 4,
+        (
+            "interactive",
+            "Interactive trajectory",
+            "<p>Drag to pan, wheel to zoom, double-click to reset; hover for the nearest "
+            f'slot.</p><div class="views">{views}</div>',
+        ),
+    )
+    sections.append(("scenario", "Scenario", _scenario_block(report)))
+    notes = sorted({note for r in runs for note in r.site.notes})
+    note_html = "".join(f'<p class="note">{html.escape(n)}</p>' for n in notes)
+    nav = "".join(f'<a href="#{sid}">{html.escape(t)}</a>' for sid, t, _ in sections)
+    body = "".join(_section(sid, t, c) for sid, t, c in sections)
+    page = (
+        '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
+        f"<title>{html.escape(title)}</title><style>{STYLE}</style></head><body>"
+        f"<header><h1>{html.escape(title)}</h1><p>skymule report of "
+        f"<code>{html.escape(str(folder))}</code> ({report.kind} folder, "
+        f"{len(runs)} run{'s' if len(runs) > 1 else ''}).</p>{note_html}<nav>{nav}</nav></header>"
+        f"<main>{body}</main>{payload_script(list(runs))}<script>{SCRIPT}</script></body></html>"
+    )
+    out = folder / REPORT_FILE
+    out.write_text(page, encoding="utf-8")
+    return out

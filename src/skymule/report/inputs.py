@@ -1,0 +1,207 @@
+"""What a report reads: one run folder or a compare folder, from files only.
+
+Also the few things derived from a run's slot table that several views share (hover
+segments, the AADM score breakdown). They are read off ``slots.csv`` and ``summary.json``,
+never recomputed by simulating.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from skymule.errors import SkymuleError
+from skymule.report.site import SiteGeometry, site_geometry
+from skymule.runio import SCENARIO_FILE, is_run_dir, read_run, sensor_names_of
+
+COMPARISON_FILE = "comparison.csv"
+
+#: AADM challenge scoring (see ``shared/data/README.md``): mission horizon [s], landing
+#: tolerance [m] and penalty per metre beyond it.
+AADM_HORIZON_S = 600.0
+AADM_LANDING_TOLERANCE_M = 3.0
+AADM_LANDING_PENALTY_PER_M = 20.0
+
+
+@dataclass(frozen=True)
+class RunData:
+    """One run folder's files."""
+
+    path: Path
+    label: str
+    summary: dict[str, Any]
+    slots: pd.DataFrame
+    scenario: dict[str, Any]
+    site: SiteGeometry
+
+    @property
+    def sensor_names(self) -> list[str]:
+        return sensor_names_of(self.slots)
+
+    @property
+    def slot_s(self) -> float:
+        return float(self.summary.get("slot_s", 1.0))
+
+
+@dataclass(frozen=True)
+class ReportInput:
+    """A run folder (one run) or a compare folder (several runs + comparison.csv)."""
+
+    path: Path
+    kind: str  # "run" or "compare"
+    runs: tuple[RunData, ...]
+    comparison: pd.DataFrame | None
+
+
+def read_scenario(run_dir: Path) -> dict[str, Any]:
+    path = run_dir / SCENARIO_FILE
+    if not path.is_file():
+        return {}
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise SkymuleError(f"{path}: cannot read scenario ({exc})") from None
+    if not isinstance(data, dict):
+        raise SkymuleError(f"{path}: expected a JSON object, got {type(data).__name__}")
+    return data
+
+
+def load_run(run_dir: Path, label: str | None = None) -> RunData:
+    """Read a run folder (clear one-line error if it is not one)."""
+    summary, slots = read_run(run_dir)
+    missing = [c for c in ("t_s", "x_m", "y_m", "served", "downloaded_mbit") if c not in slots]
+    if missing:
+        raise SkymuleError(
+            f"{run_dir / 'slots.csv'}: missing column(s) {', '.join(missing)}; "
+            "expected a slots.csv written by `skymule run`"
+        )
+    scenario = read_scenario(run_dir)
+    return RunData(
+        path=run_dir,
+        label=label or str(summary.get("policy", run_dir.name)),
+        summary=summary,
+        slots=slots,
+        scenario=scenario,
+        site=site_geometry(scenario, run_dir),
+    )
+
+
+def load_input(path: Path) -> ReportInput:
+    """A run folder, or a compare folder holding run folders (and ``comparison.csv``)."""
+    if is_run_dir(path):
+        return ReportInput(path, "run", (load_run(path),), None)
+    children = sorted(p for p in path.iterdir() if is_run_dir(p)) if path.is_dir() else []
+    if not children:
+        raise SkymuleError(
+            f"{path}: not a run folder (no summary.json and slots.csv) nor a compare folder "
+            "(no run folders inside); make one with `skymule run SCENARIO --out DIR` or "
+            "`skymule compare SCENARIO --out DIR`"
+        )
+    runs = tuple(load_run(child, child.name) for child in children)
+    table_path = path / COMPARISON_FILE
+    comparison = pd.read_csv(table_path) if table_path.is_file() else None
+    return ReportInput(path, "compare", runs, comparison)
+
+
+@dataclass(frozen=True)
+class HoverSegment:
+    """Consecutive hovering slots serving one sensor at one place."""
+
+    sensor: str
+    start_s: float
+    duration_s: float
+    x_m: float
+    y_m: float
+    z_m: float
+    downloaded_mbit: float
+
+
+def hover_segments(slots: pd.DataFrame, slot_s: float) -> list[HoverSegment]:
+    """Hover segments of a slot table (``hovering`` column; none if it is absent)."""
+    if "hovering" not in slots or slots.empty:
+        return []
+    hovering = slots["hovering"].to_numpy(int) > 0
+    served = slots["served"].to_numpy(str)
+    key = np.where(hovering, served, "\0")
+    boundaries = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    ends = np.r_[boundaries[1:], len(key)]
+    segments = []
+    z = slots["z_m"].to_numpy(float) if "z_m" in slots else np.zeros(len(slots))
+    for start, end in zip(boundaries, ends, strict=True):
+        if not hovering[start]:
+            continue
+        segments.append(
+            HoverSegment(
+                sensor=str(served[start]),
+                start_s=float(slots["t_s"].iloc[start]),
+                duration_s=float((end - start) * slot_s),
+                x_m=float(slots["x_m"].iloc[start]),
+                y_m=float(slots["y_m"].iloc[start]),
+                z_m=float(z[start]),
+                downloaded_mbit=float(slots["downloaded_mbit"].iloc[start:end].sum()),
+            )
+        )
+    return segments
+
+
+@dataclass(frozen=True)
+class ScoreBreakdown:
+    """AADM challenge score of a run: 100 x completion + time bonus - landing penalty.
+
+    Attributes:
+        download_points: 100 x downloaded / total.
+        time_bonus: (600 - t) if every buffer was empty by time t [s], else 0.
+        landing_penalty: 20 per metre the UAV ends more than 3 m from home.
+        completed_at_s: t (end of the slot that emptied the last buffer), or None.
+        end_distance_m: horizontal distance from home at the end [m].
+        reported: ``aadm_score`` from summary.json when the run wrote one.
+    """
+
+    download_points: float
+    time_bonus: float
+    landing_penalty: float
+    completed_at_s: float | None
+    end_distance_m: float
+    reported: float | None
+
+    @property
+    def total(self) -> float:
+        return self.download_points + self.time_bonus - self.landing_penalty
+
+
+def score_breakdown(run: RunData) -> ScoreBreakdown:
+    """The AADM score's parts, read off the run's files."""
+    summary, slots = run.summary, run.slots
+    total = float(summary.get("total_buffer_mbit", 0.0))
+    got = float(summary.get("total_downloaded_mbit", slots["downloaded_mbit"].sum()))
+    completion = got / total if total > 0 else 1.0
+    remaining_cols = [f"remaining_mbit_{n}" for n in run.sensor_names]
+    completed_at = None
+    if remaining_cols and all(c in slots for c in remaining_cols):
+        left = slots[remaining_cols].to_numpy(float).sum(axis=1)
+        done = np.flatnonzero(left <= 1e-9)
+        if done.size:
+            completed_at = float(slots["t_s"].iloc[done[0]]) + run.slot_s
+    if "distance_to_home_m" in summary:
+        end_distance = float(summary["distance_to_home_m"])
+    elif slots.empty:
+        end_distance = 0.0
+    else:
+        last = slots[["x_m", "y_m"]].to_numpy(float)[-1]
+        end_distance = float(np.hypot(*(last - run.site.home_xy_m)))
+    bonus = max(0.0, AADM_HORIZON_S - completed_at) if completed_at is not None else 0.0
+    penalty = AADM_LANDING_PENALTY_PER_M * max(0.0, end_distance - AADM_LANDING_TOLERANCE_M)
+    reported = summary.get("aadm_score")
+    return ScoreBreakdown(
+        download_points=100.0 * completion,
+        time_bonus=bonus,
+        landing_penalty=penalty,
+        completed_at_s=completed_at,
+        end_distance_m=end_distance,
+        reported=float(reported) if isinstance(reported, int | float) else None,
+    )

@@ -1,0 +1,62 @@
+"""One look for every report figure: paper-sized, colour-blind-safe, vector PDF + PNG.
+
+Colours per sensor come from :func:`skymule.report.figures.sensor_colours` (Okabe-Ito), so
+a tower has the same colour in every figure of every report.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt
+from cycler import cycler
+from matplotlib.figure import Figure
+
+from skymule.report.figures import OKABE_ITO
+
+#: Colour of "no sensor served" path segments and of neutral marks.
+NEUTRAL = "#999999"
+#: Colour of the distance-flown axis.
+DISTANCE_COLOUR = "#8B4513"
+
+PAPER_RC: dict[str, object] = {
+    "font.size": 9,
+    "axes.titlesize": 10,
+    "axes.labelsize": 9,
+    "legend.fontsize": 8,
+    "xtick.labelsize": 8,
+    "ytick.labelsize": 8,
+    "axes.prop_cycle": cycler(color=list(OKABE_ITO)),
+    "axes.spines.top": False,
+    "axes.grid": True,
+    "grid.alpha": 0.3,
+    "lines.linewidth": 1.4,
+    "savefig.bbox": "tight",
+    "pdf.fonttype": 42,  # TrueType in the PDF: editable text, accepted by publishers
+    "ps.fonttype": 42,
+    "svg.fonttype": "none",
+    "figure.dpi": 100,
+}
+
+
+@contextmanager
+def paper_style() -> Iterator[None]:
+    """Apply the report style for the duration of a ``with`` block (no global change)."""
+    with plt.rc_context(PAPER_RC):
+        yield
+
+
+def save_figure(fig: Figure, folder: Path, stem: str, dpi: int = 150) -> tuple[Path, Path]:
+    """Write ``folder/stem.png`` and ``folder/stem.pdf`` (vector) and close the figure."""
+    folder.mkdir(parents=True, exist_ok=True)
+    png, pdf = folder / f"{stem}.png", folder / f"{stem}.pdf"
+    fig.savefig(png, dpi=dpi)
+    fig.savefig(pdf)
+    plt.close(fig)
+    return png, pdf

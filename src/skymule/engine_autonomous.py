@@ -193,6 +193,7 @@ def run_autonomous(mission: Mission, policy: Policy) -> MissionLog:
     downloaded: list[float] = []
     remaining_after: list[np.ndarray] = []
     hovering: list[bool] = []
+    targets: list[int] = []
     for slot in range(n_slots):
         here = np.array([position[0], position[1], geometry.altitude_m])
         snr = mission.source.snr_db(here[None])[0]
@@ -233,6 +234,7 @@ def run_autonomous(mission: Mission, policy: Policy) -> MissionLog:
         hovering.append(moved == position and not overridden)
         position = moved
 
+        targets.append(NO_SENSOR if action.target is None else int(action.target))
     altitude = np.full((n_slots, 1), geometry.altitude_m)
     return MissionLog(
         policy=policy.name,
@@ -252,6 +254,7 @@ def run_autonomous(mission: Mission, policy: Policy) -> MissionLog:
         visit_radius_m=mission.scenario.trajectory.visit_radius_m,
     )
 
+        target=np.asarray(targets, int),
 
 def fixed_geometry_fields(mission: Mission) -> dict[str, object]:
     """Home, hover points and visit radius for a fixed-trajectory log (metrics need them).

@@ -60,13 +60,20 @@ def distance_to_home_m(log: MissionLog) -> float:
 def visit_order(log: MissionLog) -> list[str]:
     """Sensor names in the order they were first visited.
 
-    A run in which the UAV hovered while serving (HGAD) counts a sensor as visited at the
-    first slot it hovered serving it; otherwise (Greedy never hovers) at the first slot the
-    UAV was within ``visit_radius_m`` of the sensor's hover point.
+    Autonomous runs (the log has the policy's ``target``): sensor i is visited at the first
+    slot the UAV was heading for it and ended within ``visit_radius_m`` of its hover point
+    (the paper's "navigation order", Table II). Fixed runs: a run in which the UAV hovered
+    while serving (HGAD) counts a sensor at the first slot it hovered serving it; otherwise
+    (Greedy) at the first slot the UAV was within ``visit_radius_m`` of its hover point.
     """
     n_sensors = len(log.sensor_names)
     hovered = log.hovering & (log.served != NO_SENSOR)
-    if hovered.any():
+    if log.target is not None and log.hover_points_m is not None and log.n_slots:
+        after = np.vstack([log.position_m[1:, :2], log.end_position_m[None, :2]])
+        offset = after[:, None, :] - log.hover_points_m[None, :, :]
+        near = np.hypot(offset[..., 0], offset[..., 1]) <= log.visit_radius_m
+        hits = near & (log.target[:, None] == np.arange(n_sensors)[None, :])
+    elif hovered.any():
         hits = hovered[:, None] & (log.served[:, None] == np.arange(n_sensors)[None, :])
     elif log.hover_points_m is not None and log.n_slots:
         offset = log.position_m[:, None, :2] - log.hover_points_m[None, :, :]

@@ -13,12 +13,19 @@ HGAD (Alg. 2): fly at full speed to the hover point of the target sensor, servin
 highest-rate sensor with data on the way (opportunistic download); at the hover point hover
 and serve the target for T_hover = min(Q_i / R*_i, max_hover_s) (R*_i the rate at that hover
 point, eq. (3) of the paper), then go to the next target; once every buffer is empty, fly
-home. Targets are taken in *priority by buffer*: the order of the initial buffers, largest
-first (paper Table II, column "Priority by buffer"; Alg. 2 line "a sensor i has higher data
-buffer"), skipping sensors whose buffer is already empty. Ranking by the data *left* instead
-(``priority="remaining"``) lets opportunistic downloads en route reorder the tour and does not
-reproduce the Table II orders (see ``tests/test_autonomous.py``). When every sensor with data
-has been hovered over once and data is left, a new round starts.
+home.
+
+The tour (``priority="initial"``, the default) is planned once, by *priority by buffer*: the
+hover points ordered by initial buffer, largest first (paper Table II, column "Priority by
+buffer"; Alg. 2: "a sensor i has higher data buffer" and "UAV moves towards the next
+waypoint"). The UAV flies to every planned waypoint in turn, also when opportunistic
+downloads emptied that sensor on the way (it then does not hover there) -- this is what
+reproduces the paper's Table II navigation orders: at Lake Wheeler LW1 stands 14 m from the
+launch point and is emptied en route in every Table II case. Ranking by the data *left* and
+skipping emptied sensors (``priority="remaining"``, the literal reading of "next-largest
+buffer") lets those en-route downloads reorder and shorten the tour and reproduces none of
+the four orders (see ``tests/test_autonomous.py``). After the planned round, while data is
+left, further rounds go to the largest remaining buffer not yet hovered over this round.
 """
 
 from __future__ import annotations
@@ -61,17 +68,18 @@ class GreedyTour:
         ]
         return int(candidates[int(np.argmin(distances))])
 
-    def goto(self, observation: Observation) -> tuple[float, float]:
-        """Where to fly this slot [m]: the current tour target's hover point, or home."""
+    def steer(self, observation: Observation) -> tuple[tuple[float, float], int | None]:
+        """(point to fly toward [m], target sensor or None when heading home) this slot."""
         position = _xy(observation.position_m)
         offset = np.where(self._known[:, None], self._hover - observation.position_m[:2], np.inf)
         self._visited |= np.hypot(offset[:, 0], offset[:, 1]) <= self._radius_m
         pending = ~self._visited & (observation.remaining_bit > 0)
         if not pending.any():
-            return _xy(self._home)
+            self._target = None
+            return _xy(self._home), None
         if self._target is None or not pending[self._target]:
             self._target = self._nearest(position, pending)
-        return _xy(self._hover[self._target])
+        return _xy(self._hover[self._target]), self._target
 
 
 class HGADTour:
@@ -85,24 +93,28 @@ class HGADTour:
         self._slot_s = context.slot_s
         self._max_hover_s = max_hover_s
         self._priority = priority
-        # stable sort: equal buffers go to the lower index first
-        self._order = np.argsort(-np.asarray(context.buffers_bit, float), kind="stable")
         self._known = np.all(np.isfinite(self._hover), axis=1)
+        buffers = np.asarray(context.buffers_bit, float)
+        # stable sort: equal buffers go to the lower index first
+        order = np.argsort(-buffers, kind="stable")
+        self._plan = [int(i) for i in order if self._known[i] and buffers[i] > 0]
+        self._planned = priority == "initial"
         self._hovered = np.zeros(len(self._peak_bps), bool)
         self._target: int | None = None
         self._hovering = False
         self._budget_s = 0.0
 
     def _next_target(self, remaining: np.ndarray) -> int | None:
+        if self._planned and self._plan:
+            return self._plan.pop(0)
+        self._planned = False
         candidates = self._known & (remaining > 0) & ~self._hovered
         if not candidates.any():
             self._hovered[:] = False  # every sensor with data hovered over once: new round
             candidates = self._known & (remaining > 0)
         if not candidates.any():
             return None
-        if self._priority == "remaining":
-            return int(np.argmax(np.where(candidates, remaining, -np.inf)))
-        return int(next(i for i in self._order if candidates[i]))
+        return int(np.argmax(np.where(candidates, remaining, -np.inf)))
 
     def _hover_slot(self, observation: Observation, sensor: int) -> Action:
         """Serve ``sensor`` without moving; end the hover when the budget or buffer runs out."""
@@ -112,9 +124,8 @@ class HGADTour:
         )
         if self._budget_s <= 1e-12 or left <= 0:
             self._hovering = False
-            self._hovered[sensor] = True
             self._target = None
-        return Action(serve=sensor, hover=True, goto_m=None)
+        return Action(serve=sensor, hover=True, goto_m=None, target=sensor)
 
     def act(self, observation: Observation, en_route_serve: int | None) -> Action:
         remaining = observation.remaining_bit
@@ -122,18 +133,20 @@ class HGADTour:
             return Action(serve=None, goto_m=_xy(self._home))
         if self._hovering and self._target is not None:
             return self._hover_slot(observation, self._target)
-        if self._target is None or remaining[self._target] <= 0:
-            self._target = self._next_target(remaining)
-        if self._target is None:
-            return Action(serve=en_route_serve, goto_m=_xy(self._home))
-        target = self._target
-        goal = _xy(self._hover[target])
-        if _xy(observation.position_m) == goal:
-            if self._peak_bps[target] <= 0:
-                self._hovered[target] = True  # nothing to gain here: move on
-                self._target = None
-                return Action(serve=en_route_serve, goto_m=None)
-            self._hovering = True
-            self._budget_s = min(remaining[target] / self._peak_bps[target], self._max_hover_s)
-            return self._hover_slot(observation, target)
-        return Action(serve=en_route_serve, goto_m=goal)
+        position = _xy(observation.position_m)
+        while True:
+            if self._target is None or (not self._planned and remaining[self._target] <= 0):
+                self._target = self._next_target(remaining)
+            if self._target is None:
+                return Action(serve=en_route_serve, goto_m=_xy(self._home))
+            target = self._target
+            goal = _xy(self._hover[target])
+            if position != goal:
+                return Action(serve=en_route_serve, goto_m=goal, target=target)
+            # arrived: hover if there is something to gain, else on to the next waypoint
+            self._hovered[target] = True
+            if remaining[target] > 0 and self._peak_bps[target] > 0:
+                self._hovering = True
+                self._budget_s = min(remaining[target] / self._peak_bps[target], self._max_hover_s)
+                return self._hover_slot(observation, target)
+            self._target = None

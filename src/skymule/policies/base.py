@@ -80,11 +80,14 @@ class Action:
         serve: index of the sensor to download from, or None.
         hover: True to stay where it is after this slot (fixed trajectories: do not advance).
         goto_m: autonomous trajectories: the point (x, y) [m] to fly toward, or None to stay.
+        target: autonomous trajectories: the sensor whose hover point the UAV is heading for
+            or hovering at (logged; defines the visit order), or None.
     """
 
     serve: int | None
     hover: bool = False
     goto_m: tuple[float, float] | None = None
+    target: int | None = None
 
 
 class Policy(Protocol):

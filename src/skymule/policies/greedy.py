@@ -36,4 +36,5 @@ class Greedy:
         serve = greedy_choice(observation.snr_db, observation.remaining_bit)
         if self._tour is None:
             return Action(serve=serve)
-        return Action(serve=serve, goto_m=self._tour.goto(observation))
+        goto_m, target = self._tour.steer(observation)
+        return Action(serve=serve, goto_m=goto_m, target=target)

@@ -120,15 +120,15 @@ def run_fixed(mission: Mission, policy: Policy) -> MissionLog:
         observation = Observation(
             slot=slot,
             position_m=track.position_m[sample],
-            snr_db=snr_now,
-            rate_bps=rate_now,
+            snr_db=snr_seen[sample],
+            rate_bps=rates[sample],
             remaining_bit=remaining.copy(),
         )
         action = policy.act(observation)
         sensor = _check_serve(action.serve, n_sensors, policy)
         bits = 0.0
         if sensor != NO_SENSOR:
-            bits = float(min(rate_now[sensor] * dt, remaining[sensor]))
+            bits = float(min(rates[sample, sensor] * dt, remaining[sensor]))
             remaining[sensor] -= bits
         sample_of_slot.append(sample)
         served.append(sensor)
@@ -147,8 +147,8 @@ def run_fixed(mission: Mission, policy: Policy) -> MissionLog:
         buffers_bit=mission.buffers_bit.copy(),
         position_m=track.position_m[index],
         end_position_m=track.position_m[end_sample].copy(),
-        snr_db=snr_log,
-        rate_bps=rate_log,
+        snr_db=track.snr_db[index],
+        rate_bps=rates[index],
         served=np.asarray(served, int),
         downloaded_bit=np.asarray(downloaded, float),
         remaining_bit=np.asarray(remaining_after, float).reshape(-1, n_sensors),

@@ -105,6 +105,7 @@ def run_fixed(mission: Mission, policy: Policy) -> MissionLog:
     # SNR and rates for every track sample, computed once before the loop
     rates = mission.rate_bps(track.snr_db)
     snr_seen = np.nan_to_num(track.snr_db, nan=-np.inf)
+    fading = mission.fading_db  # (T, N) per-slot fading [dB] on top of the track, or None
     remaining = mission.buffers_bit.astype(float).copy()
     policy.reset(mission_context(mission))
 
@@ -117,18 +118,22 @@ def run_fixed(mission: Mission, policy: Policy) -> MissionLog:
     for slot in range(mission.n_slots):
         if sample >= track.n_samples:
             break  # a recorded trace is used up
+        snr_now, rate_now = snr_seen[sample], rates[sample]
+        if fading is not None:
+            snr_now = snr_seen[sample] + fading[slot]
+            rate_now = mission.rate_bps(snr_now)
         observation = Observation(
             slot=slot,
             position_m=track.position_m[sample],
-            snr_db=snr_seen[sample],
-            rate_bps=rates[sample],
+            snr_db=snr_now,
+            rate_bps=rate_now,
             remaining_bit=remaining.copy(),
         )
         action = policy.act(observation)
         sensor = _check_serve(action.serve, n_sensors, policy)
         bits = 0.0
         if sensor != NO_SENSOR:
-            bits = float(min(rates[sample, sensor] * dt, remaining[sensor]))
+            bits = float(min(rate_now[sensor] * dt, remaining[sensor]))
             remaining[sensor] -= bits
         sample_of_slot.append(sample)
         served.append(sensor)
@@ -140,6 +145,10 @@ def run_fixed(mission: Mission, policy: Policy) -> MissionLog:
 
     index = np.asarray(sample_of_slot, int)
     end_sample = min(sample, track.n_samples - 1)
+    snr_log, rate_log = track.snr_db[index], rates[index]
+    if fading is not None:
+        snr_log = snr_log + fading[: index.size]
+        rate_log = mission.rate_bps(snr_log)
     return MissionLog(
         policy=policy.name,
         sensor_names=mission.sensor_names,
@@ -147,8 +156,8 @@ def run_fixed(mission: Mission, policy: Policy) -> MissionLog:
         buffers_bit=mission.buffers_bit.copy(),
         position_m=track.position_m[index],
         end_position_m=track.position_m[end_sample].copy(),
-        snr_db=track.snr_db[index],
-        rate_bps=rates[index],
+        snr_db=snr_log,
+        rate_bps=rate_log,
         served=np.asarray(served, int),
         downloaded_bit=np.asarray(downloaded, float),
         remaining_bit=np.asarray(remaining_after, float).reshape(-1, n_sensors),

@@ -197,6 +197,8 @@ def run_autonomous(mission: Mission, policy: Policy) -> MissionLog:
     for slot in range(n_slots):
         here = np.array([position[0], position[1], geometry.altitude_m])
         snr = mission.source.snr_db(here[None])[0]
+        if mission.fading_db is not None:  # per-slot small-scale fading (radio.fading)
+            snr = snr + mission.fading_db[slot]
         rates = mission.rate_bps(snr)
         action = policy.act(
             Observation(

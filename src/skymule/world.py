@@ -18,7 +18,8 @@ from skymule.errors import ScenarioError, SkymuleError
 from skymule.flight.paths import Track, read_waypoints_csv, sample_path
 from skymule.geo import LocalFrame, covers, load_geofence
 from skymule.radio.rates import RateTable, rate_bps, resolve_rate_table
-from skymule.radio.sources import SignalSource, model_source
+from skymule.radio.channel import mission_fading_db, signal_source
+from skymule.radio.sources import SignalSource
 from skymule.scenario import Scenario
 
 BITS_PER_MBIT = 1e6
@@ -41,6 +42,9 @@ class Mission:
         bandwidth_hz: channel bandwidth [Hz].
         source: the signal source for positions the UAV chooses (model sources), or None.
         track: the fixed trajectory's samples with their SNR, or None (autonomous).
+        fading_db: (T, N) small-scale fading [dB] added to the SNR the UAV observes in slot t,
+            drawn once per mission (identical for every policy), or None. Peak rates (HGAD)
+            come from the track without fading.
     """
 
     scenario: Scenario
@@ -55,6 +59,7 @@ class Mission:
     bandwidth_hz: float
     source: SignalSource | None
     track: Track | None
+    fading_db: np.ndarray | None = None
 
     @property
     def n_sensors(self) -> int:
@@ -184,7 +189,7 @@ def build_mission(scenario: Scenario) -> Mission:
         if scenario.mission.duration_s is None:
             raise ScenarioError("mission.duration_s is required with signal.source = 'model'")
         n_slots = _n_slots(scenario.mission.duration_s, slot_s)
-        source = model_source(scenario.radio, sensor_m)
+        source = signal_source(scenario, frame, sensor_m, fence)
         if scenario.trajectory.mode == "fixed":
             waypoints = _waypoints(scenario, frame)
             _check_inside(fence, waypoints, "trajectory.waypoints")
@@ -204,6 +209,7 @@ def build_mission(scenario: Scenario) -> Mission:
         bandwidth_hz=scenario.radio.bandwidth_hz,
         source=source,
         track=track,
+        fading_db=mission_fading_db(scenario, n_slots, len(names)),
     )
 
 

@@ -1,0 +1,301 @@
+"""``skymule analyze LOG``: a recorded AERPAW/AADM flight, replayed and reported.
+
+The merged log (see :mod:`skymule.traces`) becomes a trace scenario: one sensor per SNR
+column, buffers from an AADM volume file or ``--buffers`` (default: 1000 Mbit each, the
+challenge's example). Greedy, HGAD (or any registered policies) then replay the same trace
+through the engine (:func:`skymule.runner.simulate`) and each writes a run folder; the
+result is a compare folder that ``skymule report`` reads like any other.
+
+When the flight's own download log is given, it becomes one more run folder, ``flight``:
+what was really downloaded, when, from whom, on the recorded positions and SNRs.
+
+Download log format (CSV, header required, column names case-insensitive)::
+
+    time,tower,mbit
+    2025-05-24 16:19:31.186,LW1,2.43
+    2025-05-24 16:19:32.190,LW1,2.51
+
+* ``time``: timestamp in the merged log's format (or plain seconds since the log's first
+  sample); the row belongs to the slot that contains it.
+* ``tower``: the sensor the data came from (a merged-log SNR column name, ``LW1`` or
+  ``snr_lw1``).
+* ``mbit``: data received in that row [Mbit], >= 0.
+
+Several rows in one slot from the same tower add up; two towers in one slot is an error
+(one tower a slot, as in the challenge). Downloads beyond a tower's buffer are clipped.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from skymule.engine import NO_SENSOR, MissionLog
+from skymule.errors import SkymuleError
+from skymule.geo import load_site
+from skymule.metrics import summarize
+from skymule.policies import POLICIES
+from skymule.runio import slots_frame, write_run
+from skymule.scenario import Scenario, scenario_from_dict
+from skymule.traces import Trace, TraceError, normalise_column, read_trace, read_volumes
+from skymule.world import BITS_PER_MBIT, Mission, build_mission
+
+#: Buffer per tower when neither a volume file nor --buffers is given [Mbit].
+DEFAULT_BUFFER_MBIT = 1000.0
+FLIGHT_RUN = "flight"
+SITE = "lake-wheeler"
+
+
+def parse_buffers(text: str, n_sensors: int) -> list[float]:
+    """``--buffers``: one number for every sensor, or one per sensor, in Mbit."""
+    try:
+        values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        values = []
+    if not values or any(not math.isfinite(v) or v < 0 for v in values):
+        raise SkymuleError(
+            f"--buffers {text!r}: expected non-negative Mbit values separated by commas"
+        )
+    if len(values) == 1:
+        return values * n_sensors
+    if len(values) != n_sensors:
+        raise SkymuleError(
+            f"--buffers {text!r}: {len(values)} values for {n_sensors} sensors; give one "
+            "value for all or one per sensor"
+        )
+    return values
+
+
+def resolve_buffers(trace: Trace, volumes: Path | None, buffers: str | None) -> list[float]:
+    """Buffers [Mbit] per trace column from a volume file, --buffers or the default."""
+    n_sensors = len(trace.columns)
+    if volumes is not None and buffers is not None:
+        raise SkymuleError("give either --volumes or --buffers, not both")
+    if buffers is not None:
+        return parse_buffers(buffers, n_sensors)
+    if volumes is None:
+        return [DEFAULT_BUFFER_MBIT] * n_sensors
+    values = read_volumes(volumes)
+    if len(values) != n_sensors:
+        raise SkymuleError(
+            f"{volumes}: {len(values)} volumes for {n_sensors} SNR columns "
+            f"({', '.join(trace.columns)}) in the log; give one volume a line, in that order"
+        )
+    return [float(v) for v in values]
+
+
+def _site_fields(trace: Trace) -> dict[str, Any]:
+    """Lake Wheeler towers, fence and launch point when the log's columns are its towers."""
+    site = load_site(SITE)
+    towers = {p.name.upper(): p for p in site.towers}
+    if all(c in towers for c in trace.columns):
+        launch = site.launch
+        return {
+            "site": {"origin": {"lat": launch.lat_deg, "lon": launch.lon_deg}, "geofence": SITE},
+            "positions": {
+                c: {
+                    "lat": towers[c].lat_deg,
+                    "lon": towers[c].lon_deg,
+                    "height_m": towers[c].antenna_height_m or 10.0,
+                }
+                for c in trace.columns
+            },
+        }
+    if trace.lat_deg is not None and trace.lon_deg is not None:
+        origin = {"lat": float(trace.lat_deg[0]), "lon": float(trace.lon_deg[0])}
+        return {"site": {"origin": origin}, "positions": {}}
+    return {"site": {}, "positions": {}}
+
+
+def analysis_scenario(trace: Trace, log_path: Path, buffers_mbit: list[float]) -> Scenario:
+    """The trace scenario a recorded flight is replayed under."""
+    fields = _site_fields(trace)
+    sensors = [
+        {"name": name, "buffer_mbit": buffer, **fields["positions"].get(name, {})}
+        for name, buffer in zip(trace.columns, buffers_mbit, strict=True)
+    ]
+    data = {
+        "name": log_path.stem,
+        "site": fields["site"],
+        "sensors": sensors,
+        "signal": {"source": "trace", "trace": str(log_path.resolve())},
+        "trajectory": {"mode": "fixed"},
+    }
+    return scenario_from_dict(data, str(log_path), log_path.parent)
+
+
+@dataclass(frozen=True)
+class DownloadLog:
+    """A flight's own downloads, per slot."""
+
+    served: np.ndarray  # (T,) sensor index or NO_SENSOR
+    downloaded_bit: np.ndarray  # (T,) as logged [bit]
+
+
+def _log_start(log_path: Path) -> pd.Timestamp | None:
+    head = pd.read_csv(log_path, nrows=1, dtype=str)
+    column = next((c for c in head.columns if c.strip().lower() == "time"), None)
+    if column is None or head.empty:
+        return None
+    try:
+        return pd.Timestamp(head[column].iloc[0].strip())
+    except ValueError:
+        return None
+
+
+def read_download_log(
+    path: Path, log_path: Path, sensor_names: tuple[str, ...], n_slots: int, slot_s: float
+) -> DownloadLog:
+    """Parse the download log documented in this module (one-line errors)."""
+    try:
+        table = pd.read_csv(path, dtype=str, keep_default_na=False)
+    except (OSError, ValueError) as exc:
+        raise SkymuleError(f"{path}: cannot read download log ({exc})") from None
+    columns = {c.strip().lower(): c for c in table.columns}
+    missing = [c for c in ("time", "tower", "mbit") if c not in columns]
+    if missing:
+        raise SkymuleError(
+            f"{path}: missing column(s) {', '.join(missing)} (expected time,tower,mbit)"
+        )
+    times = table[columns["time"]].str.strip()
+    numeric = pd.to_numeric(times, errors="coerce")
+    if numeric.notna().all():
+        offset_s = numeric.to_numpy(float)
+    else:
+        start = _log_start(log_path)
+        stamps = pd.to_datetime(times, errors="coerce", format="mixed")
+        bad = int(np.argmax(stamps.isna().to_numpy())) if stamps.isna().any() else -1
+        if start is None or bad >= 0:
+            row = bad + 2 if bad >= 0 else 2
+            raise SkymuleError(
+                f"{path}: row {row}, column time: {times.iloc[max(bad, 0)]!r} is not a "
+                "timestamp like the merged log's (or seconds since its start)"
+            )
+        offset_s = (stamps - start).dt.total_seconds().to_numpy(float)
+    mbit = pd.to_numeric(table[columns["mbit"]], errors="coerce").to_numpy(float)
+    keys = {normalise_column(n): i for i, n in enumerate(sensor_names)}
+    served = np.full(n_slots, NO_SENSOR, dtype=int)
+    got = np.zeros(n_slots)
+    for row, (t_s, tower, value) in enumerate(
+        zip(offset_s, table[columns["tower"]], mbit, strict=True), start=2
+    ):
+        slot = math.floor(t_s / slot_s + 1e-9)
+        where = f"{path}: row {row}"
+        if not math.isfinite(value) or value < 0:
+            raise SkymuleError(f"{where}, column mbit: not a non-negative number of Mbit")
+        if normalise_column(tower) not in keys:
+            raise SkymuleError(
+                f"{where}, column tower: {tower!r} is not a log sensor "
+                f"(allowed: {', '.join(sensor_names)})"
+            )
+        if not 0 <= slot < n_slots:
+            raise SkymuleError(
+                f"{where}, column time: {t_s:.1f} s is outside the flight (0 to "
+                f"{n_slots * slot_s:g} s)"
+            )
+        index = keys[normalise_column(tower)]
+        if served[slot] not in (NO_SENSOR, index):
+            raise SkymuleError(
+                f"{where}: two towers in the slot at {slot * slot_s:g} s "
+                f"({sensor_names[served[slot]]} and {sensor_names[index]}); one tower a slot"
+            )
+        served[slot] = index
+        got[slot] += value * BITS_PER_MBIT
+    return DownloadLog(served=served, downloaded_bit=got)
+
+
+def flight_log(mission: Mission, downloads: DownloadLog) -> MissionLog:
+    """A MissionLog of what the flight really did (positions/SNR from the trace)."""
+    assert mission.track is not None
+    track = mission.track
+    n_slots = min(mission.n_slots, track.n_samples)
+    served = downloads.served[:n_slots]
+    remaining = np.empty((n_slots, mission.n_sensors))
+    downloaded = np.zeros(n_slots)
+    left = mission.buffers_bit.astype(float).copy()
+    for t in range(n_slots):
+        if served[t] != NO_SENSOR:
+            downloaded[t] = min(downloads.downloaded_bit[t], left[served[t]])
+            left[served[t]] -= downloaded[t]
+        remaining[t] = left
+    positions = track.position_m[:n_slots]
+    return MissionLog(
+        policy=FLIGHT_RUN,
+        sensor_names=mission.sensor_names,
+        slot_s=mission.slot_s,
+        buffers_bit=mission.buffers_bit,
+        position_m=positions,
+        end_position_m=positions[-1],
+        snr_db=track.snr_db[:n_slots],
+        rate_bps=mission.rate_bps(track.snr_db[:n_slots]),
+        served=served,
+        downloaded_bit=downloaded,
+        remaining_bit=remaining,
+        hovering=np.zeros(n_slots, bool),
+        home_m=np.zeros(2),
+    )
+
+
+def comparison_row(summary: dict[str, Any]) -> dict[str, Any]:
+    """A comparison.csv row (same columns as ``skymule compare`` writes)."""
+    row = {k: v for k, v in summary.items() if not isinstance(v, dict | list)}
+    for name, value in summary.get("per_sensor_downloaded_mbit", {}).items():
+        row[f"downloaded_mbit_{name}"] = value
+    return row
+
+
+def analyze_flight(
+    log_path: Path,
+    out_dir: Path,
+    *,
+    policies: list[str],
+    volumes: Path | None = None,
+    buffers: str | None = None,
+    download_log: Path | None = None,
+) -> list[dict[str, Any]]:
+    """Replay a recorded flight under ``policies`` into the compare folder ``out_dir``.
+
+    Returns the comparison rows (one per run folder written).
+    """
+    from skymule.runner import simulate
+
+    unknown = [p for p in policies if p not in POLICIES]
+    if not policies or unknown:
+        raise SkymuleError(
+            f"--policies: unknown {', '.join(unknown) or '(empty)'}; "
+            f"allowed: {', '.join(sorted(POLICIES))}"
+        )
+    try:
+        trace = read_trace(log_path)
+    except TraceError:
+        raise
+    if trace.format != "aadm":
+        raise SkymuleError(
+            f"{log_path}: a digital-twin export; `skymule analyze` reads AADM merged logs "
+            "(time, snr_<tower>..., Longitude, Latitude, Altitude)"
+        )
+    scenario = analysis_scenario(trace, log_path, resolve_buffers(trace, volumes, buffers))
+    mission = build_mission(scenario)
+    rows = []
+    for name in policies:
+        result = simulate(scenario, name, mission=mission)
+        result.write(out_dir / name)
+        rows.append(comparison_row(result.summary))
+    if download_log is not None:
+        downloads = read_download_log(
+            download_log, log_path, mission.sensor_names, mission.n_slots, mission.slot_s
+        )
+        log = flight_log(mission, downloads)
+        summary = summarize(log, scenario.name)
+        scenario_dict = scenario.to_toml_dict()
+        scenario_dict["policy"] = {"name": FLIGHT_RUN, "download_log": str(download_log)}
+        write_run(out_dir / FLIGHT_RUN, summary, slots_frame(log, mission.frame), scenario_dict)
+        rows.append(comparison_row(summary))
+    out_dir.mkdir(parents=True, exist_ok=True)
+    pd.DataFrame(rows).to_csv(out_dir / "comparison.csv", index=False)
+    return rows

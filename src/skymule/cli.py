@@ -151,6 +151,68 @@ def plot(
 
 
 @app.command()
+def report(
+    run_dir: Annotated[Path, typer.Argument(help="A run folder or compare folder.")],
+) -> None:
+    """Write DIR/report.html (self-contained) and DIR/figures/*.png|pdf from its files."""
+    from skymule.report.html import build_report
+
+    path = build_report(run_dir)
+    console.print(f"wrote {path} and {run_dir / 'figures'}/*.png, *.pdf")
+
+
+@app.command()
+def export(
+    run_dir: Annotated[Path, typer.Argument(help="A run folder.")],
+    kml: Annotated[bool, typer.Option("--kml", help="Write flight.kml.")] = False,
+    geojson: Annotated[bool, typer.Option("--geojson", help="Write flight.geojson.")] = False,
+    plan: Annotated[
+        bool, typer.Option("--plan", help="Write mission.plan (QGroundControl; autonomous runs).")
+    ] = False,
+) -> None:
+    """Export a run's path, towers, geofence and hover points (KML/GeoJSON) or its mission."""
+    from skymule.exports import export_run
+
+    chosen = [name for name, on in (("kml", kml), ("geojson", geojson), ("plan", plan)) if on]
+    for path in export_run(run_dir, chosen):
+        console.print(f"wrote {path}")
+
+
+@app.command()
+def analyze(
+    log: Annotated[Path, typer.Argument(help="AADM merged log (CSV).")],
+    out: Annotated[Path | None, typer.Option("--out", help="Compare folder to write.")] = None,
+    volumes: Annotated[
+        Path | None, typer.Option("--volumes", help="AADM volume file (Mbit a line).")
+    ] = None,
+    buffers: Annotated[
+        str | None, typer.Option("--buffers", help="Mbit: one value for all or one per tower.")
+    ] = None,
+    download_log: Annotated[
+        Path | None, typer.Option("--download-log", help="The flight's time,tower,mbit log.")
+    ] = None,
+    policies: Annotated[
+        str, typer.Option("--policies", help="Comma-separated policy names.")
+    ] = "greedy,hgad",
+) -> None:
+    """Replay a recorded flight under several policies and write a compare folder + report."""
+    from skymule.analyze import analyze_flight
+    from skymule.report.html import build_report
+
+    out_dir = out if out is not None else Path(f"{log.stem}-analysis")
+    rows = analyze_flight(
+        log,
+        out_dir,
+        policies=[p.strip() for p in policies.split(",") if p.strip()],
+        volumes=volumes,
+        buffers=buffers,
+        download_log=download_log,
+    )
+    console.print(_table(f"{log.name}: replay", rows, SUMMARY_COLUMNS))
+    console.print(f"wrote {out_dir}/comparison.csv, one folder per run, {build_report(out_dir)}")
+
+
+@app.command()
 def scenarios() -> None:
     """List the built-in scenario presets."""
     from skymule.scenario import load_scenario, preset_names

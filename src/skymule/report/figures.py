@@ -79,6 +79,97 @@ def draw_snr_cdf(ax: Axes, slots: pd.DataFrame, title: str = "") -> Axes:
     return ax
 
 
+def _site_geometry(scenario: dict[str, Any]) -> dict[str, Any]:
+    """Geofence ring, sensor and home positions [m] from a run's scenario.json (via geo)."""
+    from skymule.errors import SkymuleError
+    from skymule.geo import LocalFrame, load_geofence
+
+    site = scenario.get("site", {})
+    origin = site.get("origin", {"lat": 35.7274824, "lon": -78.6962749})
+    frame = LocalFrame(float(origin["lat"]), float(origin["lon"]))
+    fence = None
+    if site.get("geofence"):
+        try:
+            polygon = load_geofence(site["geofence"], frame, Path(scenario.get("base_dir", ".")))
+            fence = np.asarray(polygon.exterior.coords)[:, :2]
+        except SkymuleError:
+            fence = None  # a relative fence file that did not travel with the run folder
+    sensors: dict[str, tuple[float, float]] = {}
+    for sensor in scenario.get("sensors", []):
+        if sensor.get("lat") is not None and sensor.get("lon") is not None:
+            x_m, y_m = frame.to_local(sensor["lat"], sensor["lon"])
+            sensors[sensor["name"]] = (float(x_m), float(y_m))
+        elif sensor.get("x_m") is not None and sensor.get("y_m") is not None:
+            sensors[sensor["name"]] = (float(sensor["x_m"]), float(sensor["y_m"]))
+    home = scenario.get("trajectory", {}).get("home")
+    if isinstance(home, dict):
+        x_m, y_m = frame.to_local(home["lat"], home["lon"])
+        home_m = (float(x_m), float(y_m))
+    elif isinstance(home, list) and len(home) == 2:
+        home_m = (float(home[0]), float(home[1]))
+    else:
+        home_m = (0.0, 0.0)
+    return {"fence": fence, "sensors": sensors, "home": home_m}
+
+
+def draw_trajectory(
+    ax: Axes, slots: pd.DataFrame, summary: dict[str, Any], scenario_json: dict[str, Any]
+) -> Axes:
+    """Flown path coloured by served sensor, geofence, towers, hover points, home [m].
+
+    Like the paper's Fig. 2(b) and Fig. 7: x east / y north in metres from the site origin;
+    grey where no sensor was served; diamonds where the UAV hovered while serving.
+    """
+    from matplotlib.collections import LineCollection
+
+    geometry = _site_geometry(scenario_json)
+    names = sensor_names_of(slots)
+    colours = sensor_colours(names)
+    if geometry["fence"] is not None:
+        fence = geometry["fence"]
+        ax.fill(fence[:, 0], fence[:, 1], color="#F0E442", alpha=0.15, lw=0)
+        ax.plot(fence[:, 0], fence[:, 1], color="#B8A800", lw=1.2, label="geofence")
+    xy = slots[["x_m", "y_m"]].to_numpy(float)
+    if len(xy) > 1:
+        segments = np.stack([xy[:-1], xy[1:]], axis=1)
+        served = slots["served"].to_numpy(str)[:-1]
+        seg_colours = [colours.get(name, "0.6") for name in served]
+        ax.add_collection(LineCollection(segments, colors=seg_colours, linewidths=2.0))
+    hovered = slots[(slots["hovering"] == 1) & (slots["served"] != "")]
+    for name in names:
+        colour = colours[name]
+        ax.plot([], [], color=colour, lw=2.0, label=f"serving {name}")
+        if name in geometry["sensors"]:
+            x_m, y_m = geometry["sensors"][name]
+            ax.scatter([x_m], [y_m], marker="^", s=90, color=colour, edgecolor="black", zorder=4)
+            ax.annotate(name, (x_m, y_m), textcoords="offset points", xytext=(5, 5), fontsize=8)
+        points = hovered[hovered["served"] == name][["x_m", "y_m"]].drop_duplicates()
+        if len(points):
+            ax.scatter(
+                points["x_m"],
+                points["y_m"],
+                marker="D",
+                s=40,
+                color=colour,
+                edgecolor="black",
+                zorder=5,
+            )
+    home = geometry["home"]
+    ax.scatter([home[0]], [home[1]], marker="*", s=200, color="black", zorder=6, label="home")
+    ax.scatter([], [], marker="^", color="0.5", edgecolor="black", label="tower")
+    ax.scatter([], [], marker="D", color="0.5", edgecolor="black", label="hover point")
+    order = summary.get("visit_order") or []
+    title = f"{summary.get('scenario', '')} - {summary.get('policy', '')}"
+    ax.set_title(title + (f"\nvisit order: {' > '.join(order)}" if order else ""), fontsize=9)
+    ax.set_xlabel("x east [m]")
+    ax.set_ylabel("y north [m]")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.autoscale_view()
+    ax.legend(fontsize=7, loc="best")
+    ax.grid(alpha=0.3)
+    return ax
+
+
 def _save(fig: Figure, path: Path) -> Path:
     fig.tight_layout()
     fig.savefig(path, dpi=150)
@@ -95,4 +186,13 @@ def plot_run(run_dir: Path, summary: dict[str, Any], slots: pd.DataFrame) -> lis
     fig, ax = plt.subplots(figsize=(6, 4))
     draw_snr_cdf(ax, slots, title)
     cdf = _save(fig, run_dir / "snr_cdf.png")
-    return [download, cdf]
+    scenario_file = run_dir / "scenario.json"
+    if scenario_file.is_file():
+        import json
+
+        fig, ax = plt.subplots(figsize=(6.5, 6.5))
+        draw_trajectory(ax, slots, summary, json.loads(scenario_file.read_text()))
+        extra = [_save(fig, run_dir / "trajectory.png")]
+    else:
+        extra = []
+    return [download, cdf, *extra]

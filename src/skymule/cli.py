@@ -33,6 +33,8 @@ SUMMARY_COLUMNS = (
     "handovers",
     "hover_time_s",
     "distance_m",
+    "energy_kj",
+    "aadm_score",
 )
 
 
@@ -233,6 +235,50 @@ def scenarios() -> None:
             ", ".join(f"{s.name}:{s.buffer_mbit:g}" for s in spec.sensors),
         )
     console.print(table)
+
+
+@app.command()
+def sweep(
+    sweep_file: Annotated[Path, typer.Argument(help="Sweep TOML (base scenario + axes).")],
+    out: Annotated[Path, typer.Option("--out", help="Sweep folder (resumed if it exists).")],
+    executor: Annotated[
+        str, typer.Option("--executor", help="inprocess, process, dask-local or dask.")
+    ] = "process",
+    workers: Annotated[
+        int | None, typer.Option("--workers", help="Workers (default: all cores).")
+    ] = None,
+    scheduler: Annotated[
+        str | None, typer.Option("--scheduler", help="Dask scheduler tcp://HOST:PORT.")
+    ] = None,
+    chunk_size: Annotated[int, typer.Option("--chunk-size", help="Missions per chunk.")] = 500,
+    quiet: Annotated[bool, typer.Option("--quiet", help="No progress bar.")] = False,
+) -> None:
+    """Run many missions (resumable); results.parquet and summary.csv in --out."""
+    from skymule.experiments.run import run_sweep
+    from skymule.experiments.sweep import load_sweep
+
+    spec = load_sweep(sweep_file)
+    outcome = run_sweep(
+        spec,
+        out,
+        executor=executor,
+        workers=workers,
+        scheduler=scheduler,
+        chunk_size=chunk_size,
+        progress=not quiet,
+    )
+    table = Table(title=f"{sweep_file.name}: {outcome.n_missions} missions (mean ± 95% CI)")
+    metrics = ("total_downloaded_mbit", "completion", "handovers", "hover_time_s", "distance_m")
+    for column in ("policy", "missions", *metrics):
+        table.add_column(column, justify="left" if column == "policy" else "right")
+    for row in outcome.summary.to_dict("records"):
+        cells = [f"{_fmt(row[f'{m}_mean'])} ± {_fmt(row[f'{m}_ci95'])}" for m in metrics]
+        table.add_row(str(row["policy"]), str(row["missions"]), *cells)
+    console.print(table)
+    console.print(
+        f"ran {outcome.n_run} of {outcome.n_missions} missions in {outcome.seconds:.1f} s; "
+        f"wrote {out}/results.parquet and {out}/summary.csv"
+    )
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -1,0 +1,108 @@
+"""Executors behind one interface: a ``concurrent.futures.Executor`` from a registry.
+
+* ``inprocess``: runs each task when it is submitted (debugging, tests, tiny sweeps);
+* ``process``: a local process pool (default: all cores);
+* ``dask-local``: a ``dask.distributed.LocalCluster`` on this machine;
+* ``dask``: an existing Dask scheduler (``--scheduler tcp://HOST:PORT``; dask-jobqueue
+  clusters on SLURM/PBS expose one too).
+
+Dask is an optional extra (``pip install 'skymule[dask]'``) and is imported only when asked for.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from collections.abc import Callable, Iterator
+from concurrent.futures import Executor, Future, ProcessPoolExecutor
+from contextlib import AbstractContextManager, contextmanager
+from typing import Any
+
+from skymule.errors import SkymuleError
+
+
+class InProcessExecutor(Executor):
+    """Runs every task at submit time, in this process."""
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future:
+        future: Future = Future()
+        try:
+            future.set_result(fn(*args, **kwargs))
+        except BaseException as exc:  # handed to the caller through the future
+            future.set_exception(exc)
+        return future
+
+
+def default_workers() -> int:
+    return os.cpu_count() or 1
+
+
+@contextmanager
+def _inprocess(workers: int | None, scheduler: str | None) -> Iterator[Executor]:
+    with InProcessExecutor() as executor:
+        yield executor
+
+
+@contextmanager
+def _process(workers: int | None, scheduler: str | None) -> Iterator[Executor]:
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(workers or default_workers(), mp_context=context) as executor:
+        yield executor
+
+
+def _distributed() -> Any:
+    try:
+        import distributed
+    except ImportError:
+        raise SkymuleError("the Dask executors need Dask: pip install 'skymule[dask]'") from None
+    return distributed
+
+
+@contextmanager
+def _dask_local(workers: int | None, scheduler: str | None) -> Iterator[Executor]:
+    distributed = _distributed()
+    with (
+        distributed.LocalCluster(
+            n_workers=workers or default_workers(),
+            threads_per_worker=1,
+            dashboard_address=None,
+        ) as cluster,
+        distributed.Client(cluster) as client,
+    ):
+        yield client.get_executor()
+
+
+@contextmanager
+def _dask(workers: int | None, scheduler: str | None) -> Iterator[Executor]:
+    if not scheduler:
+        raise SkymuleError("--executor dask needs --scheduler tcp://HOST:PORT")
+    distributed = _distributed()
+    try:
+        client = distributed.Client(scheduler, timeout="20s")
+    except (OSError, TimeoutError) as exc:
+        raise SkymuleError(f"--scheduler {scheduler!r}: cannot connect ({exc})") from None
+    with client:
+        yield client.get_executor()
+
+
+EXECUTORS: dict[str, Callable[[int | None, str | None], AbstractContextManager[Executor]]] = {
+    "inprocess": _inprocess,
+    "process": _process,
+    "dask-local": _dask_local,
+    "dask": _dask,
+}
+"""Executor registry: name -> context manager (workers, scheduler) yielding an Executor."""
+
+
+def open_executor(
+    name: str, workers: int | None = None, scheduler: str | None = None
+) -> AbstractContextManager[Executor]:
+    """The named executor; ``scheduler`` alone selects ``dask``."""
+    if scheduler and name in ("process", "dask"):
+        name = "dask"
+    factory = EXECUTORS.get(name)
+    if factory is None:
+        raise SkymuleError(f"--executor {name!r} is not allowed; allowed: {', '.join(EXECUTORS)}")
+    if workers is not None and workers < 1:
+        raise SkymuleError(f"--workers {workers}: allowed: an integer >= 1")
+    return factory(workers, scheduler)

@@ -1,0 +1,526 @@
+"""Sweep files: a base scenario plus axes to vary, expanded into reproducible missions.
+
+A sweep file is TOML::
+
+    base = "paper-sim-fixed"          # preset name or scenario path (relative to this file)
+    seed = 1                          # sweep seed: every random draw derives from it
+    mode = "product"                  # or mode = { sample = 1000 }
+
+    [axes]
+    policy.name = ["greedy", "hgad"]                                  # a list of values
+    seed = { range = [0, 1000] }                                      # range(start, stop[, step])
+    "sensors[*].buffer_mbit" = { dist = "uniform", low = 200, high = 1500 }  # one draw per sensor
+    "sensors[0].x_m" = { dist = "normal", mean = 0, std = 50 }
+
+Axis keys are dotted scenario fields (``sensors[i]`` picks a sensor, ``sensors[*]`` all of
+them). ``mode = "product"`` runs the Cartesian product of the list/range axes;
+``mode = {sample = N}`` draws N combinations of them at random. ``policy.*`` axes are crossed
+with everything else and share the draws: every policy of a combination flies the same
+mission. Distribution axes are drawn per combination from a Generator seeded by the sweep
+seed and the combination (product mode: its non-policy values; sample mode: its index), so
+each mission is reproducible on its own and keeps its draws when other axes grow.
+
+Setting ``x_m``/``y_m`` of a sensor placed by lat/lon first converts it to local metres.
+
+Each mission's id is the first 16 hex digits of the sha256 of the canonical JSON of its
+resolved scenario (plus the sample index in sample mode).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+import re
+import tomllib
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from skymule.errors import SkymuleError
+from skymule.geo import LocalFrame
+from skymule.scenario import Scenario, load_scenario, scenario_from_dict
+
+TOP_LEVEL_KEYS = ("base", "seed", "mode", "axes")
+POLICY_PREFIX = "policy."
+_SEGMENT = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)((?:\[(?:\d+|\*)\])*)$")
+_INDEX = re.compile(r"\[(\d+|\*)\]")
+
+Path_ = tuple[str | int, ...]
+"""A parsed axis key: field names, list indices and "*" (every element)."""
+
+
+@dataclass(frozen=True)
+class Distribution:
+    """A named distribution with validated parameters (``draw(rng, size) -> (size,)``)."""
+
+    name: str
+    params: tuple[tuple[str, Any], ...]
+
+    def draw(self, rng: np.random.Generator, size: int) -> list[Any]:
+        return DISTRIBUTIONS[self.name].draw(rng, dict(self.params), size)
+
+
+@dataclass(frozen=True)
+class DistributionKind:
+    """Parameters a distribution takes, their check, and how to draw from it."""
+
+    params: tuple[str, ...]
+    check: Callable[[dict[str, Any]], str | None]
+    draw: Callable[[np.random.Generator, dict[str, Any], int], list[Any]]
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _numbers(params: dict[str, Any]) -> str | None:
+    bad = [k for k, v in params.items() if not _is_number(v)]
+    return f"{bad[0]} = {params[bad[0]]!r} must be a finite number" if bad else None
+
+
+def _check_low_high(params: dict[str, Any]) -> str | None:
+    problem = _numbers(params)
+    if problem is None and not params["low"] < params["high"]:
+        return f"low = {params['low']!r} must be below high = {params['high']!r}"
+    return problem
+
+
+def _check_spread(name: str) -> Callable[[dict[str, Any]], str | None]:
+    def check(params: dict[str, Any]) -> str | None:
+        problem = _numbers(params)
+        if problem is None and params[name] < 0:
+            return f"{name} = {params[name]!r} must be >= 0"
+        return problem
+
+    return check
+
+
+def _check_integers(params: dict[str, Any]) -> str | None:
+    problem = _check_low_high(params)
+    if problem is None and not all(isinstance(params[k], int) for k in ("low", "high")):
+        return "low and high must be integers"
+    return problem
+
+
+def _check_choice(params: dict[str, Any]) -> str | None:
+    values = params["values"]
+    return None if isinstance(values, list) and values else "values must be a non-empty list"
+
+
+DISTRIBUTIONS: dict[str, DistributionKind] = {
+    "uniform": DistributionKind(
+        ("low", "high"),
+        _check_low_high,
+        lambda rng, p, n: rng.uniform(p["low"], p["high"], n).tolist(),
+    ),
+    "normal": DistributionKind(
+        ("mean", "std"),
+        _check_spread("std"),
+        lambda rng, p, n: rng.normal(p["mean"], p["std"], n).tolist(),
+    ),
+    "lognormal": DistributionKind(
+        ("mean", "sigma"),
+        _check_spread("sigma"),
+        lambda rng, p, n: rng.lognormal(p["mean"], p["sigma"], n).tolist(),
+    ),
+    "integers": DistributionKind(
+        ("low", "high"),
+        _check_integers,
+        lambda rng, p, n: rng.integers(p["low"], p["high"], n).tolist(),
+    ),
+    "choice": DistributionKind(
+        ("values",),
+        _check_choice,
+        lambda rng, p, n: [p["values"][i] for i in rng.integers(0, len(p["values"]), n)],
+    ),
+}
+"""Distribution registry: ``dist = NAME`` -> parameters, check and draw."""
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One varied field: a list of values, or a distribution drawn per combination."""
+
+    key: str
+    path: Path_
+    values: tuple[Any, ...] | None = None
+    dist: Distribution | None = None
+
+    @property
+    def paired(self) -> bool:
+        """Policy axes share the draws of everything else (paired comparisons)."""
+        return self.key.startswith(POLICY_PREFIX)
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A parsed, validated sweep file."""
+
+    source: str
+    base: Scenario
+    seed: int
+    axes: tuple[Axis, ...]
+    sample: int | None
+
+    @property
+    def discrete(self) -> tuple[Axis, ...]:
+        return tuple(a for a in self.axes if a.values is not None)
+
+    @property
+    def drawn(self) -> tuple[Axis, ...]:
+        return tuple(a for a in self.axes if a.dist is not None)
+
+    def __len__(self) -> int:
+        paired = math.prod(len(a.values or ()) for a in self.discrete if a.paired)
+        if self.sample is not None:
+            return self.sample * paired
+        return math.prod(len(a.values or ()) for a in self.discrete)
+
+
+@dataclass(frozen=True)
+class SweepMission:
+    """One mission of a sweep: its position, id, axis values and resolved scenario."""
+
+    index: int
+    mission_id: str
+    params: dict[str, Any]
+    scenario: dict[str, Any]
+
+
+def _fail(source: str, message: str) -> SkymuleError:
+    return SkymuleError(f"{source}: {message}")
+
+
+def parse_key(source: str, key: str) -> Path_:
+    """``"sensors[*].buffer_mbit"`` -> ("sensors", "*", "buffer_mbit")."""
+    path: list[str | int] = []
+    for segment in key.split("."):
+        match = _SEGMENT.match(segment)
+        if match is None:
+            raise _fail(
+                source,
+                f"axis {key!r} is not a field path; allowed: dotted names with [i] or [*], "
+                "e.g. 'policy.name', 'sensors[*].buffer_mbit'",
+            )
+        path.append(match.group(1))
+        for index in _INDEX.findall(match.group(2)):
+            path.append("*" if index == "*" else int(index))
+    return tuple(path)
+
+
+def _is_axis_spec(value: Any) -> bool:
+    return isinstance(value, list) or (
+        isinstance(value, dict) and bool({"values", "range", "dist"} & set(value))
+    )
+
+
+def flatten_axes(table: dict[str, Any], prefix: str = "") -> Iterator[tuple[str, Any]]:
+    """TOML parses ``policy.name = [...]`` as nested tables: flatten them to dotted keys."""
+    for key, value in table.items():
+        dotted = f"{prefix}.{key}" if prefix else key
+        if isinstance(value, dict) and not _is_axis_spec(value):
+            yield from flatten_axes(value, dotted)
+        else:
+            yield dotted, value
+
+
+def parse_axis(source: str, key: str, value: Any) -> Axis:
+    """One ``[axes]`` entry -> :class:`Axis` (raises a one-line SkymuleError)."""
+    where = f"axes.{key}"
+    path = parse_key(source, key)
+    if isinstance(value, list):
+        value = {"values": value}
+    if not isinstance(value, dict):
+        raise _fail(
+            source,
+            f"{where} = {value!r}; allowed: a list of values, {{range = [start, stop]}} "
+            "or {dist = NAME, ...}",
+        )
+    kinds = [k for k in ("values", "range", "dist") if k in value]
+    if len(kinds) != 1:
+        raise _fail(source, f"{where}: give exactly one of values, range or dist")
+    kind = kinds[0]
+    if kind == "values":
+        extra = sorted(set(value) - {"values"})
+        if extra:
+            raise _fail(source, f"{where}: unknown key {extra[0]!r}; allowed: values")
+        values = value["values"]
+        if not isinstance(values, list) or not values:
+            raise _fail(source, f"{where} is empty; give at least one value")
+        return Axis(key, path, values=tuple(values))
+    if kind == "range":
+        bounds = value["range"]
+        extra = sorted(set(value) - {"range"})
+        if extra:
+            raise _fail(source, f"{where}: unknown key {extra[0]!r}; allowed: range")
+        if (
+            not isinstance(bounds, list)
+            or len(bounds) not in (2, 3)
+            or not all(isinstance(b, int) and not isinstance(b, bool) for b in bounds)
+            or (len(bounds) == 3 and bounds[2] == 0)
+        ):
+            raise _fail(
+                source,
+                f"{where}.range = {bounds!r}; allowed: [start, stop] or [start, stop, step] "
+                "integers, step != 0",
+            )
+        values = tuple(range(*bounds))
+        if not values:
+            raise _fail(source, f"{where}.range = {bounds!r} is empty; stop must pass start")
+        return Axis(key, path, values=values)
+    name = value["dist"]
+    kind_spec = DISTRIBUTIONS.get(name) if isinstance(name, str) else None
+    if kind_spec is None:
+        raise _fail(source, f"{where}.dist = {name!r}; allowed: {', '.join(sorted(DISTRIBUTIONS))}")
+    params = {k: v for k, v in value.items() if k != "dist"}
+    unknown = sorted(set(params) - set(kind_spec.params))
+    missing = [p for p in kind_spec.params if p not in params]
+    if unknown or missing:
+        problem = f"unknown parameter {unknown[0]!r}" if unknown else f"{missing[0]} is missing"
+        raise _fail(
+            source,
+            f"{where}: {problem}; dist = {name!r} takes {', '.join(kind_spec.params)}",
+        )
+    problem = kind_spec.check(params)
+    if problem is not None:
+        raise _fail(source, f"{where} (dist = {name!r}): {problem}")
+    return Axis(key, path, dist=Distribution(name, tuple(sorted(params.items()))))
+
+
+def _parse_mode(source: str, mode: Any) -> int | None:
+    if mode == "product":
+        return None
+    if isinstance(mode, dict) and set(mode) == {"sample"}:
+        count = mode["sample"]
+        if isinstance(count, int) and not isinstance(count, bool) and count > 0:
+            return count
+    raise _fail(source, f"mode = {mode!r}; allowed: 'product' or {{sample = N}} with N >= 1")
+
+
+def _base_scenario(source: str, base: Any, folder: Path) -> Scenario:
+    if not isinstance(base, str) or not base:
+        raise _fail(source, f"base = {base!r}; allowed: a preset name or a scenario path")
+    candidate = folder / base
+    return load_scenario(candidate if candidate.exists() else base)
+
+
+def parse_sweep(data: dict[str, Any], source: str, folder: Path) -> SweepSpec:
+    """A sweep from its TOML table; every problem is one line naming the file and field."""
+    unknown = sorted(set(data) - set(TOP_LEVEL_KEYS))
+    if unknown:
+        raise _fail(source, f"unknown key {unknown[0]!r}; allowed: {', '.join(TOP_LEVEL_KEYS)}")
+    if "base" not in data:
+        raise _fail(source, "base is required (a preset name or a scenario path)")
+    seed = data.get("seed", 0)
+    if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
+        raise _fail(source, f"seed = {seed!r}; allowed: an integer >= 0")
+    sample = _parse_mode(source, data.get("mode", "product"))
+    table = data.get("axes", {})
+    if not isinstance(table, dict) or not table:
+        raise _fail(source, "[axes] is missing or empty; give at least one axis")
+    axes = tuple(parse_axis(source, k, v) for k, v in flatten_axes(table))
+    spec = SweepSpec(source, _base_scenario(source, data["base"], folder), seed, axes, sample)
+    if sample is None and not spec.discrete:
+        raise _fail(
+            source,
+            "mode = 'product' needs a list or range axis; add one (e.g. seed = {range = "
+            "[0, 100]}) or use mode = {sample = N}",
+        )
+    _check_axes(spec)
+    return spec
+
+
+def load_sweep(path: str | Path) -> SweepSpec:
+    """Read and validate a sweep file."""
+    file = Path(path)
+    try:
+        data = tomllib.loads(file.read_text())
+    except OSError as exc:
+        raise SkymuleError(f"sweep file {str(path)!r}: cannot read ({exc.strerror})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise SkymuleError(f"{file}: not valid TOML ({exc})") from None
+    return parse_sweep(data, str(file), file.parent)
+
+
+# --- resolving missions ---------------------------------------------------------------
+
+
+def _assign(node: Any, path: Path_, value: Any, source: str, key: str) -> Any:
+    """A copy of ``node`` with ``path`` set to ``value`` (lists for "*"); copies only the path."""
+    head, rest = path[0], path[1:]
+    if head == "*" or isinstance(head, int):
+        if not isinstance(node, list):
+            raise _fail(source, f"axes.{key}: {head!r} indexes a field that is not a list")
+        items = list(node)
+        targets = range(len(items)) if head == "*" else [head]
+        if isinstance(head, int) and head >= len(items):
+            raise _fail(source, f"axes.{key}: index {head} out of range; the base has {len(items)}")
+        for i in targets:
+            item = value[i] if head == "*" else value
+            items[i] = _assign(items[i], rest, item, source, key) if rest else item
+        return items
+    if not isinstance(node, dict):
+        raise _fail(source, f"axes.{key}: {head!r} is not a field of a table")
+    copy = dict(node)
+    if rest:
+        copy[head] = _assign(copy.get(head, {}), rest, value, source, key)
+    else:
+        copy[head] = value
+    return copy
+
+
+def _stars(path: Path_, base: dict[str, Any]) -> int | None:
+    """Number of elements a "*" in ``path`` spans in ``base`` (None without a "*")."""
+    node: Any = base
+    for part in path:
+        if part == "*":
+            return len(node) if isinstance(node, list) else 0
+        node = node[part] if isinstance(node, dict | list) and _has(node, part) else None
+    return None
+
+
+def _has(node: Any, part: str | int) -> bool:
+    if isinstance(node, dict):
+        return part in node
+    return isinstance(part, int) and part < len(node)
+
+
+def _base_dict(base: Scenario) -> dict[str, Any]:
+    """The base scenario as a dict, with lat/lon sensors also placed in local metres."""
+    data = base.to_toml_dict()
+    frame = LocalFrame(base.site.origin.lat, base.site.origin.lon)
+    sensors = []
+    for sensor in data["sensors"]:
+        if "lat" in sensor and "x_m" not in sensor:
+            x_m, y_m = frame.to_local(sensor["lat"], sensor["lon"])
+            sensor = {**sensor, "_xy": (float(x_m), float(y_m))}
+        sensors.append(sensor)
+    return {**data, "sensors": sensors}
+
+
+def _place_sensors(data: dict[str, Any]) -> dict[str, Any]:
+    """Sensors given x_m or y_m by an axis drop lat/lon (converted to metres)."""
+    sensors = []
+    for sensor in data.get("sensors", []):
+        if isinstance(sensor, dict) and "_xy" in sensor:
+            sensor = dict(sensor)
+            x_m, y_m = sensor.pop("_xy")
+            if "x_m" in sensor or "y_m" in sensor:
+                sensor.pop("lat", None)
+                sensor.pop("lon", None)
+                sensor.setdefault("x_m", x_m)
+                sensor.setdefault("y_m", y_m)
+        sensors.append(sensor)
+    return {**data, "sensors": sensors}
+
+
+def _canonical(value: Any) -> str:
+    return json.dumps(value, sort_keys=True, separators=(",", ":"), default=str)
+
+
+def _draw_seed(seed: int, key: Any) -> np.random.Generator:
+    digest = hashlib.sha256(_canonical(key).encode()).digest()
+    return np.random.default_rng([seed, int.from_bytes(digest[:8], "little")])
+
+
+def _column(key: str, index: int) -> str:
+    return key.replace("[*]", f"[{index}]", 1)
+
+
+def _resolve(
+    spec: SweepSpec,
+    base: dict[str, Any],
+    chosen: dict[str, Any],
+    rng: np.random.Generator,
+    replica: int | None,
+    index: int,
+) -> SweepMission:
+    data = base
+    params: dict[str, Any] = {}
+    values = dict(chosen)
+    for axis in spec.drawn:
+        assert axis.dist is not None
+        count = _stars(axis.path, base)
+        drawn = axis.dist.draw(rng, count or 1)
+        values[axis.key] = drawn if count is not None else drawn[0]
+    for axis in spec.axes:
+        value = values[axis.key]
+        count = _stars(axis.path, base)
+        if count is not None and axis.values is not None:
+            value = [value] * count
+        data = _assign(data, axis.path, value, spec.source, axis.key)
+        if count is None:
+            params[axis.key] = value
+        else:
+            params.update({_column(axis.key, i): v for i, v in enumerate(value)})
+    data = _place_sensors(data)
+    identity = {"scenario": data} if replica is None else {"scenario": data, "sample": replica}
+    mission_id = hashlib.sha256(_canonical(identity).encode()).hexdigest()[:16]
+    return SweepMission(index, mission_id, params, data)
+
+
+def iter_missions(spec: SweepSpec) -> Iterator[SweepMission]:
+    """Every mission of the sweep, in a fixed order (lazily: memory does not grow with it)."""
+    base = _base_dict(spec.base)
+    paired = [a for a in spec.discrete if a.paired]
+    unpaired = [a for a in spec.discrete if not a.paired]
+    paired_combos = list(itertools.product(*(a.values or () for a in paired)))
+    if spec.sample is None:
+        combos = itertools.product(*(a.values or () for a in spec.discrete))
+        for index, combo in enumerate(combos):
+            chosen = {a.key: v for a, v in zip(spec.discrete, combo, strict=True)}
+            key = [chosen[a.key] for a in unpaired]
+            yield _resolve(spec, base, chosen, _draw_seed(spec.seed, key), None, index)
+        return
+    for replica in range(spec.sample):
+        picks = np.random.default_rng([spec.seed, replica])
+        chosen = {
+            a.key: (a.values or ())[int(picks.integers(len(a.values or ())))] for a in unpaired
+        }
+        for p, combo in enumerate(paired_combos):
+            both = {**chosen, **{a.key: v for a, v in zip(paired, combo, strict=True)}}
+            rng = np.random.default_rng([spec.seed, replica, 1])
+            index = replica * len(paired_combos) + p
+            yield _resolve(spec, base, both, rng, replica, index)
+
+
+def validate_mission(spec: SweepSpec, mission: SweepMission) -> Scenario:
+    """The mission's scenario, validated; errors name the sweep file and mission values."""
+    shown = ", ".join(f"{k} = {v!r}" for k, v in mission.params.items())
+    source = f"{spec.source} (mission {mission.index}: {shown})"
+    if len(source) > 200:
+        source = f"{spec.source} (mission {mission.index})"
+    return scenario_from_dict(mission.scenario, source, Path(spec.base.base_dir))
+
+
+def _check_axes(spec: SweepSpec) -> None:
+    """Each axis alone, on the base: names the axis when a field is unknown or a value bad."""
+    from skymule.policies import POLICIES
+
+    base = _base_dict(spec.base)
+    for axis in spec.axes:
+        if axis.key == "policy.name":
+            unknown = [v for v in axis.values or () if v not in POLICIES]
+            if unknown:
+                raise _fail(
+                    spec.source,
+                    f"axes.policy.name value {unknown[0]!r} is not a policy; "
+                    f"allowed: {', '.join(sorted(POLICIES))}",
+                )
+        count = _stars(axis.path, base)
+        candidates = (
+            list(axis.values) if axis.values is not None else [None]
+        )  # distributions: checked on their draws
+        for value in candidates:
+            if axis.dist is not None:
+                value = axis.dist.draw(np.random.default_rng(0), count or 1)
+                value = value if count is not None else value[0]
+            elif count is not None:
+                value = [value] * count
+            data = _place_sensors(_assign(base, axis.path, value, spec.source, axis.key))
+            scenario_from_dict(data, f"{spec.source}: axes.{axis.key}", Path(spec.base.base_dir))

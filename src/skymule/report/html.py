@@ -200,14 +200,17 @@ def _img(png: Path, alt: str) -> str:
 
 
 def _figure(key: str, png: Path, caption: str) -> str:
-    files = f"{FIGURES_DIR}/{png.name}, {FIGURES_DIR}/{png.with_suffix('.pdf').name}"
+    written = [p for p in (png, png.with_suffix(".pdf")) if p.is_file()]
+    files = ", ".join(f"{FIGURES_DIR}/{p.name}" for p in written)
     return (
         f'<figure class="fig" data-fig="{key}">{_img(png, caption)}'
         f"<figcaption>{html.escape(caption)} (files: {html.escape(files)})</figcaption></figure>"
     )
 
 
-def render_panel(spec: PanelSpec, runs: tuple[RunData, ...], folder: Path) -> Path:
+def render_panel(
+    spec: PanelSpec, runs: tuple[RunData, ...], folder: Path, pdf: bool = True
+) -> Path:
     """Draw ``spec`` for every run side by side; returns the PNG path (PDF next to it)."""
     width, height = spec.size_in
     with paper_style():
@@ -215,23 +218,25 @@ def render_panel(spec: PanelSpec, runs: tuple[RunData, ...], folder: Path) -> Pa
         for ax, run in zip(axes[0], runs, strict=True):
             spec.draw(ax, run)
         fig.tight_layout()
-        png, _ = save_figure(fig, folder, spec.key)
+        png, _ = save_figure(fig, folder, spec.key, pdf=pdf)
     return png
 
 
-def render_bars(runs: tuple[RunData, ...], folder: Path) -> Path:
+def render_bars(runs: tuple[RunData, ...], folder: Path, pdf: bool = True) -> Path:
     with paper_style():
         fig, ax = plt.subplots(figsize=(max(4.0, 1.4 * len(runs) + 2), 3.8))
         draw_policy_bars(ax, runs, "Downloaded data per policy")
-        png, _ = save_figure(fig, folder, "policies")
+        png, _ = save_figure(fig, folder, "policies", pdf=pdf)
     return png
 
 
-def render_score(runs: tuple[RunData, ...], scores: list[ScoreBreakdown], folder: Path) -> Path:
+def render_score(
+    runs: tuple[RunData, ...], scores: list[ScoreBreakdown], folder: Path, pdf: bool = True
+) -> Path:
     with paper_style():
         fig, ax = plt.subplots(figsize=(max(4.0, 1.4 * len(runs) + 2), 3.5))
         draw_score(ax, [r.label for r in runs], scores)
-        png, _ = save_figure(fig, folder, "score")
+        png, _ = save_figure(fig, folder, "score", pdf=pdf)
     return png
 
 
@@ -251,8 +256,11 @@ def _scenario_block(report: ReportInput) -> str:
     return intro + f"<pre>{html.escape(text)}</pre>"
 
 
-def build_report(folder: Path) -> Path:
-    """Write ``folder/report.html`` (and ``folder/figures/*.png|pdf``); returns the HTML path."""
+def build_report(folder: Path, pdf: bool = True) -> Path:
+    """Write ``folder/report.html`` (and ``folder/figures/*.png|pdf``); returns the HTML path.
+
+    ``pdf=False`` skips the vector PDFs (faster; the HTML only embeds the PNGs).
+    """
     report = load_input(folder)
     runs = report.runs
     figures = folder / FIGURES_DIR
@@ -266,7 +274,7 @@ def build_report(folder: Path) -> Path:
         (
             "score",
             "AADM score",
-            _figure("score", render_score(runs, scores, figures), "AADM score breakdown")
+            _figure("score", render_score(runs, scores, figures, pdf), "AADM score breakdown")
             + score_table(runs, scores),
         ),
     ]
@@ -277,7 +285,7 @@ def build_report(folder: Path) -> Path:
                 "Policy comparison",
                 _figure(
                     "policies",
-                    render_bars(runs, figures),
+                    render_bars(runs, figures, pdf),
                     "Data downloaded per policy, stacked by sensor; dotted: total buffer.",
                 ),
             )
@@ -287,7 +295,7 @@ def build_report(folder: Path) -> Path:
             (
                 spec.key,
                 spec.title,
-                _figure(spec.key, render_panel(spec, runs, figures), spec.caption),
+                _figure(spec.key, render_panel(spec, runs, figures, pdf), spec.caption),
             )
         )
     views = "".join(

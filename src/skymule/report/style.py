@@ -52,11 +52,18 @@ def paper_style() -> Iterator[None]:
         yield
 
 
-def save_figure(fig: Figure, folder: Path, stem: str, dpi: int = 150) -> tuple[Path, Path]:
-    """Write ``folder/stem.png`` and ``folder/stem.pdf`` (vector) and close the figure."""
+def save_figure(
+    fig: Figure, folder: Path, stem: str, dpi: int = 150, pdf: bool = True
+) -> tuple[Path, Path | None]:
+    """Write ``folder/stem.png`` and (unless ``pdf=False``) the vector ``folder/stem.pdf``.
+
+    Closes the figure.
+    """
     folder.mkdir(parents=True, exist_ok=True)
-    png, pdf = folder / f"{stem}.png", folder / f"{stem}.pdf"
+    png = folder / f"{stem}.png"
     fig.savefig(png, dpi=dpi)
-    fig.savefig(pdf)
+    vector = folder / f"{stem}.pdf" if pdf else None
+    if vector is not None:
+        fig.savefig(vector)
     plt.close(fig)
-    return png, pdf
+    return png, vector

@@ -91,6 +91,14 @@ def compare(
         str, typer.Option("--policies", help="Comma-separated policy names.")
     ] = "greedy,hgad",
     out: Annotated[Path | None, typer.Option("--out", help="Folder to write.")] = None,
+    sources: Annotated[
+        str | None,
+        typer.Option(
+            "--sources",
+            help="Compare signal sources instead: e.g. fspl,al-hourani,radiomap:map.json "
+            "(path-loss model names, radiomap:FILE, scenario); one table, SNR-CDF panels.",
+        ),
+    ] = None,
 ) -> None:
     """Run one scenario under several policies on identical signal draws."""
     from skymule.policies import POLICIES
@@ -106,6 +114,9 @@ def compare(
             f"allowed: {', '.join(sorted(POLICIES))}"
         )
     base = load_scenario(scenario)
+    if sources is not None:
+        _compare_sources(base, sources, names, out)
+        return
     mission = build_mission(base)
     rows = []
     for name in names:
@@ -120,6 +131,30 @@ def compare(
     console.print(_table(f"{base.name}: comparison", rows, SUMMARY_COLUMNS))
     if out is not None:
         console.print(f"wrote {out}/comparison.csv and one folder per policy")
+
+
+def _compare_sources(base: object, sources: str, policies: list[str], out: Path | None) -> None:
+    """``compare --sources``: every source x policy in one table; SNR-CDF panels with --out."""
+    from skymule.sources_compare import compare_sources, folder_name, parse_sources
+
+    results = compare_sources(base, parse_sources(sources), policies)  # type: ignore[arg-type]
+    rows = [{"source": spec, **_flat(result.summary)} for spec, _, result in results]
+    console.print(_table("signal sources", rows, ("source", *SUMMARY_COLUMNS)))
+    if out is None:
+        return
+    from skymule.report.channel import plot_snr_cdf_by_source
+    from skymule.runio import read_run
+
+    panels = []
+    for spec, policy, result in results:
+        folder = out / folder_name(spec) / policy
+        result.write(folder)
+        if policy == policies[0]:
+            panels.append((spec, read_run(folder)[1]))
+    pd.DataFrame(rows).to_csv(out / "comparison.csv", index=False)
+    figure = out / "snr_cdf_by_source.png"
+    plot_snr_cdf_by_source(panels, figure, f"SNR CDF ({policies[0]})")
+    console.print(f"wrote {out}/comparison.csv, {figure} and one folder per source/policy")
 
 
 def _flat(summary: dict) -> dict:

@@ -234,9 +234,9 @@ def run_autonomous(mission: Mission, policy: Policy) -> MissionLog:
         downloaded.append(bits)
         remaining_after.append(remaining.copy())
         hovering.append(moved == position and not overridden)
+        targets.append(NO_SENSOR if action.target is None else int(action.target))
         position = moved
 
-        targets.append(NO_SENSOR if action.target is None else int(action.target))
     altitude = np.full((n_slots, 1), geometry.altitude_m)
     return MissionLog(
         policy=policy.name,
@@ -254,9 +254,9 @@ def run_autonomous(mission: Mission, policy: Policy) -> MissionLog:
         home_m=geometry.home_m.copy(),
         hover_points_m=geometry.hover_points_m.copy(),
         visit_radius_m=mission.scenario.trajectory.visit_radius_m,
+        target=np.asarray(targets, int),
     )
 
-        target=np.asarray(targets, int),
 
 def fixed_geometry_fields(mission: Mission) -> dict[str, object]:
     """Home, hover points and visit radius for a fixed-trajectory log (metrics need them).

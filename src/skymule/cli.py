@@ -316,6 +316,152 @@ def sweep(
     )
 
 
+def _origin_frame(origin: str | None, default: tuple[float, float]) -> object:
+    """LocalFrame at ``--origin LAT,LON`` or at ``default``."""
+    from skymule.geo import LocalFrame
+
+    if origin is None:
+        return LocalFrame(*default)
+    try:
+        lat, lon = (float(v) for v in origin.split(","))
+    except ValueError:
+        raise SkymuleError(
+            f"--origin {origin!r}: expected LAT,LON in degrees, e.g. 35.7274824,-78.6962749"
+        ) from None
+    if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+        raise SkymuleError(f"--origin {origin!r}: latitude must be -90..90, longitude -180..180")
+    return LocalFrame(lat, lon)
+
+
+@app.command("fit-radiomap")
+def fit_radiomap_command(
+    traces: Annotated[list[Path], typer.Argument(help="Recorded flights (AADM log / DT export).")],
+    out: Annotated[Path, typer.Option("--out", help="Map file to write (JSON).")],
+    scenario: Annotated[
+        str | None,
+        typer.Option("--scenario", help="Take sensors, positions and origin from a scenario."),
+    ] = None,
+    origin: Annotated[
+        str | None, typer.Option("--origin", help="LAT,LON of the local frame's origin.")
+    ] = None,
+    drop_below: Annotated[
+        float, typer.Option("--drop-below", help="SNR below this [dB] is a deep drop.")
+    ] = -40.0,
+    json_out: Annotated[bool, typer.Option("--json", help="Print the fit as JSON.")] = False,
+) -> None:
+    """Fit a radio map (log-distance + kriged residual) per sensor to recorded flights."""
+    import json
+
+    from skymule.radio.radiomap import fit_radiomap, sensor_positions_m, site_tower_positions_m
+    from skymule.radio.sources import model_source
+    from skymule.scenario import RadioSpec, SiteSpec, load_scenario
+    from skymule.traces import read_trace
+
+    spec = load_scenario(scenario) if scenario else None
+    site = spec.site.origin if spec else SiteSpec().origin
+    frame = _origin_frame(origin, (site.lat, site.lon))
+    if spec is not None:
+        names = spec.signal.sensors_from_trace or [s.name for s in spec.sensors]
+        sensor_m = sensor_positions_m(spec.sensors, frame)  # type: ignore[arg-type]
+        radio = spec.radio
+    else:
+        names = list(read_trace(traces[0]).columns)
+        sensor_m = site_tower_positions_m(names, frame)  # type: ignore[arg-type]
+        radio = RadioSpec()
+    baseline = model_source(radio.model_copy(update={"model": "fspl"}), sensor_m)
+    fitted = fit_radiomap(
+        traces,
+        names,
+        sensor_m,
+        frame,  # type: ignore[arg-type]
+        drop_below_db=drop_below,
+        baseline=baseline,
+    )
+    fitted.write(out)
+    rows = [
+        {
+            "sensor": m.name,
+            "exponent": m.exponent,
+            "intercept_db": m.intercept_db,
+            "sigma_db": m.variogram.sill_db2**0.5,
+            "range_m": m.variogram.range_m,
+            "nugget_db": m.variogram.nugget_db2**0.5,
+            **m.stats,
+        }
+        for m in fitted.sensors
+    ]
+    if json_out:
+        print(json.dumps({"map": str(out), "sensors": rows}, indent=2))
+        return
+    columns = (
+        "sensor", "exponent", "intercept_db", "sigma_db", "range_m", "nugget_db", "n_used",
+        "n_missing", "n_deep_drops", "rmse_db", "cv_rmse_map_db", "cv_rmse_trend_db",
+        "cv_rmse_baseline_db",
+    )  # fmt: skip
+    title = "radio map fit (cv: held-out trace segments; baseline: fspl)"
+    console.print(_table(title, rows, columns))
+    console.print(f"wrote {out}")
+
+
+@app.command("score-radiomap")
+def score_radiomap_command(
+    source: Annotated[str, typer.Argument(help="A fitted map (.json) or a scenario/preset.")],
+    trace: Annotated[Path, typer.Argument(help="Recorded flight to score against.")],
+    origin: Annotated[
+        str | None, typer.Option("--origin", help="LAT,LON of the local frame's origin.")
+    ] = None,
+    json_out: Annotated[bool, typer.Option("--json", help="Print the scores as JSON.")] = False,
+) -> None:
+    """How well a radio map (or a scenario's model) predicts a recorded flight."""
+    import json
+
+    import numpy as np
+
+    from skymule.radio.channel import signal_source
+    from skymule.radio.radiomap import (
+        frame_offset_m,
+        read_radiomap,
+        score_source,
+        sensor_positions_m,
+    )
+    from skymule.radio.rates import rate_bps, resolve_rate_table
+    from skymule.scenario import RadioSpec, load_scenario
+    from skymule.traces import positions_local, read_trace
+
+    if source.lower().endswith(".json"):
+        fitted = read_radiomap(Path(source))
+        frame = _origin_frame(origin, fitted.origin)
+        names = list(fitted.names)
+        model = fitted.source(names, frame_offset_m(fitted.origin, frame))  # type: ignore[arg-type]
+        radio = RadioSpec()
+        table = resolve_rate_table(radio.rate_table)
+    else:
+        spec = load_scenario(source)
+        if spec.signal.source == "trace":
+            raise SkymuleError(
+                f"{source}: signal.source = 'trace' replays a flight and predicts nothing; "
+                "score a scenario with a model or radiomap source"
+            )
+        frame = _origin_frame(origin, (spec.site.origin.lat, spec.site.origin.lon))
+        names = spec.signal.sensors_from_trace or [s.name for s in spec.sensors]
+        sensor_m = sensor_positions_m(spec.sensors, frame)  # type: ignore[arg-type]
+        model = signal_source(spec, frame, sensor_m)  # type: ignore[arg-type]
+        radio = spec.radio
+        table = resolve_rate_table(radio.rate_table, Path(spec.base_dir))
+    recorded = read_trace(trace, sensors=names)
+    positions = positions_local(recorded, frame.to_local)  # type: ignore[attr-defined]
+    predicted = np.asarray(model.snr_db(positions))
+    scores = score_source(
+        predicted, recorded.snr_db, names, lambda snr: rate_bps(table, snr, radio.bandwidth_hz)
+    )
+    if json_out:
+        print(json.dumps(scores, indent=2))
+        return
+    rows = [{"sensor": n, **{k: v[n] for k, v in scores.items()}} for n in names]
+    columns = ("sensor", *scores)
+    console.print(_table(f"{source} vs {trace} (predicted - measured)", rows, columns))
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point: run the app, turning user mistakes into one line and exit status 2.
 

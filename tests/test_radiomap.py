@@ -1,0 +1,141 @@
+"""Radio maps fitted to synthetic flights with known parameters; CLI fit/score/compare."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from skymule.geo import LocalFrame
+from skymule.radio.radiomap import fit_radiomap, read_radiomap
+from skymule.radio.shadowing import shadowing_field
+from skymule.radio.sources import model_source
+from skymule.scenario import RadioSpec
+from skymule.traces import write_dt_export
+
+SKYMULE = "/work/venv/bin/skymule"
+FRAME = LocalFrame(35.7274824, -78.6962749)
+SENSORS = np.array([[0.0, 100.0, 10.0], [250.0, -200.0, 5.0]])
+EXPONENT, SIGMA_DB, D_CORR_M = 2.5, 4.0, 60.0
+
+
+def _lawnmower() -> np.ndarray:
+    legs = []
+    for i in range(10):
+        xs = np.arange(0.0, 1000.0, 10.0)[:: -1 if i % 2 else 1] - 500.0
+        legs.append(
+            np.column_stack([xs, np.full(xs.size, -400.0 + 90.0 * i), np.full(xs.size, 30.0)])
+        )
+    return np.vstack(legs)
+
+
+@pytest.fixture(scope="module")
+def synthetic(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A DT export: SNR = A - 10 n log10 d + Gudmundson shadowing + 0.5 dB noise, 3 % missing."""
+    rng = np.random.default_rng(2)
+    pos = _lawnmower()
+    field = shadowing_field(rng, 2, SIGMA_DB, D_CORR_M, np.array([[-1100, -1100], [1100, 1100]]))
+    d = np.linalg.norm(pos[:, None, :] - SENSORS[None], axis=-1)
+    snr = np.array([70.0, 65.0]) - 10 * EXPONENT * np.log10(d) + field.at(pos[:, :2])
+    snr += 0.5 * rng.standard_normal(snr.shape)
+    snr[rng.random(snr.shape) < 0.03] = np.nan
+    path = tmp_path_factory.mktemp("rm") / "flight.csv"
+    t = np.arange(len(pos), dtype=float)
+    write_dt_export(path, t, snr, ["LW1", "LW2"], pos[:, 0], pos[:, 1], pos[:, 2])
+    return path
+
+
+def test_fit_recovers_known_parameters_and_beats_free_space(synthetic: Path) -> None:
+    baseline = model_source(RadioSpec(), SENSORS)
+    fitted = fit_radiomap([synthetic], ["LW1", "LW2"], SENSORS, FRAME, baseline=baseline)
+    for sensor_map, intercept in zip(fitted.sensors, (70.0, 65.0), strict=True):
+        # tolerances: one shadowing realisation over ~17 x 15 correlation lengths
+        assert sensor_map.exponent == pytest.approx(EXPONENT, abs=0.35)
+        assert sensor_map.intercept_db == pytest.approx(intercept, abs=8.0)
+        assert sensor_map.variogram.sill_db2 == pytest.approx(SIGMA_DB**2, rel=0.35)
+        assert 0.5 * D_CORR_M < sensor_map.variogram.range_m < 2.0 * D_CORR_M
+        stats = sensor_map.stats
+        assert stats["n_missing"] > 0 and stats["n_used"] + stats["n_missing"] == 1000
+        assert stats["rmse_db"] < 1.5  # reproduces the measurements where the UAV flew
+        assert stats["cv_rmse_map_db"] < stats["cv_rmse_baseline_db"]  # beats free space
+        assert stats["cv_rmse_map_db"] < SIGMA_DB * 1.2
+    # far from every measurement the map falls back to its log-distance trend
+    far = np.array([[5000.0, 5000.0, 30.0]])
+    lw1 = fitted.sensors[0]
+    assert lw1.snr_db(far)[0] == pytest.approx(lw1.trend_db(far)[0], abs=1e-6)
+
+
+def test_cli_fit_score_and_compare_sources(synthetic: Path, tmp_path: Path) -> None:
+    scenario = tmp_path / "syn.toml"
+    scenario.write_text(
+        'name = "syn"\n[mission]\nduration_s = 120\n'
+        '[[sensors]]\nname = "LW1"\nx_m = 0.0\ny_m = 100.0\nheight_m = 10.0\nbuffer_mbit = 300\n'
+        '[[sensors]]\nname = "LW2"\nx_m = 250.0\ny_m = -200.0\nheight_m = 5.0\nbuffer_mbit = 300\n'
+        "[trajectory]\nwaypoints = [[-400, -300, 30], [400, 300, 30]]\n"
+    )
+    out = tmp_path / "map.json"
+    fit = subprocess.run(
+        [SKYMULE, "fit-radiomap", str(synthetic), "--out", str(out), "--scenario", str(scenario)],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    assert "LW2" in fit.stdout
+    assert read_radiomap(out).names == ("LW1", "LW2")
+    scored = subprocess.run(
+        [SKYMULE, "score-radiomap", str(out), str(synthetic), "--json"],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    scores = json.loads(scored.stdout)
+    assert set(scores["rmse_db"]) == {"LW1", "LW2"} and max(scores["rmse_db"].values()) < 1.5
+    free = json.loads(
+        subprocess.run(
+            [SKYMULE, "score-radiomap", str(scenario), str(synthetic), "--json"],
+            capture_output=True, text=True, check=True,
+        ).stdout
+    )  # fmt: skip
+    assert free["rmse_db"]["LW1"] > scores["rmse_db"]["LW1"] + 3.0
+    assert abs(free["bias_db"]["LW1"]) > 3.0  # the free-space link budget is off
+    cmp_dir = tmp_path / "cmp"
+    subprocess.run(
+        [SKYMULE, "compare", str(scenario), "--sources", f"fspl,radiomap:{out}",
+         "--policies", "greedy", "--out", str(cmp_dir)],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    assert (cmp_dir / "snr_cdf_by_source.png").stat().st_size > 1000
+    assert (cmp_dir / "fspl" / "greedy" / "summary.json").exists()
+    assert len((cmp_dir / "comparison.csv").read_text().splitlines()) == 3
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["fit-radiomap", "tests/fixtures/aadm_merged_small.csv", "--out", "/tmp/x.json"],
+         "sensor LW1 has 12 valid SNR samples"),
+        (["score-radiomap", "paper-sim-fixed", "tests/fixtures/dt_export_small.csv",
+          "--origin", "1,2,3"], "--origin '1,2,3'"),
+        (["compare", "paper-sim-fixed", "--sources", "fspl,okumura"], "'okumura' is not allowed"),
+    ],
+)  # fmt: skip
+def test_cli_mistakes_are_one_line(args: list[str], needle: str) -> None:
+    done = subprocess.run([SKYMULE, *args], capture_output=True, text=True, cwd="/work/main")
+    assert done.returncode == 2
+    assert needle in done.stderr and len(done.stderr.strip().splitlines()) == 1
+
+
+def test_scenario_errors_name_the_field(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text(
+        '[[sensors]]\nname = "LW1"\nx_m = 0.0\ny_m = 0.0\nbuffer_mbit = 1\n'
+        '[mission]\nduration_s = 10\n[radio]\nmodel = "3gpp-uma-av"\n'
+        "[trajectory]\nwaypoints = [[0, 0, 15], [100, 0, 15]]\n"
+    )
+    done = subprocess.run([SKYMULE, "run", str(bad)], capture_output=True, text=True)
+    assert done.returncode == 2 and "UAV height 15.0 m is outside the 22.5..300 m" in done.stderr
+    bad.write_text(
+        '[[sensors]]\nname = "LW1"\nx_m = 0.0\ny_m = 0.0\nbuffer_mbit = 1\n'
+        '[signal]\nsource = "radiomap"\n'
+    )
+    done = subprocess.run([SKYMULE, "run", str(bad)], capture_output=True, text=True)
+    assert done.returncode == 2 and "signal" in done.stderr and "map = 'map.json'" in done.stderr

@@ -190,11 +190,12 @@ def plot(
 @app.command()
 def report(
     run_dir: Annotated[Path, typer.Argument(help="A run folder or compare folder.")],
+    pdf: Annotated[bool, typer.Option("--pdf/--no-pdf", help="Also write vector PDFs.")] = True,
 ) -> None:
     """Write DIR/report.html (self-contained) and DIR/figures/*.png|pdf from its files."""
     from skymule.report.html import build_report
 
-    path = build_report(run_dir)
+    path = build_report(run_dir, pdf=pdf)
     console.print(f"wrote {path} and {run_dir / 'figures'}/*.png, *.pdf")
 
 
@@ -231,6 +232,7 @@ def analyze(
     policies: Annotated[
         str, typer.Option("--policies", help="Comma-separated policy names.")
     ] = "greedy,hgad",
+    pdf: Annotated[bool, typer.Option("--pdf/--no-pdf", help="Also write vector PDFs.")] = True,
 ) -> None:
     """Replay a recorded flight under several policies and write a compare folder + report."""
     from skymule.analyze import analyze_flight
@@ -246,7 +248,8 @@ def analyze(
         download_log=download_log,
     )
     console.print(_table(f"{log.name}: replay", rows, SUMMARY_COLUMNS))
-    console.print(f"wrote {out_dir}/comparison.csv, one folder per run, {build_report(out_dir)}")
+    report_path = build_report(out_dir, pdf=pdf)
+    console.print(f"wrote {out_dir}/comparison.csv, one folder per run, {report_path}")
 
 
 @app.command()

@@ -24,10 +24,10 @@ EXPONENT, SIGMA_DB, D_CORR_M = 2.5, 4.0, 60.0
 
 def _lawnmower() -> np.ndarray:
     legs = []
-    for i in range(10):
-        xs = np.arange(0.0, 1000.0, 10.0)[:: -1 if i % 2 else 1] - 500.0
+    for i in range(8):
+        xs = np.arange(0.0, 1000.0, 12.5)[:: -1 if i % 2 else 1] - 500.0
         legs.append(
-            np.column_stack([xs, np.full(xs.size, -400.0 + 90.0 * i), np.full(xs.size, 30.0)])
+            np.column_stack([xs, np.full(xs.size, -400.0 + 110.0 * i), np.full(xs.size, 30.0)])
         )
     return np.vstack(legs)
 
@@ -52,13 +52,15 @@ def test_fit_recovers_known_parameters_and_beats_free_space(synthetic: Path) -> 
     baseline = model_source(RadioSpec(), SENSORS)
     fitted = fit_radiomap([synthetic], ["LW1", "LW2"], SENSORS, FRAME, baseline=baseline)
     for sensor_map, intercept in zip(fitted.sensors, (70.0, 65.0), strict=True):
-        # tolerances: one shadowing realisation over ~17 x 15 correlation lengths
+        # tolerances: one shadowing realisation over ~17 x 13 correlation lengths
         assert sensor_map.exponent == pytest.approx(EXPONENT, abs=0.35)
-        assert sensor_map.intercept_db == pytest.approx(intercept, abs=8.0)
+        # A and n trade off; the trend at a mid-range distance (300 m) is well determined
+        at_300 = sensor_map.intercept_db - 10 * sensor_map.exponent * np.log10(300.0)
+        assert at_300 == pytest.approx(intercept - 10 * EXPONENT * np.log10(300.0), abs=2.0)
         assert sensor_map.variogram.sill_db2 == pytest.approx(SIGMA_DB**2, rel=0.35)
         assert 0.5 * D_CORR_M < sensor_map.variogram.range_m < 2.0 * D_CORR_M
         stats = sensor_map.stats
-        assert stats["n_missing"] > 0 and stats["n_used"] + stats["n_missing"] == 1000
+        assert stats["n_missing"] > 0 and stats["n_used"] + stats["n_missing"] == 640
         assert stats["rmse_db"] < 1.5  # reproduces the measurements where the UAV flew
         assert stats["cv_rmse_map_db"] < stats["cv_rmse_baseline_db"]  # beats free space
         assert stats["cv_rmse_map_db"] < SIGMA_DB * 1.2

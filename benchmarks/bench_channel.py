@@ -1,0 +1,70 @@
+"""Channel throughput: SNR for 4 sensors x 100,000 positions, each path-loss model, with
+shadowing, and radio-map queries. Prints wall-clock seconds (best of 3).
+
+    /work/venv/bin/python benchmarks/bench_channel.py
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from skymule.geo import LocalFrame
+from skymule.radio.channel import signal_source
+from skymule.radio.radiomap import SensorSamples, fit_sensor_map
+from skymule.radio.sources import PATHLOSS_BUILDERS
+from skymule.scenario import load_scenario
+
+N_POSITIONS = 100_000
+
+
+def best_of(fn, repeats: int = 3) -> float:
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return min(times)
+
+
+def main() -> None:
+    base = load_scenario("aadm-default")
+    frame = LocalFrame(base.site.origin.lat, base.site.origin.lon)
+    from skymule.radio.radiomap import sensor_positions_m
+
+    sensor_m = sensor_positions_m(base.sensors, frame)
+    rng = np.random.default_rng(0)
+    positions = np.column_stack(
+        [rng.uniform(-400, 400, N_POSITIONS), rng.uniform(-550, 300, N_POSITIONS),
+         np.full(N_POSITIONS, 30.0)]
+    )  # fmt: skip
+    print(f"SNR for {len(sensor_m)} sensors x {N_POSITIONS:,} positions [s, best of 3]")
+    for name in sorted(PATHLOSS_BUILDERS):
+        scenario = base.model_copy(update={"radio": base.radio.model_copy(update={"model": name})})
+        source = signal_source(scenario, frame, sensor_m)
+        print(f"  {name:<14} {best_of(lambda s=source: s.snr_db(positions)):.3f}")
+    shadowed = base.model_copy(
+        update={"radio": base.radio.model_copy(update={"shadowing_std_db": 6.0})}
+    )
+    build = best_of(lambda: signal_source(shadowed, frame, sensor_m))
+    source = signal_source(shadowed, frame, sensor_m)
+    query = best_of(lambda: source.snr_db(positions))
+    print(
+        f"  fspl + shadowing: field draw {build:.3f}, query {query:.3f}, total {build + query:.3f}"
+    )
+    # radio map: 1000 training samples per sensor (the kriging cap)
+    train = positions[:1000]
+    snr = source.snr_db(train)
+    segment = np.arange(1000) * 5 // 1000
+    fit = best_of(
+        lambda: fit_sensor_map("LW1", sensor_m[0], SensorSamples(train, snr[:, 0], segment)), 1
+    )
+    fitted = fit_sensor_map("LW1", sensor_m[0], SensorSamples(train, snr[:, 0], segment))
+    print(f"  radio map: fit 1 sensor x 1000 samples (+5-fold CV) {fit:.3f}")
+    query_map = best_of(lambda: fitted.snr_db(positions))
+    print(f"  radio map: query 1 sensor x {N_POSITIONS:,} positions {query_map:.3f}")
+
+
+if __name__ == "__main__":
+    main()

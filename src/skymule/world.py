@@ -17,8 +17,8 @@ from shapely.geometry import Polygon
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.flight.paths import Track, read_waypoints_csv, sample_path
 from skymule.geo import LocalFrame, covers, load_geofence
-from skymule.radio.rates import RateTable, rate_bps, resolve_rate_table
 from skymule.radio.channel import mission_fading_db, signal_source
+from skymule.radio.rates import RateTable, rate_bps, resolve_rate_table
 from skymule.radio.sources import SignalSource
 from skymule.scenario import Scenario
 

@@ -63,25 +63,56 @@ optimum and ``K x N`` rather than ``T x N`` columns.
 ``max_hover_s`` (an HGAD-style cap on a single pause) is *not* part of the bound: dropping a
 constraint can only raise the optimum, so the bound stays valid for capped policies. It is
 accepted and validated so callers can pass their policy parameters unchanged.
+
+Scenarios: :func:`mission_bound`
+--------------------------------
+:func:`mission_bound` bounds a built :class:`~skymule.world.Mission` through a registry keyed
+by ``trajectory.mode``. Fixed trajectories (model, radio-map or trace source alike: each gives
+a ``Track``) use the rates ``mission.rate_bps(track.snr_db)``, ``hold_at_end`` of the track and
+``T = mission.n_slots``, and report both the pause-anywhere bound and the paper's no-hover LP.
+Autonomous trajectories call ``skymule.bounds_autonomous.autonomous_bound`` (imported lazily).
+
+Per-slot small-scale fading (``radio.fading != "none"``) is refused: the UAV then sees
+``f(SNR_track[k] + fading[t])``, a rate that depends on the slot as well as the sample, so the
+track-only programs above are not bounds for it. The only valid track-based repair (each
+sample's rate maximised over the slots that could visit it) adds the largest fading draw of
+the mission to every sample and says little; a slot-by-sample formulation is future work.
+Spatial shadowing is deterministic per seed and part of the track, so it is supported.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import linprog
 
-__all__ = ["BoundError", "BoundResult", "fixed_path_bound"]
+from skymule.errors import SkymuleError
+
+if TYPE_CHECKING:
+    from skymule.world import Mission
+
+__all__ = [
+    "BoundError",
+    "BoundResult",
+    "MissionBound",
+    "fixed_path_bound",
+    "mission_bound",
+    "mission_track_rates",
+]
+
+BITS_PER_MBIT = 1e6
 
 #: Relative tolerance for pruning a last sample whose dual bound does not beat the incumbent.
 PRUNE_TOL = 1e-9
 
 
-class BoundError(ValueError):
-    """Invalid input to a bound computation (one-line message)."""
+class BoundError(SkymuleError):
+    """Invalid input to a bound computation, or a scenario it does not support (one line)."""
 
 
 @dataclass(frozen=True)
@@ -349,3 +380,131 @@ def fixed_path_bound(
         dwell_time_s=dwell,
         last_sample=last,
     )
+
+
+@dataclass(frozen=True)
+class MissionBound:
+    """An upper bound for one scenario, as ``skymule bound`` reports it (SI units).
+
+    Attributes:
+        scenario: scenario name.
+        mode: ``trajectory.mode`` ("fixed" or "autonomous").
+        upper_bound_bit: bound on the bits any policy downloads (bit).
+        method: relaxation and solver used.
+        status: solver status.
+        solve_time_s: wall-clock solve time (s).
+        total_buffer_bit: sum of the initial buffers (bit).
+        no_hover_upper_bound_bit: fixed trajectories: the paper's formulation with ``r_t``
+            fixed (no pausing), in bit; None for autonomous ones.
+    """
+
+    scenario: str
+    mode: str
+    upper_bound_bit: float
+    method: str
+    status: str
+    solve_time_s: float
+    total_buffer_bit: float
+    no_hover_upper_bound_bit: float | None = None
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """The ``bound.json`` record (Mbit at the edge)."""
+        no_hover = self.no_hover_upper_bound_bit
+        return {
+            "scenario": self.scenario,
+            "mode": self.mode,
+            "upper_bound_mbit": self.upper_bound_bit / BITS_PER_MBIT,
+            "no_hover_upper_bound_mbit": None if no_hover is None else no_hover / BITS_PER_MBIT,
+            "total_buffer_mbit": self.total_buffer_bit / BITS_PER_MBIT,
+            "method": self.method,
+            "status": self.status,
+            "solve_time_s": self.solve_time_s,
+        }
+
+
+def mission_track_rates(mission: Mission) -> np.ndarray:
+    """``(K, N)`` rate (bit/s) at every track sample of a fixed mission (NaN SNR: rate 0)."""
+    if mission.track is None:
+        raise BoundError(
+            "bound: trajectory.mode = 'fixed' needs a track (trajectory.waypoints or "
+            "signal.trace); none was built"
+        )
+    return np.asarray(mission.rate_bps(mission.track.snr_db), dtype=float)
+
+
+def _fixed_mission_bound(mission: Mission) -> MissionBound:
+    """Pause-anywhere bound plus the paper's no-hover LP for a fixed trajectory."""
+    rate = mission_track_rates(mission)
+    assert mission.track is not None
+    args = (rate, mission.buffers_bit, mission.slot_s, mission.n_slots)
+    hover = fixed_path_bound(*args, hover_allowed=True)
+    no_hover = fixed_path_bound(*args, hover_allowed=False, hold_at_end=mission.track.hold_at_end)
+    return MissionBound(
+        scenario=mission.scenario.name,
+        mode="fixed",
+        upper_bound_bit=hover.upper_bound_bit,
+        method=hover.method,
+        status=hover.status,
+        solve_time_s=hover.solve_time_s + no_hover.solve_time_s,
+        total_buffer_bit=float(np.sum(mission.buffers_bit)),
+        no_hover_upper_bound_bit=no_hover.upper_bound_bit,
+    )
+
+
+def _autonomous_mission_bound(mission: Mission) -> MissionBound:
+    """``skymule.bounds_autonomous.autonomous_bound`` wrapped as a :class:`MissionBound`."""
+    try:
+        from skymule.bounds_autonomous import autonomous_bound
+    except ModuleNotFoundError as exc:
+        if exc.name != "skymule.bounds_autonomous":
+            raise
+        raise BoundError(
+            "bound: the autonomous bound is not available (module skymule.bounds_autonomous "
+            "is missing); only trajectory.mode = 'fixed' is supported here"
+        ) from None
+    result = autonomous_bound(mission)
+    return MissionBound(
+        scenario=mission.scenario.name,
+        mode="autonomous",
+        upper_bound_bit=float(result.upper_bound_bit),
+        method=result.method,
+        status=result.status,
+        solve_time_s=float(result.solve_time_s),
+        total_buffer_bit=float(np.sum(mission.buffers_bit)),
+    )
+
+
+MISSION_BOUNDS: dict[str, Callable[[Mission], MissionBound]] = {
+    "fixed": _fixed_mission_bound,
+    "autonomous": _autonomous_mission_bound,
+}
+"""``trajectory.mode`` -> bound of a built mission."""
+
+
+def unsupported_reason(mission: Mission) -> str | None:
+    """One line naming what the bound does not support in ``mission``, or None."""
+    fading = mission.scenario.radio.fading
+    if fading != "none" or mission.fading_db is not None:
+        return (
+            f"bound: radio.fading = {fading!r} is not supported (per-slot fading makes the "
+            "rate depend on the slot, not only on the position); set radio.fading = 'none'"
+        )
+    mode = mission.scenario.trajectory.mode
+    if mode not in MISSION_BOUNDS:
+        return f"bound: trajectory.mode = {mode!r} is not supported; allowed: " + ", ".join(
+            sorted(MISSION_BOUNDS)
+        )
+    return None
+
+
+def mission_bound(mission: Mission) -> MissionBound:
+    """Upper bound on the bits any policy downloads in ``mission``.
+
+    Raises:
+        BoundError: the scenario has something the bound does not model (see
+            :func:`unsupported_reason`), or the autonomous bound is not installed.
+    """
+    reason = unsupported_reason(mission)
+    if reason is not None:
+        raise BoundError(reason)
+    return MISSION_BOUNDS[mission.scenario.trajectory.mode](mission)

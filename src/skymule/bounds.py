@@ -84,7 +84,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -507,4 +507,7 @@ def mission_bound(mission: Mission) -> MissionBound:
     reason = unsupported_reason(mission)
     if reason is not None:
         raise BoundError(reason)
-    return MISSION_BOUNDS[mission.scenario.trajectory.mode](mission)
+    result = MISSION_BOUNDS[mission.scenario.trajectory.mode](mission)
+    # no policy downloads more than the buffers hold: clipping keeps it a bound and drops
+    # solver round-off above the total
+    return replace(result, upper_bound_bit=min(result.upper_bound_bit, result.total_buffer_bit))

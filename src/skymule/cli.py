@@ -165,6 +165,27 @@ def _flat(summary: dict) -> dict:
 
 
 @app.command()
+def bound(
+    scenario: Annotated[str, typer.Argument(help="Scenario TOML path or preset name.")],
+    out: Annotated[Path | None, typer.Option("--out", help="Folder for bound.json.")] = None,
+) -> None:
+    """Upper bound on the data any policy can download in a scenario (LP/MILP, HiGHS)."""
+    import json
+
+    from skymule.bounds import mission_bound
+    from skymule.scenario import load_scenario
+    from skymule.world import build_mission
+
+    record = mission_bound(build_mission(load_scenario(scenario))).to_json_dict()
+    rows = [{"quantity": k, "value": v} for k, v in record.items() if v is not None]
+    console.print(_table(f"{record['scenario']}: upper bound", rows, ("quantity", "value")))
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "bound.json").write_text(json.dumps(record, indent=2) + "\n")
+        console.print(f"wrote {out / 'bound.json'}")
+
+
+@app.command()
 def plot(
     run_dir: Annotated[Path, typer.Argument(help="A run folder (or compare folder).")],
 ) -> None:

@@ -158,6 +158,8 @@ def autonomous_context(mission: Mission, geometry: Geometry) -> MissionContext:
         max_step_m=geometry.max_step_m,
         visit_radius_m=mission.scenario.trajectory.visit_radius_m,
         navigator=geometry.navigator,
+        predict_snr_db=mission.source.snr_db,
+        return_home=mission.scenario.trajectory.return_home,
     )
 
 

@@ -7,6 +7,7 @@ engine state: buffers, position and the clock belong to the engine.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
@@ -37,6 +38,9 @@ class MissionContext:
             hover point [m].
         navigator: autonomous: in-fence shortest paths (read-only use: ``travel_distance``,
             ``shortest_path``); None on fixed paths.
+        predict_snr_db: autonomous: the model's SNR at any positions, (P, 3) [m] -> (P, N)
+            [dB], without per-slot fading (what a planner may predict from); None if unknown.
+        return_home: autonomous: whether the UAV must be home when the mission ends.
     """
 
     sensor_names: tuple[str, ...]
@@ -51,6 +55,8 @@ class MissionContext:
     max_step_m: float = 0.0
     visit_radius_m: float = 50.0
     navigator: Navigator | None = None
+    predict_snr_db: Callable[[np.ndarray], np.ndarray] | None = None
+    return_home: bool = True
 
 
 @dataclass(frozen=True)

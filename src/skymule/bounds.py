@@ -357,7 +357,7 @@ def fixed_path_bound(
         best_at = np.argmax(rate[: last + 1], axis=0)
         np.add.at(served, (best_at, np.arange(n_sensors)), sol.hover_s)
         dwell[: last + 1] = slot_s
-        dwell[best_at] += sol.hover_s
+        np.add.at(dwell, best_at, sol.hover_s)  # several sensors may share a best sample
         dwell[last] += n_slots * slot_s - dwell.sum()
         status = f"{sol.status} ({n_lp} prefix LPs)"
         method = "fixed-path exact search: pause anywhere, time-shared slots (HiGHS LPs)"

@@ -73,7 +73,8 @@ class MissionLog:
 
 
 def mission_context(mission: Mission) -> MissionContext:
-    peak = mission.peak_rate_bps() if mission.track is not None else np.zeros(mission.n_sensors)
+    track = mission.track
+    peak = mission.peak_rate_bps() if track is not None else np.zeros(mission.n_sensors)
     return MissionContext(
         sensor_names=mission.sensor_names,
         slot_s=mission.slot_s,
@@ -82,6 +83,8 @@ def mission_context(mission: Mission) -> MissionContext:
         peak_rate_bps=peak,
         mode=mission.scenario.trajectory.mode,
         sensor_m=mission.sensor_m.copy(),
+        track_rate_bps=None if track is None else mission.rate_bps(track.snr_db),
+        track_hold_at_end=True if track is None else track.hold_at_end,
     )
 
 

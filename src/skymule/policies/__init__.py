@@ -8,6 +8,7 @@ from skymule.errors import SkymuleError
 from skymule.policies.base import Action, MissionContext, Observation, Policy
 from skymule.policies.greedy import Greedy
 from skymule.policies.hgad import HGAD
+from skymule.policies.optimal_fixed import OptimalFixed
 from skymule.scenario import PolicySpec
 
 PolicyFactory = Callable[[PolicySpec], Policy]
@@ -15,6 +16,7 @@ PolicyFactory = Callable[[PolicySpec], Policy]
 POLICIES: dict[str, PolicyFactory] = {
     "greedy": lambda spec: Greedy(),
     "hgad": lambda spec: HGAD(spec.hover_threshold, spec.max_hover_s),
+    "optimal-fixed": lambda spec: OptimalFixed(),
 }
 """Policy registry: name -> factory taking the scenario's ``[policy]`` section."""
 

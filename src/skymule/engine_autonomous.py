@@ -160,6 +160,7 @@ def autonomous_context(mission: Mission, geometry: Geometry) -> MissionContext:
         navigator=geometry.navigator,
         predict_snr_db=mission.source.snr_db,
         return_home=mission.scenario.trajectory.return_home,
+        rate_of_snr_bps=mission.rate_bps,
     )
 
 

@@ -41,6 +41,8 @@ class MissionContext:
         predict_snr_db: autonomous: the model's SNR at any positions, (P, 3) [m] -> (P, N)
             [dB], without per-slot fading (what a planner may predict from); None if unknown.
         return_home: autonomous: whether the UAV must be home when the mission ends.
+        rate_of_snr_bps: autonomous: the rate table x bandwidth, SNR [dB] (any shape) ->
+            rate [bit/s]; None if unknown.
         track_rate_bps: fixed paths: (K, N) rate at every track sample [bit/s], the whole
             signal ahead of time for offline planners (``optimal-fixed``); None otherwise.
         track_hold_at_end: fixed paths: True for a planned path (hold at the end), False for
@@ -61,6 +63,7 @@ class MissionContext:
     navigator: Navigator | None = None
     predict_snr_db: Callable[[np.ndarray], np.ndarray] | None = None
     return_home: bool = True
+    rate_of_snr_bps: Callable[[np.ndarray], np.ndarray] | None = None
     track_rate_bps: np.ndarray | None = None
     track_hold_at_end: bool = True
 

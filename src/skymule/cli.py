@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import pandas as pd
 import typer
@@ -17,6 +17,10 @@ from rich.console import Console
 from rich.table import Table
 
 from skymule.errors import SkymuleError
+
+if TYPE_CHECKING:
+    from skymule.bounds import MissionBound
+    from skymule.world import Mission
 
 app = typer.Typer(
     add_completion=False,
@@ -118,19 +122,64 @@ def compare(
         _compare_sources(base, sources, names, out)
         return
     mission = build_mission(base)
+    upper, note = _bound_or_note(mission)
     rows = []
     for name in names:
         result = simulate(base, name, mission=mission)
         if out is not None:
             result.write(out / name)
-        rows.append(_flat(result.summary))
+        rows.append(_with_gap(_flat(result.summary), upper))
     table = pd.DataFrame(rows)
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         table.to_csv(out / "comparison.csv", index=False)
-    console.print(_table(f"{base.name}: comparison", rows, SUMMARY_COLUMNS))
+        if upper is not None:
+            _write_bound(out, upper)
+    shown = rows if upper is None else [*rows, _bound_row(upper)]
+    console.print(_table(f"{base.name}: comparison", shown, (*SUMMARY_COLUMNS, *GAP_COLUMNS)))
+    if note is not None:
+        console.print(f"no upper bound: {note}", markup=False)
     if out is not None:
         console.print(f"wrote {out}/comparison.csv and one folder per policy")
+
+
+GAP_COLUMNS = ("gap_to_bound_mbit", "gap_to_bound_frac")
+"""compare: bound - downloaded [Mbit] and that gap as a fraction of the bound."""
+
+
+def _bound_or_note(mission: Mission) -> tuple[MissionBound | None, str | None]:
+    """(the mission's upper bound, None), or (None, why there is none) for compare."""
+    from skymule.bounds import BoundError, mission_bound
+
+    try:
+        return mission_bound(mission), None
+    except BoundError as exc:
+        return None, str(exc)
+
+
+def _with_gap(row: dict, upper: MissionBound | None) -> dict:
+    """``row`` plus upper_bound_mbit and the gap columns (unchanged without a bound)."""
+    if upper is None:
+        return row
+    bound_mbit = upper.upper_bound_bit / 1e6
+    gap = bound_mbit - row["total_downloaded_mbit"]
+    frac = gap / bound_mbit if bound_mbit > 0 else 0.0
+    return {**row, "upper_bound_mbit": bound_mbit, GAP_COLUMNS[0]: gap, GAP_COLUMNS[1]: frac}
+
+
+def _bound_row(upper: MissionBound, **extra: object) -> dict:
+    """The "bound" row of a printed comparison: only the total is filled."""
+    return {**extra, "policy": "bound", "total_downloaded_mbit": upper.upper_bound_bit / 1e6}
+
+
+def _write_bound(folder: Path, upper: MissionBound) -> Path:
+    """Write ``folder/bound.json`` (Mbit) and return its path."""
+    import json
+
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / "bound.json"
+    path.write_text(json.dumps(upper.to_json_dict(), indent=2) + "\n")
+    return path
 
 
 def _compare_sources(base: object, sources: str, policies: list[str], out: Path | None) -> None:
@@ -138,8 +187,22 @@ def _compare_sources(base: object, sources: str, policies: list[str], out: Path 
     from skymule.sources_compare import compare_sources, folder_name, parse_sources
 
     results = compare_sources(base, parse_sources(sources), policies)  # type: ignore[arg-type]
-    rows = [{"source": spec, **_flat(result.summary)} for spec, _, result in results]
-    console.print(_table("signal sources", rows, ("source", *SUMMARY_COLUMNS)))
+    bounds = {spec: _bound_or_note(result.mission) for spec, _, result in results}
+    rows = [
+        {"source": spec, **_with_gap(_flat(result.summary), bounds[spec][0])}
+        for spec, _, result in results
+    ]
+    shown = []
+    for row, (spec, policy, _) in zip(rows, results, strict=True):
+        shown.append(row)
+        upper = bounds[spec][0]
+        if policy == policies[-1] and upper is not None:
+            shown.append(_bound_row(upper, source=spec))
+    columns = ("source", *SUMMARY_COLUMNS, *GAP_COLUMNS)
+    console.print(_table("signal sources", shown, columns))
+    for spec, (_, note) in bounds.items():
+        if note is not None:
+            console.print(f"{spec}: no upper bound: {note}", markup=False)
     if out is None:
         return
     from skymule.report.channel import plot_snr_cdf_by_source
@@ -170,19 +233,16 @@ def bound(
     out: Annotated[Path | None, typer.Option("--out", help="Folder for bound.json.")] = None,
 ) -> None:
     """Upper bound on the data any policy can download in a scenario (LP/MILP, HiGHS)."""
-    import json
-
     from skymule.bounds import mission_bound
     from skymule.scenario import load_scenario
     from skymule.world import build_mission
 
-    record = mission_bound(build_mission(load_scenario(scenario))).to_json_dict()
+    upper = mission_bound(build_mission(load_scenario(scenario)))
+    record = upper.to_json_dict()
     rows = [{"quantity": k, "value": v} for k, v in record.items() if v is not None]
     console.print(_table(f"{record['scenario']}: upper bound", rows, ("quantity", "value")))
     if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "bound.json").write_text(json.dumps(record, indent=2) + "\n")
-        console.print(f"wrote {out / 'bound.json'}")
+        console.print(f"wrote {_write_bound(out, upper)}")
 
 
 @app.command()

@@ -72,7 +72,8 @@ a ``Track``) use the rates ``mission.rate_bps(track.snr_db)``, ``hold_at_end`` o
 ``T = mission.n_slots``, and report both the pause-anywhere bound and the paper's no-hover LP.
 Autonomous trajectories call ``skymule.bounds_autonomous.autonomous_bound`` (imported lazily).
 
-Per-slot small-scale fading (``radio.fading != "none"``) is refused: the UAV then sees
+On fixed trajectories, per-slot small-scale fading (``radio.fading != "none"``) is refused
+(the autonomous bound models it itself): the UAV then sees
 ``f(SNR_track[k] + fading[t])``, a rate that depends on the slot as well as the sample, so the
 track-only programs above are not bounds for it. The only valid track-based repair (each
 sample's rate maximised over the slots that could visit it) adds the largest fading draw of
@@ -434,6 +435,13 @@ def mission_track_rates(mission: Mission) -> np.ndarray:
 
 def _fixed_mission_bound(mission: Mission) -> MissionBound:
     """Pause-anywhere bound plus the paper's no-hover LP for a fixed trajectory."""
+    fading = mission.scenario.radio.fading
+    if fading != "none" or mission.fading_db is not None:
+        raise BoundError(
+            f"bound: radio.fading = {fading!r} is not supported on a fixed trajectory (per-slot "
+            "fading makes the rate depend on the slot, not only on the track sample); "
+            "set radio.fading = 'none'"
+        )
     rate = mission_track_rates(mission)
     assert mission.track is not None
     args = (rate, mission.buffers_bit, mission.slot_s, mission.n_slots)
@@ -482,13 +490,7 @@ MISSION_BOUNDS: dict[str, Callable[[Mission], MissionBound]] = {
 
 
 def unsupported_reason(mission: Mission) -> str | None:
-    """One line naming what the bound does not support in ``mission``, or None."""
-    fading = mission.scenario.radio.fading
-    if fading != "none" or mission.fading_db is not None:
-        return (
-            f"bound: radio.fading = {fading!r} is not supported (per-slot fading makes the "
-            "rate depend on the slot, not only on the position); set radio.fading = 'none'"
-        )
+    """One line naming a trajectory mode the bounds do not cover, or None."""
     mode = mission.scenario.trajectory.mode
     if mode not in MISSION_BOUNDS:
         return f"bound: trajectory.mode = {mode!r} is not supported; allowed: " + ", ".join(
@@ -501,8 +503,9 @@ def mission_bound(mission: Mission) -> MissionBound:
     """Upper bound on the bits any policy downloads in ``mission``.
 
     Raises:
-        BoundError: the scenario has something the bound does not model (see
-            :func:`unsupported_reason`), or the autonomous bound is not installed.
+        BoundError: the scenario has something the bound does not model (a trajectory mode
+            without a bound, fading on a fixed trajectory), or the autonomous bound is not
+            installed.
     """
     reason = unsupported_reason(mission)
     if reason is not None:

@@ -8,6 +8,7 @@ from skymule.errors import SkymuleError
 from skymule.policies.base import Action, MissionContext, Observation, Policy
 from skymule.policies.greedy import Greedy
 from skymule.policies.hgad import HGAD
+from skymule.policies.planner import Planner
 from skymule.policies.optimal_fixed import OptimalFixed
 from skymule.scenario import PolicySpec
 
@@ -16,6 +17,7 @@ PolicyFactory = Callable[[PolicySpec], Policy]
 POLICIES: dict[str, PolicyFactory] = {
     "greedy": lambda spec: Greedy(),
     "hgad": lambda spec: HGAD(spec.hover_threshold, spec.max_hover_s),
+    "planner": lambda spec: Planner(),
     "optimal-fixed": lambda spec: OptimalFixed(),
 }
 """Policy registry: name -> factory taking the scenario's ``[policy]`` section."""

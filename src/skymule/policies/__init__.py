@@ -8,8 +8,8 @@ from skymule.errors import SkymuleError
 from skymule.policies.base import Action, MissionContext, Observation, Policy
 from skymule.policies.greedy import Greedy
 from skymule.policies.hgad import HGAD
-from skymule.policies.planner import Planner
 from skymule.policies.optimal_fixed import OptimalFixed
+from skymule.policies.planner import Planner
 from skymule.scenario import PolicySpec
 
 PolicyFactory = Callable[[PolicySpec], Policy]

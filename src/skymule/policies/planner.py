@@ -1,0 +1,563 @@
+"""``planner``: an autonomous tour planner (order of hover points, hover time at each).
+
+The engine moves the UAV at most ``s = max_speed_mps * slot_s`` per slot along the in-fence
+shortest path and enforces the fence, the speed cap and the return home; the planner only
+decides where to go and whom to serve, from what :class:`MissionContext` offers (hover
+points, navigator, the model's SNR predictor and rate table, home, return_home).
+
+Slot accounting (what the plan and its simulation count). A leg of in-fence length ``L``
+takes ``ceil(L / s)`` slots from the slot in which the UAV leaves (served from the departure
+point) to the slot it starts at the next hover point. At a hover point the UAV serves the
+target; it *stays* ``e`` extra slots (or until the target's buffer empties) and leaves in the
+slot after. Every slot not spent staying is en route: it serves the sensor with the highest
+rate among those with data (opportunistic download).
+
+Plan search (each time the UAV reaches a hover point, at the start, and when the observed SNR
+departs from the prediction by more than ``replan_db``):
+
+1. *Orders.* For the sensors with data (``n <= exact_max``, default 7), a Held-Karp dynamic
+   programme over subsets gives, for every subset, the visiting order with the fewest travel
+   slots from here through the subset and home (exact: every order of every subset is
+   covered). Beyond ``exact_max``: nearest-neighbour + 2-opt, then dropping targets while
+   that helps.
+2. *Hover time* for a given order: the slots left after travel are shared by a fractional
+   knapsack: sensors by predicted hover rate ``R*_i``, highest first, each getting the extra
+   slots to empty what is left when it is reached (``Q_i`` minus en-route downloads). Since the
+   order only changes travel time, this is the best allocation for the order (ties in time go
+   to the first-visited target).
+3. *Choice.* Subsets are ranked by that value without en-route download; the best
+   ``candidates`` (plus going home now) are simulated slot by slot on the predicted rates,
+   with en-route download, and the plan with the most predicted bits wins (ties: earlier
+   completion, then fewer slots).
+
+Execution re-plans on every arrival (so early or late en-route downloads, and what the UAV
+observes at the hover point, are taken into account) and when the observed SNR of any sensor
+with data differs from the prediction by more than ``replan_db`` (it then keeps that offset
+as a per-sensor bias on the predictions), at most once every ``replan_cooldown`` slots.
+Without a predictor it predicts no en-route download (conservative) and hover rates from
+``peak_rate_bps``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from skymule.errors import SkymuleError
+from skymule.policies.base import Action, MissionContext, Observation
+
+XY = tuple[float, float]
+
+#: Positions closer than this [m] count as the same point.
+SAME_POINT_M = 1e-6
+
+#: Predicted downloads within this many bits count as equal (then finishing sooner wins).
+BITS_TOL = 1.0
+
+
+def _xy(point: np.ndarray | XY) -> XY:
+    return (float(point[0]), float(point[1]))
+
+
+def leg_slots(distance_m: float, step_m: float) -> int:
+    """Slots to fly ``distance_m`` [m] at ``step_m`` [m] per slot: ceil(L / s)."""
+    return math.ceil(distance_m / step_m - 1e-9) if distance_m > SAME_POINT_M else 0
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A tour: the sensors to visit in order and the extra slots to stay at each.
+
+    Attributes:
+        order: sensor indices in visiting order.
+        extra_slots: (len(order),) slots to stay at each hover point after arriving.
+        bits: predicted download over the rest of the mission [bit].
+        done_slot: predicted slot after which every buffer is empty (T if never).
+    """
+
+    order: tuple[int, ...]
+    extra_slots: tuple[int, ...]
+    bits: float
+    done_slot: int
+
+
+def allocate_hover(
+    rate_bps: np.ndarray, need_bit: np.ndarray, budget_slots: int, slot_s: float
+) -> np.ndarray:
+    """(k,) extra slots per target: fractional knapsack by rate (highest first).
+
+    ``rate_bps`` (k,) hover rates, ``need_bit`` (k,) bits left after the free departure slot.
+    """
+    extra = np.zeros(len(rate_bps), int)
+    left = max(int(budget_slots), 0)
+    for j in np.argsort(-rate_bps, kind="stable"):
+        if left <= 0:
+            break
+        if rate_bps[j] <= 0 or need_bit[j] <= 0:
+            continue
+        want = math.ceil(need_bit[j] / (rate_bps[j] * slot_s) - 1e-9)
+        extra[j] = min(want, left)
+        left -= extra[j]
+    return extra
+
+
+def knapsack_bits(
+    rate_bps: np.ndarray, buffer_bit: np.ndarray, budget: int, slot_s: float
+) -> float:
+    """Bits from hovering: one free slot per target plus the knapsack's extra slots."""
+    first = np.minimum(rate_bps * slot_s, buffer_bit)
+    extra = allocate_hover(rate_bps, buffer_bit - first, budget, slot_s)
+    return float(np.minimum(rate_bps * slot_s * (1 + extra), buffer_bit).sum())
+
+
+def held_karp(
+    start: np.ndarray, pair: np.ndarray, end: np.ndarray
+) -> tuple[np.ndarray, list[list[int]]]:
+    """Fewest slots from here through every subset of targets and then to ``end``.
+
+    ``start`` (n,), ``pair`` (n, n) and ``end`` (n,) are leg slot counts. Returns
+    ``(cost (2^n,), order per subset)``; subset 0 costs 0 (go straight to the end; its cost is
+    the caller's).
+    """
+    n = len(start)
+    size = 1 << n
+    dp = np.full((size, n), np.inf)
+    parent = np.full((size, n), -1, int)
+    for j in range(n):
+        dp[1 << j, j] = start[j]
+    for mask in range(1, size):
+        row = dp[mask]
+        for j in range(n):
+            if not (mask >> j) & 1 or not np.isfinite(row[j]):
+                continue
+            for k in range(n):
+                if (mask >> k) & 1:
+                    continue
+                new = mask | (1 << k)
+                cost = row[j] + pair[j, k]
+                if cost < dp[new, k]:
+                    dp[new, k] = cost
+                    parent[new, k] = j
+    cost = np.zeros(size)
+    orders: list[list[int]] = [[]]
+    for mask in range(1, size):
+        total = dp[mask] + end
+        last = int(np.argmin(total))
+        cost[mask] = total[last]
+        order, current, node = [], mask, last
+        while node >= 0:
+            order.append(node)
+            previous = int(parent[current, node])
+            current &= ~(1 << node)
+            node = previous
+        orders.append(order[::-1])
+    return cost, orders
+
+
+def two_opt_order(start: np.ndarray, pair: np.ndarray, end: np.ndarray) -> list[int]:
+    """Nearest-neighbour order from here, improved by 2-opt (segment reversals)."""
+    n = len(start)
+    left = set(range(n))
+    order: list[int] = []
+    costs = start
+    while left:
+        nxt = min(left, key=lambda k: costs[k])
+        order.append(nxt)
+        left.remove(nxt)
+        costs = pair[nxt]
+
+    def total(seq: list[int]) -> float:
+        legs = sum(pair[a, b] for a, b in itertools.pairwise(seq))
+        return float(start[seq[0]] + legs + end[seq[-1]])
+
+    best = total(order)
+    improved = True
+    while improved:
+        improved = False
+        for i in range(n - 1):
+            for j in range(i + 1, n):
+                trial = order[:i] + order[i : j + 1][::-1] + order[j + 1 :]
+                cost = total(trial)
+                if cost < best - 1e-9:
+                    order, best, improved = trial, cost, True
+    return order
+
+
+def _better(plan: Plan, best: Plan) -> bool:
+    """More predicted bits (beyond BITS_TOL), or as many and done sooner."""
+    if plan.bits > best.bits + BITS_TOL:
+        return True
+    return plan.bits >= best.bits - BITS_TOL and plan.done_slot < best.done_slot
+
+
+class Planner:
+    """Plans the tour of hover points and hover times; see the module docstring."""
+
+    name = "planner"
+
+    def __init__(
+        self,
+        exact_max: int = 7,
+        candidates: int = 8,
+        replan_db: float = 6.0,
+        replan_cooldown: int = 10,
+    ) -> None:
+        self.exact_max = exact_max
+        self.candidates = candidates
+        self.replan_db = replan_db
+        self.replan_cooldown = replan_cooldown
+        self._context: MissionContext | None = None
+
+    # --- setup -------------------------------------------------------------------------------
+
+    def reset(self, context: MissionContext) -> None:
+        if context.mode != "autonomous":
+            raise SkymuleError(
+                "policy.name = 'planner' steers the UAV: it needs trajectory.mode = "
+                "'autonomous' (use 'optimal-fixed' or 'hgad' on fixed paths)"
+            )
+        if context.hover_points_m is None or context.home_m is None or context.navigator is None:
+            raise SkymuleError("policy 'planner' needs hover points, home and a navigator")
+        self._context = context
+        hover = context.hover_points_m
+        self._known = np.all(np.isfinite(hover), axis=1)
+        self._hover = np.nan_to_num(hover)
+        self._home = _xy(context.home_m)
+        self._step = float(context.max_step_m)
+        self._n = len(hover)
+        self._bias_db = np.zeros(self._n)
+        self._legs: dict[tuple[XY, XY], tuple[float, np.ndarray]] = {}
+        self._hover_snr: np.ndarray | None = None
+        nodes = [*(_xy(p) for p in self._hover), self._home]
+        self._dist = np.zeros((self._n + 1, self._n + 1))
+        for a in range(self._n + 1):
+            for b in range(a + 1, self._n + 1):
+                if (a < self._n and not self._known[a]) or (b < self._n and not self._known[b]):
+                    d = np.inf
+                else:
+                    d = context.navigator.travel_distance(nodes[a], nodes[b])
+                self._dist[a, b] = self._dist[b, a] = d
+        self._pair_slots = np.full_like(self._dist, np.inf)
+        finite = np.isfinite(self._dist)
+        self._pair_slots[finite] = [leg_slots(float(d), self._step) for d in self._dist[finite]]
+        self._altitude = 0.0
+        self._homebound = False
+        self._plan: Plan | None = None
+        self._position = 0  # index into plan.order of the current target
+        self._stay_left = 0
+        self._at_target = False
+        self._last_replan = -(10**9)
+
+    # --- predictions -------------------------------------------------------------------------
+
+    def _predict_snr(self, xy: np.ndarray, altitude_m: float) -> np.ndarray | None:
+        """(P, N) predicted SNR [dB] at (P, 2) points, or None without a predictor."""
+        assert self._context is not None
+        if self._context.predict_snr_db is None or self._context.rate_of_snr_bps is None:
+            return None
+        points = np.column_stack([xy, np.full(len(xy), altitude_m)])
+        return np.nan_to_num(self._context.predict_snr_db(points), nan=-np.inf)
+
+    def _rates(self, snr_db: np.ndarray | None, count: int) -> np.ndarray:
+        """(count, N) predicted rates [bit/s] (zeros without a predictor)."""
+        assert self._context is not None
+        if snr_db is None or self._context.rate_of_snr_bps is None:
+            return np.zeros((count, self._n))
+        return self._context.rate_of_snr_bps(snr_db + self._bias_db)
+
+    def _hover_rates(self, altitude_m: float) -> np.ndarray:
+        """(N, N) predicted rate [bit/s] at hover point j (row) to sensor i (column)."""
+        assert self._context is not None
+        if self._hover_snr is None:
+            self._hover_snr = self._predict_snr(self._hover, altitude_m)
+        if self._hover_snr is None:
+            return np.diag(np.asarray(self._context.peak_rate_bps, float))
+        return self._rates(self._hover_snr, self._n) * self._known[:, None]
+
+    def _leg(self, a: XY, b: XY) -> tuple[int, np.ndarray]:
+        """Slots of the leg a -> b and (slots - 1, N) predicted SNR at its in-between points."""
+        key = (a, b)
+        if key not in self._legs:
+            assert self._context is not None and self._context.navigator is not None
+            path = np.asarray(self._context.navigator.shortest_path(a, b), float)
+            seg = np.hypot(*np.diff(path, axis=0).T)
+            along = np.concatenate([[0.0], np.cumsum(seg)])
+            slots = leg_slots(float(along[-1]), self._step)
+            at = np.arange(1, max(slots, 1)) * self._step
+            pts = np.column_stack(
+                [np.interp(at, along, path[:, 0]), np.interp(at, along, path[:, 1])]
+            )
+            snr = self._predict_snr(pts, self._altitude) if len(pts) else None
+            self._legs[key] = (float(slots), np.zeros((0, self._n)) if snr is None else snr)
+        slots, snr = self._legs[key]
+        return int(slots), snr
+
+    # --- simulation of one plan on the predicted rates -----------------------------------------
+
+    def _simulate(
+        self,
+        start: XY,
+        slot: int,
+        remaining: np.ndarray,
+        order: tuple[int, ...],
+        extra: np.ndarray,
+        altitude_m: float,
+    ) -> tuple[float, int, np.ndarray]:
+        """Predicted (bits, done slot, remaining at each arrival (len(order),)) of a plan."""
+        assert self._context is not None
+        n_slots, dt = self._context.n_slots, self._context.slot_s
+        q = remaining.astype(float).copy()
+        hover_rates = self._hover_rates(altitude_m)
+        bits = 0.0
+        done = slot if not (q > 0).any() else n_slots
+        t = slot
+        here = start
+        at_arrival = np.zeros(len(order))
+        home_rates: np.ndarray | None = None
+
+        def serve(rates: np.ndarray, prefer: int | None) -> None:
+            nonlocal bits, done
+            if prefer is not None and q[prefer] > 0:
+                i = prefer
+            else:
+                masked = np.where(q > 0, rates, -1.0)
+                i = int(np.argmax(masked))
+                if masked[i] <= 0:
+                    return
+            got = min(rates[i] * dt, q[i])
+            q[i] -= got
+            bits += got
+            if done == n_slots and not (q > 0).any():
+                done = t + 1
+
+        def fly(goal: XY) -> None:
+            nonlocal t
+            slots, snr = self._leg(here, goal)
+            if slots == 0:
+                return
+            # departure slot at ``here`` was served by the caller; then the in-between points
+            rates = self._rates(snr, len(snr)) if len(snr) else np.zeros((0, self._n))
+            for k in range(slots - 1):
+                if t >= n_slots:
+                    return
+                serve(rates[k], None) if len(rates) else None
+                t += 1
+
+        departing_rates = self._rates(self._predict_snr(np.asarray([start]), altitude_m), 1)[0]
+        prefer: int | None = None
+        for pos, j in enumerate(order):
+            goal = _xy(self._hover[j])
+            if self._leg(here, goal)[0] > 0:
+                if t >= n_slots:
+                    break
+                serve(departing_rates, prefer)
+                t += 1
+                fly(goal)
+            here = goal
+            at_arrival[pos] = q[j]
+            stay = int(extra[pos])
+            departing_rates, prefer = hover_rates[j], j
+            while t < n_slots and stay > 0 and q[j] > 0:
+                serve(hover_rates[j], j)
+                stay -= 1
+                t += 1
+                if q[j] <= 0:  # emptied while staying: that slot was the departure slot
+                    departing_rates = np.zeros(self._n)
+                    t -= 1
+                    break
+        # then home (or stay at the last point without return home)
+        if self._context.return_home and self._leg(here, self._home)[0] > 0:
+            if t < n_slots:
+                serve(departing_rates, prefer)
+                t += 1
+                fly(self._home)
+            here = self._home
+            home_rates = self._rates(self._predict_snr(np.asarray([here]), altitude_m), 1)[0]
+        else:
+            home_rates = departing_rates
+        while t < n_slots and (q > 0).any() and home_rates.max() > 0:
+            serve(home_rates, None)
+            t += 1
+        return bits, done, at_arrival
+
+    # --- planning -----------------------------------------------------------------------------
+
+    def _slots_from(self, position: XY) -> np.ndarray:
+        """(N + 1,) leg slots from ``position`` to every hover point and home."""
+        assert self._context is not None and self._context.navigator is not None
+        nav = self._context.navigator
+        nodes = [*(_xy(p) for p in self._hover), self._home]
+        out = np.full(self._n + 1, np.inf)
+        for k, node in enumerate(nodes):
+            if k == self._n or self._known[k]:
+                out[k] = leg_slots(nav.travel_distance(position, node), self._step)
+        return out
+
+    def _candidate_orders(
+        self, position: XY, slot: int, remaining: np.ndarray, rates: np.ndarray
+    ) -> list[tuple[int, ...]]:
+        """Orders worth simulating: the best subsets by the no-en-route knapsack value."""
+        assert self._context is not None
+        n_slots, dt = self._context.n_slots, self._context.slot_s
+        targets = np.flatnonzero(self._known & (remaining > 0) & (rates > 0))
+        if not len(targets):
+            return [()]
+        from_here = self._slots_from(position)
+        pair_all = self._pair_slots
+        start = from_here[targets]
+        pair = pair_all[np.ix_(targets, targets)]
+        end = pair_all[targets, self._n] if self._context.return_home else np.zeros(len(targets))
+        horizon = n_slots - slot
+        scored: list[tuple[float, float, tuple[int, ...]]] = []
+        if len(targets) <= self.exact_max:
+            cost, orders = held_karp(start, pair, end)
+            for mask in range(1, len(cost)):
+                if cost[mask] > horizon:
+                    continue
+                local = orders[mask]
+                chosen = targets[local]
+                value = knapsack_bits(
+                    rates[chosen], remaining[chosen], horizon - int(cost[mask]), dt
+                )
+                scored.append((value, cost[mask], tuple(int(i) for i in chosen)))
+        else:
+            local = two_opt_order(start, pair, end)
+            while local:
+                travel = start[local[0]] + sum(pair[a, b] for a, b in itertools.pairwise(local))
+                travel += end[local[-1]]
+                chosen = targets[local]
+                value = (
+                    knapsack_bits(rates[chosen], remaining[chosen], horizon - int(travel), dt)
+                    if travel <= horizon
+                    else -1.0
+                )
+                scored.append((value, travel, tuple(int(i) for i in chosen)))
+                # drop the target whose removal saves the most travel per bit lost
+                drops = []
+                for k in range(len(local)):
+                    trial = local[:k] + local[k + 1 :]
+                    if not trial:
+                        continue
+                    t_cost = start[trial[0]] + sum(pair[a, b] for a, b in itertools.pairwise(trial))
+                    t_cost += end[trial[-1]]
+                    drops.append((t_cost, k))
+                if not drops:
+                    break
+                local = local[: min(drops)[1]] + local[min(drops)[1] + 1 :]
+        scored.sort(key=lambda item: (-item[0], item[1]))
+        return [()] + [order for _, _, order in scored[: self.candidates]]
+
+    def _replan(self, observation: Observation) -> None:
+        assert self._context is not None
+        position = _xy(observation.position_m)
+        altitude = float(observation.position_m[2])
+        slot, remaining = observation.slot, observation.remaining_bit
+        dt, n_slots = self._context.slot_s, self._context.n_slots
+        rates = np.diag(self._hover_rates(altitude)).copy()
+        best: Plan | None = None
+        for order in self._candidate_orders(position, slot, remaining, rates):
+            zero = np.zeros(len(order), int)
+            _, _, at_arrival = self._simulate(position, slot, remaining, order, zero, altitude)
+            travel = self._travel_slots(position, order)
+            idx = np.asarray(order, int)
+            need = at_arrival - np.minimum(rates[idx] * dt, at_arrival)
+            extra = allocate_hover(rates[idx], need, n_slots - slot - travel, dt)
+            bits, done, _ = self._simulate(position, slot, remaining, order, extra, altitude)
+            plan = Plan(order, tuple(int(e) for e in extra), bits, done)
+            if best is None or _better(plan, best):
+                best = plan
+        self._plan = best
+        self._homebound = best is None or not best.order
+        self._position = 0
+        self._stay_left = best.extra_slots[0] if best and best.order else 0
+        self._at_target = False
+        self._last_replan = slot
+
+    def _travel_slots(self, position: XY, order: tuple[int, ...]) -> int:
+        assert self._context is not None
+        nodes = [position, *(_xy(self._hover[j]) for j in order)]
+        if self._context.return_home:
+            nodes.append(self._home)
+        return sum(self._leg(a, b)[0] for a, b in itertools.pairwise(nodes))
+
+    # --- acting -------------------------------------------------------------------------------
+
+    def _check_prediction(self, observation: Observation) -> bool:
+        """Update the per-sensor SNR bias; True if the observation departs from the plan."""
+        predicted = self._predict_snr(observation.position_m[None, :2], observation.position_m[2])
+        if predicted is None:
+            return False
+        offset = observation.snr_db - predicted[0]
+        usable = np.isfinite(offset) & (observation.remaining_bit > 0)
+        off = usable & (np.abs(offset - self._bias_db) > self.replan_db)
+        if not off.any() or observation.slot - self._last_replan < self.replan_cooldown:
+            return False
+        self._bias_db[off] = offset[off]
+        return True
+
+    def act(self, observation: Observation) -> Action:
+        remaining = observation.remaining_bit
+        if not (remaining > 0).any():
+            return Action(serve=None, goto_m=self._home)
+        if self._plan is None:
+            self._altitude = float(observation.position_m[2])
+            self._replan(observation)
+        elif self._check_prediction(observation):
+            self._replan(observation)
+        assert self._plan is not None
+        here = _xy(observation.position_m)
+        en_route = self._en_route(observation)
+        while True:
+            plan = self._plan
+            if self._position >= len(plan.order):
+                if not self._homebound and observation.slot != self._last_replan:
+                    self._replan(observation)  # tour done early: use the time left
+                    continue
+                return Action(serve=en_route, goto_m=self._home)
+            target = plan.order[self._position]
+            goal = _xy(self._hover[target])
+            arrived = math.dist(here, goal) <= SAME_POINT_M
+            if not arrived:
+                if remaining[target] <= 0 and observation.slot != self._last_replan:
+                    self._replan(observation)  # emptied en route: no need to go there
+                    continue
+                return Action(serve=en_route, goto_m=goal, target=target)
+            if not self._at_target:
+                # arrival: re-plan with what is left now (the new plan may start here)
+                if observation.slot != self._last_replan:
+                    self._replan(observation)
+                    continue
+                self._at_target = True
+            serve = target if remaining[target] > 0 else en_route
+            left = remaining[target] - (
+                min(observation.rate_bps[target] * self._slot_s(), remaining[target])
+                if serve == target
+                else 0.0
+            )
+            if self._stay_left > 0 and left > 0:
+                self._stay_left -= 1
+                return Action(serve=serve, hover=True, goto_m=None, target=target)
+            # leave in this slot: on to the next target
+            self._position += 1
+            self._at_target = False
+            if self._position < len(plan.order):
+                self._stay_left = plan.extra_slots[self._position]
+            nxt = plan.order[self._position] if self._position < len(plan.order) else None
+            goto = self._home if nxt is None else _xy(self._hover[nxt])
+            if nxt is not None and math.dist(here, goto) <= SAME_POINT_M:
+                continue  # next target served from the same point
+            return Action(serve=serve, goto_m=goto, target=nxt)
+
+    def _slot_s(self) -> float:
+        assert self._context is not None
+        return self._context.slot_s
+
+    @staticmethod
+    def _en_route(observation: Observation) -> int | None:
+        """Highest observed rate among sensors with data (None if no link)."""
+        rates = np.where(observation.remaining_bit > 0, observation.rate_bps, -1.0)
+        best = int(np.argmax(rates))
+        return best if rates[best] > 0 else None

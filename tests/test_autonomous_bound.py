@@ -8,7 +8,8 @@ from shapely.geometry import Point
 
 from skymule.bounds_autonomous import autonomous_bound, best_rate_bps, reach_radii_m
 from skymule.engine import run_mission
-from skymule.errors import SkymuleError
+from skymule.engine_autonomous import build_geometry, check_duration
+from skymule.errors import ScenarioError, SkymuleError
 from skymule.policies.greedy import Greedy
 from skymule.policies.hgad import HGAD
 from skymule.policies.planner import Planner
@@ -20,7 +21,18 @@ REL = 1e-9
 
 
 def random_scenario(rng: np.random.Generator, base=None, *, n_sensors: int | None = None):
-    """A random autonomous scenario around the Lake Wheeler fence (seeded by ``rng``)."""
+    """A random, flyable autonomous scenario around the Lake Wheeler fence (seeded by ``rng``)."""
+    while True:
+        scenario = _draw_scenario(rng, base, n_sensors)
+        mission = build_mission(scenario)
+        try:
+            check_duration(mission, build_geometry(mission))
+        except ScenarioError:
+            continue
+        return scenario
+
+
+def _draw_scenario(rng: np.random.Generator, base, n_sensors: int | None):
     base = base or load_scenario(PRESET)
     fence = build_mission(base).fence
     minx, miny, maxx, maxy = fence.bounds

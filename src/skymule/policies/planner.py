@@ -25,7 +25,9 @@ departs from the prediction by more than ``replan_db``):
    slots to empty what is left when it is reached (``Q_i`` minus en-route downloads). Since the
    order only changes travel time, this is the best allocation for the order (ties in time go
    to the first-visited target).
-3. *Choice.* Subsets are ranked by that value without en-route download; the best
+3. *Choice.* Subsets are ranked by a quick estimate (en-route download bounded per sensor by
+   its predicted rates along the tour's legs and overall by the best rate per slot, plus that
+   knapsack for what is left); the best
    ``candidates`` (plus going home now) are simulated slot by slot on the predicted rates,
    with en-route download, and the plan with the most predicted bits wins (ties: earlier
    completion, then fewer slots).
@@ -201,7 +203,7 @@ class Planner:
     def __init__(
         self,
         exact_max: int = 7,
-        candidates: int = 8,
+        candidates: int = 12,
         replan_db: float = 6.0,
         replan_cooldown: int = 10,
     ) -> None:
@@ -399,9 +401,10 @@ class Planner:
     def _candidate_orders(
         self, position: XY, slot: int, remaining: np.ndarray, rates: np.ndarray
     ) -> list[tuple[int, ...]]:
-        """Orders worth simulating: the best subsets by the no-en-route knapsack value."""
+        """Orders worth simulating: the best subsets by :meth:`_score`."""
         assert self._context is not None
-        n_slots, dt = self._context.n_slots, self._context.slot_s
+        legs: dict[tuple[XY, XY], tuple[np.ndarray, float]] = {}
+        n_slots = self._context.n_slots
         targets = np.flatnonzero(self._known & (remaining > 0) & (rates > 0))
         if not len(targets):
             return [()]
@@ -419,9 +422,7 @@ class Planner:
                     continue
                 local = orders[mask]
                 chosen = targets[local]
-                value = knapsack_bits(
-                    rates[chosen], remaining[chosen], horizon - int(cost[mask]), dt
-                )
+                value = self._score(position, chosen, horizon - int(cost[mask]), remaining, legs)
                 scored.append((value, cost[mask], tuple(int(i) for i in chosen)))
         else:
             local = two_opt_order(start, pair, end)
@@ -430,7 +431,7 @@ class Planner:
                 travel += end[local[-1]]
                 chosen = targets[local]
                 value = (
-                    knapsack_bits(rates[chosen], remaining[chosen], horizon - int(travel), dt)
+                    self._score(position, chosen, horizon - int(travel), remaining, legs)
                     if travel <= horizon
                     else -1.0
                 )
@@ -449,6 +450,48 @@ class Planner:
                 local = local[: min(drops)[1]] + local[min(drops)[1] + 1 :]
         scored.sort(key=lambda item: (-item[0], item[1]))
         return [()] + [order for _, _, order in scored[: self.candidates]]
+
+    def _score(
+        self,
+        position: XY,
+        order: np.ndarray,
+        budget: int,
+        remaining: np.ndarray,
+        legs: dict[tuple[XY, XY], tuple[np.ndarray, float]],
+    ) -> float:
+        """Quick estimate [bit] of a tour: en-route download plus the hover knapsack.
+
+        En route, sensor i can give at most E_i = sum over the tour's legs of its predicted
+        rate x dt, and all sensors together at most M = sum of the best rate x dt per slot; the
+        estimate takes min(Q_i, E_i) scaled down to M, then shares the ``budget`` spare slots
+        among the targets (knapsack by hover rate) for what is left.
+        """
+        assert self._context is not None
+        dt = self._context.slot_s
+        nodes = [position, *(_xy(self._hover[j]) for j in order)]
+        if self._context.return_home:
+            nodes.append(self._home)
+        each = np.zeros(self._n)
+        together = 0.0
+        for a, b in itertools.pairwise(nodes):
+            if (a, b) not in legs:
+                _, snr = self._leg(a, b)
+                rates = self._rates(snr, len(snr)) if len(snr) else np.zeros((0, self._n))
+                legs[(a, b)] = (
+                    rates.sum(axis=0) * dt,
+                    float(rates.max(axis=1, initial=0).sum() * dt),
+                )
+            leg_each, leg_together = legs[(a, b)]
+            each += leg_each
+            together += leg_together
+        en_route = np.minimum(remaining, each)
+        if en_route.sum() > together > 0:
+            en_route *= together / en_route.sum()
+        elif together <= 0:
+            en_route[:] = 0.0
+        rates = np.diag(self._hover_rates(self._altitude))[order]
+        left = remaining[order] - en_route[order]
+        return float(en_route.sum()) + knapsack_bits(rates, np.maximum(left, 0.0), budget, dt)
 
     def _replan(self, observation: Observation) -> None:
         assert self._context is not None

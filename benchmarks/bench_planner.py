@@ -1,0 +1,151 @@
+"""Planner vs HGAD over random autonomous missions, with the autonomous upper bound.
+
+Random missions (seeded): 3-6 sensors anywhere within 300 m of the Lake Wheeler fence, buffers
+300-1500 Mbit, 200-450 s, home at a random in-fence point, 6-12 m/s, free space at 3.41 GHz
+(the paper-sim-autonomous radio), return home. Prints the mean and worst-case gain of planner
+over HGAD, how many missions it loses by more than 1 %, the mean gap to the bound, and the
+preset's time-to-complete / AADM score.
+
+Run: /work/venv/bin/python benchmarks/bench_planner.py [--missions 200] [--workers 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+from shapely.geometry import Point
+
+from skymule.bounds_autonomous import autonomous_bound
+from skymule.engine import run_mission
+from skymule.engine_autonomous import build_geometry, check_duration
+from skymule.errors import ScenarioError
+from skymule.metrics import aadm_score, completion_time_s
+from skymule.policies.hgad import HGAD
+from skymule.policies.planner import Planner
+from skymule.scenario import Scenario, load_scenario
+from skymule.world import build_mission
+
+PRESET = "paper-sim-autonomous"
+SEED = 20250601
+
+
+def random_mission_scenario(rng: np.random.Generator, base: Scenario) -> Scenario:
+    """One random flyable autonomous scenario around the preset's fence."""
+    fence = build_mission(base).fence
+    minx, miny, maxx, maxy = fence.bounds
+    while True:
+        home = rng.uniform([minx, miny], [maxx, maxy])
+        if not fence.buffer(-2.0).covers(Point(home)):
+            continue
+        count = int(rng.integers(3, 7))
+        sensors = [
+            base.sensors[0].model_copy(
+                update={
+                    "name": f"S{k + 1}",
+                    "lat": None,
+                    "lon": None,
+                    "x_m": float(rng.uniform(minx - 300, maxx + 300)),
+                    "y_m": float(rng.uniform(miny - 300, maxy + 300)),
+                    "height_m": float(rng.uniform(0, 20)),
+                    "buffer_mbit": float(rng.uniform(300, 1500)),
+                }
+            )
+            for k in range(count)
+        ]
+        scenario = base.model_copy(
+            update={
+                "sensors": sensors,
+                "mission": base.mission.model_copy(
+                    update={"duration_s": float(rng.integers(200, 451))}
+                ),
+                "trajectory": base.trajectory.model_copy(
+                    update={
+                        "home": [float(home[0]), float(home[1])],
+                        "max_speed_mps": float(rng.uniform(6, 12)),
+                    }
+                ),
+            }
+        )
+        mission = build_mission(scenario)
+        try:
+            check_duration(mission, build_geometry(mission))
+        except ScenarioError:
+            continue
+        return scenario
+
+
+def evaluate(scenario: Scenario) -> tuple[float, float, float, float, float]:
+    """(total, hgad, planner, bound [bit], planner seconds) for one mission."""
+    mission = build_mission(scenario)
+    hgad = float(run_mission(mission, HGAD()).downloaded_bit.sum())
+    start = time.perf_counter()
+    planner = float(run_mission(mission, Planner()).downloaded_bit.sum())
+    took = time.perf_counter() - start
+    bound = autonomous_bound(mission).upper_bound_bit
+    return float(mission.buffers_bit.sum()), hgad, planner, bound, took
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--missions", type=int, default=200)
+    parser.add_argument("--workers", type=int, default=2)
+    args = parser.parse_args()
+
+    base = load_scenario(PRESET)
+    mission = build_mission(base)
+    print(f"{PRESET} (all 3000 Mbit fit): policy, Mbit, time to complete s, AADM score")
+    for policy in (HGAD(), Planner()):
+        log = run_mission(mission, policy)
+        print(
+            f"  {policy.name:8s} {log.downloaded_bit.sum() / 1e6:7.1f} "
+            f"{completion_time_s(log)!s:>6} {aadm_score(log):7.1f}"
+        )
+    for label, changes in (
+        ("300 s", {"mission": base.mission.model_copy(update={"duration_s": 300.0})}),
+        (
+            "1500 Mbit each",
+            {"sensors": [s.model_copy(update={"buffer_mbit": 1500.0}) for s in base.sensors]},
+        ),
+    ):
+        variant = build_mission(base.model_copy(update=changes))
+        bound = autonomous_bound(variant).upper_bound_bit / 1e6
+        got = [run_mission(variant, p).downloaded_bit.sum() / 1e6 for p in (HGAD(), Planner())]
+        print(f"  {label}: hgad {got[0]:.1f}, planner {got[1]:.1f}, bound {bound:.1f} Mbit")
+
+    rng = np.random.default_rng(SEED)
+    scenarios = [random_mission_scenario(rng, base) for _ in range(args.missions)]
+    start = time.perf_counter()
+    with ProcessPoolExecutor(args.workers) as pool:
+        rows = np.array(list(pool.map(evaluate, scenarios, chunksize=4)))
+    wall = time.perf_counter() - start
+    total, hgad, planner, bound, took = rows.T
+    gain = (planner - hgad) / hgad
+    gap = (bound - planner) / bound
+    print(f"{args.missions} random missions (seed {SEED}), {wall:.0f} s on {args.workers} workers")
+    print(f"  missions where the bound < total buffer: {(bound < total * (1 - 1e-9)).sum()}")
+    print(
+        f"  mean Mbit: hgad {hgad.mean() / 1e6:.1f}, planner {planner.mean() / 1e6:.1f}, "
+        f"bound {bound.mean() / 1e6:.1f}, total {total.mean() / 1e6:.1f}"
+    )
+    print(
+        f"  planner gain over hgad: mean {gain.mean():+.2%}, median {np.median(gain):+.2%}, "
+        f"worst {gain.min():+.2%}, best {gain.max():+.2%}"
+    )
+    print(
+        f"  planner below hgad by > 1 %: {(gain < -0.01).sum()} missions; below at all: "
+        f"{(gain < -1e-9).sum()}"
+    )
+    print(
+        f"  mean gap to bound: planner {gap.mean():.2%}, hgad {((bound - hgad) / bound).mean():.2%}"
+    )
+    print(
+        f"  any policy above the bound: {((planner > bound * (1 + 1e-9)) | (hgad > bound * (1 + 1e-9))).sum()}"
+    )
+    print(f"  planner run time: mean {took.mean():.2f} s, max {took.max():.2f} s per mission")
+
+
+if __name__ == "__main__":
+    main()

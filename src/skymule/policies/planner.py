@@ -30,7 +30,8 @@ departs from the prediction by more than ``replan_db``):
    knapsack for what is left); the best
    ``candidates`` (plus going home now) are simulated slot by slot on the predicted rates,
    with en-route download, and the plan with the most predicted bits wins (ties: earlier
-   completion, then fewer slots).
+   completion). Its hover slots are then moved between targets (16, 4, 1 at a time) while
+   the simulated download improves: a sensor passed again later is partly drained en route.
 
 Execution re-plans on every arrival (so early or late en-route downloads, and what the UAV
 observes at the hover point, are taken into account) and when the observed SNR of any sensor
@@ -55,6 +56,9 @@ XY = tuple[float, float]
 
 #: Positions closer than this [m] count as the same point.
 SAME_POINT_M = 1e-6
+
+#: Most plan simulations spent moving hover slots between targets per re-plan.
+REFINE_SIMULATIONS = 40
 
 #: Predicted downloads within this many bits count as equal (then finishing sooner wins).
 BITS_TOL = 1.0
@@ -512,12 +516,44 @@ class Planner:
             plan = Plan(order, tuple(int(e) for e in extra), bits, done)
             if best is None or _better(plan, best):
                 best = plan
+        if best is not None and len(best.order) > 1:
+            best = self._refine(best, position, slot, remaining, altitude)
         self._plan = best
         self._homebound = best is None or not best.order
         self._position = 0
         self._stay_left = best.extra_slots[0] if best and best.order else 0
         self._at_target = False
         self._last_replan = slot
+
+    def _refine(
+        self, plan: Plan, position: XY, slot: int, remaining: np.ndarray, altitude: float
+    ) -> Plan:
+        """Move hover slots between targets while the simulated plan improves.
+
+        The knapsack ranks targets by hover rate, but a sensor passed again later in the tour
+        is partly drained en route anyway; trading its hover slots for another target's can
+        pay. Moves of 16, 4 and 1 slots, at most ``REFINE_SIMULATIONS`` simulations.
+        """
+        budget = REFINE_SIMULATIONS
+        extra = np.asarray(plan.extra_slots, int)
+        for size in (16, 4, 1):
+            improved = True
+            while improved and budget > 0:
+                improved = False
+                for a, b in itertools.permutations(range(len(extra)), 2):
+                    if extra[a] < size or budget <= 0:
+                        continue
+                    trial = extra.copy()
+                    trial[a] -= size
+                    trial[b] += size
+                    budget -= 1
+                    bits, done, _ = self._simulate(
+                        position, slot, remaining, plan.order, trial, altitude
+                    )
+                    candidate = Plan(plan.order, tuple(int(e) for e in trial), bits, done)
+                    if _better(candidate, plan):
+                        plan, extra, improved = candidate, trial, True
+        return plan
 
     def _travel_slots(self, position: XY, order: tuple[int, ...]) -> int:
         assert self._context is not None

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import fields, replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,11 +13,20 @@ from hypothesis import strategies as st
 
 from skymule.engine import MissionLog, run_fixed, run_mission
 from skymule.engine_autonomous import fixed_geometry_fields
-from skymule.engine_batch import run_fixed_batch
+from skymule.engine_batch import (
+    batchable,
+    handover_counts,
+    run_fixed_batch,
+    summarize_fixed_batch,
+)
+from skymule.experiments.run import _flat_summary, run_chunk
+from skymule.experiments.sweep import iter_missions, load_sweep
 from skymule.flight.paths import Track
-from skymule.metrics import summarize
+from skymule.metrics import handovers, summarize
 from skymule.policies import make_policy
-from skymule.scenario import PolicySpec, load_scenario
+from skymule.radio.rates import Shannon
+from skymule.runner import simulate
+from skymule.scenario import PolicySpec, load_scenario, scenario_from_dict
 from skymule.world import build_mission
 
 
@@ -130,3 +141,167 @@ def test_trace_ends_when_uav_moves_past_last_sample(base_mission):
     held = replace(mission, track=replace(track, hold_at_end=True))
     (log,) = run_fixed_batch([held], [PolicySpec(name="greedy")])
     assert log.n_slots == 10
+
+
+# --- vectorised summaries (no MissionLog) and per-slot fading ------------------------------
+
+
+def random_geometry(rng: np.random.Generator, n_sensors: int) -> dict[str, object] | None:
+    """fixed_geometry_fields-like geometry near random tracks; sometimes partly or all absent."""
+    if rng.random() < 0.15:
+        return None
+    hover = rng.normal(0, 30, (n_sensors, 2))
+    hover[rng.random(n_sensors) < 0.2] = np.nan
+    return {
+        "home_m": None if rng.random() < 0.2 else rng.normal(0, 20, 2),
+        "hover_points_m": None if rng.random() < 0.1 else hover,
+        "visit_radius_m": float(rng.choice([5.0, 20.0, 50.0])),
+    }
+
+
+def with_random_fading(mission, rng: np.random.Generator):
+    """Half the time: per-slot fading (T, N) [dB]; a third of those on a Shannon rate table."""
+    if rng.random() < 0.5:
+        return mission
+    fading = rng.normal(0, 6, (mission.n_slots, mission.n_sensors))
+    mission = replace(mission, fading_db=fading)
+    return replace(mission, rate_table=Shannon()) if rng.random() < 0.3 else mission
+
+
+def reference_summary(mission, spec, geometry, name: str = "x") -> dict:
+    log = run_fixed(mission, make_policy(spec))
+    return summarize(replace(log, **geometry) if geometry else log, name)
+
+
+def assert_summaries_equal(got: dict, want: dict) -> None:
+    """Field for field, exactly: same keys in the same order, same types, same values (NaN=NaN)."""
+    assert list(got) == list(want)
+    for key, value in want.items():
+        assert type(got[key]) is type(value), key
+        if isinstance(value, float) and np.isnan(value):
+            assert np.isnan(got[key]), key
+        else:
+            assert got[key] == value, (key, got[key], value)
+
+
+def check_summaries(missions, specs, geometry, batch_size: int = 7) -> None:
+    names = [f"m{i}" for i in range(len(missions))]
+    got = summarize_fixed_batch(missions, specs, names, geometry, batch_size=batch_size)
+    for row, mission, spec, geo, name in zip(got, missions, specs, geometry, names, strict=True):
+        assert_summaries_equal(row, reference_summary(mission, spec, geo, name))
+
+
+@settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(seed=st.integers(0, 2**32 - 1), n_missions=st.integers(1, 12), n_sensors=st.integers(1, 5))
+def test_vectorised_summaries_equal_summarize_on_random_missions(
+    base_mission, seed, n_missions, n_sensors
+):
+    rng = np.random.default_rng(seed)
+    missions = [
+        with_random_fading(random_mission(base_mission, rng, n_sensors), rng)
+        for _ in range(n_missions)
+    ]
+    specs = [random_spec(rng) for _ in range(n_missions)]
+    geometry = [random_geometry(rng, n_sensors) for _ in range(n_missions)]
+    check_summaries(missions, specs, geometry)
+    check_equal(missions, specs)  # the logs of fading missions too
+
+
+def test_vectorised_summaries_with_mixed_sensor_counts_and_shared_tracks(base_mission):
+    rng = np.random.default_rng(11)
+    missions = [random_mission(base_mission, rng, int(rng.integers(1, 9))) for _ in range(20)]
+    # missions sharing a track (and rate table) with other buffers, slot counts and lengths
+    missions += [
+        replace(m, buffers_bit=m.buffers_bit[::-1].copy(), n_slots=int(rng.integers(1, 60)))
+        for m in missions[:10]
+    ]
+    specs = [random_spec(rng) for _ in missions]
+    geometry = [random_geometry(rng, m.n_sensors) for m in missions]
+    for mission, geo in zip(missions[::2], geometry[::2], strict=True):
+        if geo is not None:  # home near the track's end: within and beyond the 3 m tolerance
+            geo["home_m"] = mission.track.position_m[-1, :2] + rng.normal(0, 2, 2)
+    check_summaries(missions, specs, geometry, batch_size=6)
+
+
+def test_vectorised_summaries_equal_summarize_on_paper_preset(base_mission):
+    rng = np.random.default_rng(5)
+    geometry = fixed_geometry_fields(base_mission)
+    missions, specs = [], []
+    for index in range(8):
+        buffers = rng.uniform(0, 1500e6, base_mission.n_sensors)
+        if index == 7:
+            buffers[:] = [1e6, 2e6, 0.0, 3e6]  # emptied early: the AADM completion bonus
+        missions.append(replace(base_mission, buffers_bit=buffers))
+        specs.append(PolicySpec(name=("greedy", "hgad")[index % 2]))
+    check_summaries(missions, specs, [geometry] * len(missions), batch_size=1000)
+    # and as ``skymule run`` gives them (run_mission attaches the same geometry)
+    (row,) = summarize_fixed_batch(missions[:1], specs[:1], ["x"], [geometry])
+    assert_summaries_equal(row, summarize(run_mission(missions[0], make_policy(specs[0])), "x"))
+
+
+@pytest.fixture(scope="module")
+def rician_mission():
+    scenario = load_scenario("paper-sim-fixed")
+    radio = scenario.radio.model_copy(update={"fading": "rician"})
+    return build_mission(scenario.model_copy(update={"radio": radio}))
+
+
+def test_batched_engine_runs_rician_fading_like_the_reference(rician_mission):
+    assert rician_mission.fading_db is not None
+    assert batchable(rician_mission, PolicySpec(name="hgad"))
+    rng = np.random.default_rng(9)
+    missions = [
+        replace(rician_mission, buffers_bit=rng.uniform(0, 1500e6, rician_mission.n_sensors))
+        for _ in range(4)
+    ]
+    specs = [PolicySpec(name=name) for name in ("greedy", "hgad", "greedy", "hgad")]
+    check_equal(missions, specs)
+    geometry = [fixed_geometry_fields(rician_mission)] * len(missions)
+    check_summaries(missions, specs, geometry)
+    # fading changes what happens: the faded run differs from the unfaded one
+    plain = replace(missions[1], fading_db=None)
+    (faded_log, plain_log) = run_fixed_batch([missions[1], plain], [specs[1]] * 2)
+    assert not np.array_equal(faded_log.downloaded_bit, plain_log.downloaded_bit)
+
+
+FADING_SWEEP = """
+base = "paper-sim-fixed"
+seed = 4
+[axes]
+policy.name = ["greedy", "hgad"]
+radio.fading = ["none", "rician"]
+seed = { range = [0, 2] }
+"sensors[*].buffer_mbit" = { dist = "uniform", low = 20, high = 300 }
+"mission.duration_s" = [90]
+"""
+
+
+def test_sweep_rows_from_vectorised_summaries_equal_skymule_run(tmp_path):
+    """A sweep worker's rows (batched, fading included) are ``skymule run``'s summaries."""
+    path = tmp_path / "sweep.toml"
+    path.write_text(FADING_SWEEP)
+    spec = load_sweep(path)
+    missions = list(iter_missions(spec))
+    tasks = [(m.index, m.mission_id, m.params, m.scenario) for m in missions]
+    frame = run_chunk(tasks, str(tmp_path))
+    assert len(frame) == 8
+    for row, mission in zip(frame.to_dict("records"), missions, strict=True):
+        scenario = scenario_from_dict(mission.scenario, "t", Path("."))
+        want = _flat_summary(simulate(scenario).summary)
+        for key, value in want.items():
+            got = row[key]
+            nan = isinstance(value, float) and math.isnan(value)
+            assert (isinstance(got, float) and math.isnan(got)) if nan else got == value, key
+
+
+def test_handover_counts_with_gaps_in_service_equal_metrics():
+    """The general path (served slots not a prefix; Greedy/HGAD never leave such gaps)."""
+    rng = np.random.default_rng(2)
+    served = rng.choice([-1, -1, 0, 1, 2], size=(30, 200))  # (T, B) slot-major
+    want = [handovers(served[:, b]) for b in range(served.shape[1])]
+    np.testing.assert_array_equal(handover_counts(served), want)
+    prefix = np.where(np.arange(30)[:, None] < rng.integers(0, 31, 200), served % 3, -1)
+    want = [handovers(prefix[:, b]) for b in range(prefix.shape[1])]
+    np.testing.assert_array_equal(handover_counts(prefix), want)

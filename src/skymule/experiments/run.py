@@ -1,9 +1,11 @@
 """Running a sweep: plan, skip what is done, run chunks on an executor, store, summarise.
 
-Fixed-trajectory Greedy/HGAD missions run through the batched engine
-(:mod:`skymule.engine_batch`); every other mission (other policies, autonomous flights,
-missions with per-slot fading) runs through the reference engine, one at a time, in the worker.
-Either way the row is ``metrics.summarize`` of the mission's log, as ``skymule run`` gives.
+Fixed-trajectory Greedy/HGAD missions (per-slot fading included) run through the batched
+engine (:mod:`skymule.engine_batch`), whose summaries come straight from the batch arrays
+(``summarize_fixed_batch``: no per-mission log is built); every other mission (other policies,
+autonomous flights) runs through the reference engine, one at a time, in the worker. Either way
+the row is ``metrics.summarize`` of the mission's log, value for value, as ``skymule run``
+gives.
 """
 
 from __future__ import annotations
@@ -65,7 +67,7 @@ def run_chunk(tasks: Sequence[Task], base_dir: str) -> pd.DataFrame:
     """Run a chunk of missions (in a worker); one row per mission, in task order."""
     from skymule.engine import run_mission
     from skymule.engine_autonomous import fixed_geometry_fields
-    from skymule.engine_batch import batchable, run_fixed_batch
+    from skymule.engine_batch import batchable, summarize_fixed_batch
     from skymule.metrics import summarize
     from skymule.policies import make_policy
     from skymule.scenario import scenario_from_dict
@@ -88,11 +90,17 @@ def run_chunk(tasks: Sequence[Task], base_dir: str) -> pd.DataFrame:
             log = run_mission(mission, make_policy(scenario.policy))
             summaries[position] = summarize(log, scenario.name)
     if batched:
-        logs = run_fixed_batch([m for _, m, _, _ in batched], [s for _, _, s, _ in batched])
-        for (position, mission, _, key), log in zip(batched, logs, strict=True):
+        for _, mission, _, key in batched:
             if key not in geometry:
                 geometry[key] = fixed_geometry_fields(mission)
-            summaries[position] = summarize(replace(log, **geometry[key]), mission.scenario.name)
+        rows_batched = summarize_fixed_batch(
+            [m for _, m, _, _ in batched],
+            [s for _, _, s, _ in batched],
+            [m.scenario.name for _, m, _, _ in batched],
+            [geometry[key] for _, _, _, key in batched],
+        )
+        for (position, _, _, _), summary in zip(batched, rows_batched, strict=True):
+            summaries[position] = summary
     rows = []
     for (index, mission_id, params, _), summary in zip(tasks, summaries, strict=True):
         assert summary is not None

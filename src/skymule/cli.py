@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import pandas as pd
 import typer
+from rich import box
 from rich.console import Console
 from rich.table import Table
 
@@ -28,7 +29,8 @@ app = typer.Typer(
     no_args_is_help=True,
     help="UAV data-mule missions: simulate, replay, compare and plot.",
 )
-console = Console()
+# tables are wider than 80 columns: piped output keeps every digit
+console = Console(width=None if sys.stdout.isatty() else 120)
 
 SUMMARY_COLUMNS = (
     "policy",
@@ -42,10 +44,34 @@ SUMMARY_COLUMNS = (
 )
 
 
+COLUMN_LABELS = {
+    "total_downloaded_mbit": "Mbit",
+    "completion": "done",
+    "handovers": "switches",
+    "hover_time_s": "hover s",
+    "distance_m": "dist m",
+    "energy_kj": "kJ",
+    "aadm_score": "AADM",
+    "gap_to_bound_mbit": "gap Mbit",
+    "gap_to_bound_frac": "gap",
+}
+"""Short terminal headers (the files keep the full field names)."""
+
+LEFT_ALIGNED = {"policy", "quantity", "source", "sensor"}
+
+
 def _table(title: str, rows: list[dict], columns: tuple[str, ...]) -> Table:
-    table = Table(title=title)
+    table = Table(title=title, box=box.SIMPLE_HEAD, pad_edge=False)
     for column in columns:
-        table.add_column(column, justify="left" if column == "policy" else "right")
+        table.add_column(
+            COLUMN_LABELS.get(column, column),
+            justify="left" if column in LEFT_ALIGNED else "right",
+            no_wrap=True,
+            min_width=max(
+                [len(COLUMN_LABELS.get(column, column))]
+                + [len(_fmt(row.get(column, ""))) for row in rows]
+            ),
+        )
     for row in rows:
         table.add_row(*(_fmt(row.get(c, "")) for c in columns))
     return table
@@ -389,7 +415,9 @@ def sweep(
     table = Table(title=f"{sweep_file.name}: {outcome.n_missions} missions (mean ± 95% CI)")
     metrics = ("total_downloaded_mbit", "completion", "handovers", "hover_time_s", "distance_m")
     for column in ("policy", "missions", *metrics):
-        table.add_column(column, justify="left" if column == "policy" else "right")
+        table.add_column(
+            COLUMN_LABELS.get(column, column), justify="left" if column == "policy" else "right"
+        )
     for row in outcome.summary.to_dict("records"):
         cells = [f"{_fmt(row[f'{m}_mean'])} ± {_fmt(row[f'{m}_ci95'])}" for m in metrics]
         table.add_row(str(row["policy"]), str(row["missions"]), *cells)

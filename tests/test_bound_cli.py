@@ -104,7 +104,7 @@ def test_compare_has_bound_row_and_gap(tmp_path: Path) -> None:
         "compare", "paper-sim-fixed", "--policies", "greedy,hgad,optimal-fixed", "--out", str(out)
     )
     assert done.returncode == 0, done.stderr
-    assert "bound" in done.stdout and "gap_to_bound" in done.stdout
+    assert "bound" in done.stdout and "gap Mbit" in done.stdout
     table = pd.read_csv(out / "comparison.csv").set_index("policy")
     assert table.index.tolist() == ["greedy", "hgad", "optimal-fixed"]
     bound = json.loads((out / "bound.json").read_text())["upper_bound_mbit"]

@@ -18,6 +18,7 @@ from rich.console import Console
 from rich.table import Table
 
 from skymule.errors import SkymuleError
+from skymule.metrics import HEADLINE_METRICS
 
 if TYPE_CHECKING:
     from skymule.bounds import MissionBound
@@ -32,16 +33,7 @@ app = typer.Typer(
 # tables are wider than 80 columns: piped output keeps every digit
 console = Console(width=None if sys.stdout.isatty() else 120)
 
-SUMMARY_COLUMNS = (
-    "policy",
-    "total_downloaded_mbit",
-    "completion",
-    "handovers",
-    "hover_time_s",
-    "distance_m",
-    "energy_kj",
-    "aadm_score",
-)
+SUMMARY_COLUMNS = ("policy", *HEADLINE_METRICS)
 
 
 COLUMN_LABELS = {

@@ -11,6 +11,17 @@ from skymule.engine import NO_SENSOR, MissionLog
 
 BITS_PER_MBIT = 1e6
 
+HEADLINE_METRICS = (
+    "total_downloaded_mbit",
+    "completion",
+    "handovers",
+    "hover_time_s",
+    "distance_m",
+    "energy_kj",
+    "aadm_score",
+)
+"""The summary fields shown in tables and aggregated over sweeps."""
+
 #: AADM challenge scoring (AERPAW AADM rules): mission reference time [s], landing
 #: tolerance [m] and penalty per metre beyond it.
 AADM_REFERENCE_S = 600.0

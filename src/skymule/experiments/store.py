@@ -20,18 +20,12 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 
+from skymule.metrics import HEADLINE_METRICS
+
 PARTS = "results"
 RESULTS = "results.parquet"
 SUMMARY = "summary.csv"
-SUMMARY_METRICS = (
-    "total_downloaded_mbit",
-    "completion",
-    "handovers",
-    "hover_time_s",
-    "distance_m",
-    "energy_kj",
-    "aadm_score",
-)
+SUMMARY_METRICS = HEADLINE_METRICS
 
 
 def part_paths(out: Path) -> list[Path]:

@@ -1,0 +1,26 @@
+"""The README's Python quick start runs as written."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def test_readme_python_blocks_run() -> None:
+    blocks = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
+    assert blocks, "the README should show a Python quick start"
+    for block in blocks:
+        namespace: dict[str, object] = {}
+        exec(compile(block, str(README), "exec"), namespace)
+    result = namespace["result"]
+    assert result.summary["policy"] == "greedy"  # type: ignore[attr-defined]
+
+
+def test_readme_states_the_two_setup_commands() -> None:
+    text = README.read_text()
+    assert "pip install -e '.[test,dask,browser]'" in text
+    assert "python -m pytest -q" in text
+    ci = (README.parent / ".ci" / "run").read_text()
+    assert "pip install -q -e '.[test,dask,browser]'" in ci and "python -m pytest -q" in ci

@@ -22,6 +22,9 @@ from skymule.metrics import HEADLINE_METRICS
 
 if TYPE_CHECKING:
     from skymule.bounds import MissionBound
+    from skymule.geo import LocalFrame
+    from skymule.radio.sources import SignalSource
+    from skymule.scenario import Scenario
     from skymule.world import Mission
 
 app = typer.Typer(
@@ -200,11 +203,11 @@ def _write_bound(folder: Path, upper: MissionBound) -> Path:
     return path
 
 
-def _compare_sources(base: object, sources: str, policies: list[str], out: Path | None) -> None:
+def _compare_sources(base: Scenario, sources: str, policies: list[str], out: Path | None) -> None:
     """``compare --sources``: every source x policy in one table; SNR-CDF panels with --out."""
     from skymule.sources_compare import compare_sources, folder_name, parse_sources
 
-    results = compare_sources(base, parse_sources(sources), policies)  # type: ignore[arg-type]
+    results = compare_sources(base, parse_sources(sources), policies)
     bounds = {spec: _bound_or_note(result.mission) for spec, _, result in results}
     rows = [
         {"source": spec, **_with_gap(_flat(result.summary), bounds[spec][0])}
@@ -420,7 +423,7 @@ def sweep(
     )
 
 
-def _origin_frame(origin: str | None, default: tuple[float, float]) -> object:
+def _origin_frame(origin: str | None, default: tuple[float, float]) -> LocalFrame:
     """LocalFrame at ``--origin LAT,LON`` or at ``default``."""
     from skymule.geo import LocalFrame
 
@@ -466,18 +469,18 @@ def fit_radiomap_command(
     frame = _origin_frame(origin, (site.lat, site.lon))
     if spec is not None:
         names = spec.signal.sensors_from_trace or [s.name for s in spec.sensors]
-        sensor_m = sensor_positions_m(spec.sensors, frame)  # type: ignore[arg-type]
+        sensor_m = sensor_positions_m(spec.sensors, frame)
         radio = spec.radio
     else:
         names = list(read_trace(traces[0]).columns)
-        sensor_m = site_tower_positions_m(names, frame)  # type: ignore[arg-type]
+        sensor_m = site_tower_positions_m(names, frame)
         radio = RadioSpec()
     baseline = model_source(radio.model_copy(update={"model": "fspl"}), sensor_m)
     fitted = fit_radiomap(
         traces,
         names,
         sensor_m,
-        frame,  # type: ignore[arg-type]
+        frame,
         drop_below_db=drop_below,
         baseline=baseline,
     )
@@ -536,7 +539,7 @@ def score_radiomap_command(
         fitted = read_radiomap(Path(source))
         frame = _origin_frame(origin, fitted.origin)
         names = list(fitted.names)
-        model = fitted.source(names, frame_offset_m(fitted.origin, frame))  # type: ignore[arg-type]
+        model: SignalSource = fitted.source(names, frame_offset_m(fitted.origin, frame))
         radio = RadioSpec()
         table = resolve_rate_table(radio.rate_table)
     else:
@@ -548,12 +551,12 @@ def score_radiomap_command(
             )
         frame = _origin_frame(origin, (spec.site.origin.lat, spec.site.origin.lon))
         names = spec.signal.sensors_from_trace or [s.name for s in spec.sensors]
-        sensor_m = sensor_positions_m(spec.sensors, frame)  # type: ignore[arg-type]
-        model = signal_source(spec, frame, sensor_m)  # type: ignore[arg-type]
+        sensor_m = sensor_positions_m(spec.sensors, frame)
+        model = signal_source(spec, frame, sensor_m)
         radio = spec.radio
         table = resolve_rate_table(radio.rate_table, Path(spec.base_dir))
     recorded = read_trace(trace, sensors=names)
-    positions = positions_local(recorded, frame.to_local)  # type: ignore[attr-defined]
+    positions = positions_local(recorded, frame.to_local)
     predicted = np.asarray(model.snr_db(positions))
     scores = score_source(
         predicted, recorded.snr_db, names, lambda snr: rate_bps(table, snr, radio.bandwidth_hz)

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import TypedDict
 
 import numpy as np
 from shapely.geometry import Point, Polygon, box
@@ -261,7 +262,15 @@ def run_autonomous(mission: Mission, policy: Policy) -> MissionLog:
     )
 
 
-def fixed_geometry_fields(mission: Mission) -> dict[str, object]:
+class FixedGeometry(TypedDict):
+    """The :class:`~skymule.engine.MissionLog` fields ``fixed_geometry_fields`` fills in."""
+
+    home_m: np.ndarray
+    hover_points_m: np.ndarray
+    visit_radius_m: float
+
+
+def fixed_geometry_fields(mission: Mission) -> FixedGeometry:
     """Home, hover points and visit radius for a fixed-trajectory log (metrics need them).
 
     Home is ``trajectory.home`` or the site origin (the AADM launch point in the presets).

@@ -32,6 +32,7 @@ import numpy as np
 from skymule.energy import propulsion_power_w
 from skymule.engine import NO_SENSOR, MissionLog
 from skymule.errors import SkymuleError
+from skymule.flight.paths import Track
 from skymule.metrics import (
     AADM_LANDING_TOLERANCE_M,
     AADM_PENALTY_PER_M,
@@ -168,6 +169,7 @@ def stack_missions(missions: Sequence[Mission], specs: Sequence[PolicySpec]) -> 
     n = n_sensors.pop()
     keys: dict[tuple[int, int, float], int] = {}
     unique: list[Mission] = []
+    tracks: list[Track] = []  # unique[u].track
     track_id = np.empty(len(missions), np.int64)
     for b, mission in enumerate(missions):
         if mission.track is None:
@@ -176,9 +178,10 @@ def stack_missions(missions: Sequence[Mission], specs: Sequence[PolicySpec]) -> 
         if key not in keys:
             keys[key] = len(unique)
             unique.append(mission)
+            tracks.append(mission.track)
         track_id[b] = keys[key]
     # one padding row past the longest track: where a used-up trace points
-    k_max = max(m.track.n_samples for m in unique) + 1  # type: ignore[union-attr]
+    k_max = max(t.n_samples for t in tracks) + 1
     rate = np.zeros((len(unique), k_max, n))
     snr = np.full((len(unique), k_max, n), np.nan)
     snr_seen = np.full((len(unique), k_max, n), -np.inf)
@@ -203,8 +206,8 @@ def stack_missions(missions: Sequence[Mission], specs: Sequence[PolicySpec]) -> 
         snr_seen_db=snr_seen,
         position_m=position,
         peak_rate_bps=peak,
-        n_samples=np.array([m.track.n_samples for m in unique], np.int64),  # type: ignore[union-attr]
-        hold_at_end=np.array([m.track.hold_at_end for m in unique], bool),  # type: ignore[union-attr]
+        n_samples=np.array([t.n_samples for t in tracks], np.int64),
+        hold_at_end=np.array([t.hold_at_end for t in tracks], bool),
         n_slots=np.array([m.n_slots for m in missions], np.int64),
         slot_s=np.array([m.slot_s for m in missions], float),
         buffers_bit=np.array([m.buffers_bit for m in missions], float).reshape(-1, n),
@@ -594,7 +597,8 @@ def track_steps_m(position_m: np.ndarray, n_samples: np.ndarray) -> np.ndarray:
 
     A slot that does not hover moves the UAV exactly one such step (none at the end).
     """
-    steps = np.zeros(position_m.shape[:2])
+    n_tracks, k_max = position_m.shape[:2]
+    steps = np.zeros((n_tracks, k_max))
     steps[:, :-1] = np.linalg.norm(position_m[:, 1:] - position_m[:, :-1], axis=2)
     steps[np.arange(steps.shape[1]) >= n_samples[:, None] - 1] = 0.0
     return steps

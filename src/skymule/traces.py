@@ -35,12 +35,15 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 import pandas as pd
 
 from skymule.errors import SkymuleError
+
+if TYPE_CHECKING:
+    from pandas.api.typing import NaTType
 
 __all__ = [
     "DT_MISSING",
@@ -379,7 +382,7 @@ def _timestamps(label: str, table: _Table, col: int) -> np.ndarray:
     return (ns - ns[0]).astype(float) * 1e-9
 
 
-def _one_timestamp(text: str) -> pd.Timestamp:
+def _one_timestamp(text: str) -> pd.Timestamp | NaTType:
     try:
         stamp = pd.Timestamp(text)
     except (ValueError, TypeError, OverflowError):

@@ -16,7 +16,8 @@ from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, wait
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from types import TracebackType
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -24,6 +25,9 @@ import pandas as pd
 from skymule.experiments import store
 from skymule.experiments.executors import default_workers, open_executor
 from skymule.experiments.sweep import SweepMission, SweepSpec, iter_missions, validate_mission
+
+if TYPE_CHECKING:
+    from skymule.engine_autonomous import FixedGeometry
 
 Task = tuple[int, str, dict[str, Any], dict[str, Any]]
 """(mission index, mission id, axis values, resolved scenario dict)."""
@@ -74,7 +78,7 @@ def run_chunk(tasks: Sequence[Task], base_dir: str) -> pd.DataFrame:
     from skymule.world import BITS_PER_MBIT, build_mission
 
     built: dict[str, Any] = {}
-    geometry: dict[str, dict[str, object]] = {}
+    geometry: dict[str, FixedGeometry] = {}
     summaries: list[dict[str, Any] | None] = [None] * len(tasks)
     batched: list[tuple[int, Any, Any, str]] = []
     for position, (_, mission_id, _, data) in enumerate(tasks):
@@ -99,8 +103,8 @@ def run_chunk(tasks: Sequence[Task], base_dir: str) -> pd.DataFrame:
             [m.scenario.name for _, m, _, _ in batched],
             [geometry[key] for _, _, _, key in batched],
         )
-        for (position, _, _, _), summary in zip(batched, rows_batched, strict=True):
-            summaries[position] = summary
+        for (position, _, _, _), batch_summary in zip(batched, rows_batched, strict=True):
+            summaries[position] = batch_summary
     rows = []
     for (index, mission_id, params, _), summary in zip(tasks, summaries, strict=True):
         assert summary is not None
@@ -236,9 +240,14 @@ class _Progress:
 
         return advance
 
-    def __exit__(self, *exc: object) -> None:
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
         if self.enabled:
-            self.bar.__exit__(*exc)
+            self.bar.__exit__(exc_type, exc, tb)
 
 
 def _progress(enabled: bool, total: int, done: int) -> _Progress:

@@ -34,7 +34,7 @@ import json
 import math
 import re
 import tomllib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -286,9 +286,9 @@ def parse_axis(source: str, key: str, value: Any) -> Axis:
             source,
             f"{where}: {problem}; dist = {name!r} takes {', '.join(kind_spec.params)}",
         )
-    problem = kind_spec.check(params)
-    if problem is not None:
-        raise _fail(source, f"{where} (dist = {name!r}): {problem}")
+    invalid = kind_spec.check(params)
+    if invalid is not None:
+        raise _fail(source, f"{where} (dist = {name!r}): {invalid}")
     return Axis(key, path, dist=Distribution(name, tuple(sorted(params.items()))))
 
 
@@ -357,9 +357,14 @@ def _assign(node: Any, path: Path_, value: Any, source: str, key: str) -> Any:
         if not isinstance(node, list):
             raise _fail(source, f"axes.{key}: {head!r} indexes a field that is not a list")
         items = list(node)
-        targets = range(len(items)) if head == "*" else [head]
-        if isinstance(head, int) and head >= len(items):
-            raise _fail(source, f"axes.{key}: index {head} out of range; the base has {len(items)}")
+        if isinstance(head, int):
+            if head >= len(items):
+                raise _fail(
+                    source, f"axes.{key}: index {head} out of range; the base has {len(items)}"
+                )
+            targets: Sequence[int] = [head]
+        else:
+            targets = range(len(items))
         for i in targets:
             item = value[i] if head == "*" else value
             items[i] = _assign(items[i], rest, item, source, key) if rest else item
@@ -380,14 +385,13 @@ def _stars(path: Path_, base: dict[str, Any]) -> int | None:
     for part in path:
         if part == "*":
             return len(node) if isinstance(node, list) else 0
-        node = node[part] if isinstance(node, dict | list) and _has(node, part) else None
+        if isinstance(node, dict):
+            node = node.get(part)
+        elif isinstance(node, list) and isinstance(part, int) and part < len(node):
+            node = node[part]
+        else:
+            node = None
     return None
-
-
-def _has(node: Any, part: str | int) -> bool:
-    if isinstance(node, dict):
-        return part in node
-    return isinstance(part, int) and part < len(node)
 
 
 def _base_dict(base: Scenario) -> dict[str, Any]:

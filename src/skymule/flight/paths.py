@@ -9,6 +9,7 @@ does not hover it advances one sample; hovering repeats the current one.
 from __future__ import annotations
 
 import csv
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -59,7 +60,9 @@ def sample_path(waypoints_m: np.ndarray, speed_mps: float, slot_s: float) -> np.
     return np.column_stack([np.interp(arc, cumulative, waypoints[:, axis]) for axis in range(3)])
 
 
-def read_waypoints_csv(path: Path, to_local) -> np.ndarray:  # type: ignore[no-untyped-def]
+def read_waypoints_csv(
+    path: Path, to_local: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+) -> np.ndarray:
     """Waypoints from CSV with header ``x_m,y_m,z_m`` (local metres) or ``lat,lon,alt``."""
     try:
         with path.open(newline="") as handle:

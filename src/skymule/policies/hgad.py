@@ -77,15 +77,15 @@ class HGAD:
         self._cooling &= ~(rate < self._threshold_bps)
 
         if self._hover_sensor is not None:
-            sensor = self._hover_sensor
+            hovered = self._hover_sensor
             self._budget_s -= self._slot_s
-            left_after = observation.remaining_bit[sensor] - slot_download_bit(
-                observation, sensor, self._slot_s
+            left_after = observation.remaining_bit[hovered] - slot_download_bit(
+                observation, hovered, self._slot_s
             )
             if self._budget_s <= 1e-12 or left_after <= 0:
                 self._hover_sensor = None
-                self._cooling[sensor] = True
-            return Action(serve=sensor, hover=True)
+                self._cooling[hovered] = True
+            return Action(serve=hovered, hover=True)
 
         sensor = hgad_choice(rate, observation.snr_db, observation.remaining_bit)
         if sensor is None:

@@ -235,7 +235,7 @@ class Planner:
         self._step = float(context.max_step_m)
         self._n = len(hover)
         self._bias_db = np.zeros(self._n)
-        self._legs: dict[tuple[XY, XY], tuple[float, np.ndarray]] = {}
+        self._legs: dict[tuple[XY, XY], tuple[int, np.ndarray]] = {}
         self._hover_snr: np.ndarray | None = None
         nodes = [*(_xy(p) for p in self._hover), self._home]
         self._dist = np.zeros((self._n + 1, self._n + 1))
@@ -297,9 +297,8 @@ class Planner:
                 [np.interp(at, along, path[:, 0]), np.interp(at, along, path[:, 1])]
             )
             snr = self._predict_snr(pts, self._altitude) if len(pts) else None
-            self._legs[key] = (float(slots), np.zeros((0, self._n)) if snr is None else snr)
-        slots, snr = self._legs[key]
-        return int(slots), snr
+            self._legs[key] = (slots, np.zeros((0, self._n)) if snr is None else snr)
+        return self._legs[key]
 
     # --- simulation of one plan on the predicted rates -----------------------------------------
 

@@ -460,7 +460,7 @@ def fit_sensor_map(
     sensor = np.asarray(sensor_m, float)
     intercept, exponent, vario, train, weights = _fit_core(positions, snr, sensor, None)
     fitted = SensorMap(name, sensor, intercept, exponent, vario, train, weights)
-    errors = {"map": [], "trend": [], "baseline": []}
+    errors: dict[str, list[np.ndarray]] = {"map": [], "trend": [], "baseline": []}
     for fold in np.unique(segment):
         test = segment == fold
         if test.all() or (~test).sum() < MIN_FIT_SAMPLES // 2:

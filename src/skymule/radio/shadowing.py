@@ -22,9 +22,13 @@ The grid is capped at 2048 x 2048 nodes; beyond that the spacing grows with the 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.fft
+
+if TYPE_CHECKING:
+    from skymule.radio.sources import SignalSource
 
 GRID_POINTS_PER_DECORRELATION = 16
 """Grid spacing is d_corr divided by this."""
@@ -136,9 +140,9 @@ def shadowing_field(
 class ShadowedSource:
     """A signal source with shadowing: SNR = base SNR - S_i(x, y) [dB], shape (P, N)."""
 
-    base: object  # SignalSource (typed loosely to avoid an import cycle with sources.py)
+    base: SignalSource
     field: ShadowingField
 
     def snr_db(self, positions_m: np.ndarray) -> np.ndarray:
         positions = np.atleast_2d(np.asarray(positions_m, float))
-        return self.base.snr_db(positions) - self.field.at(positions[:, :2])  # type: ignore[attr-defined]
+        return self.base.snr_db(positions) - self.field.at(positions[:, :2])

@@ -49,7 +49,7 @@ def draw_cumulative_download(ax: Axes, slots: pd.DataFrame, title: str = "") -> 
     twin.plot(end_t, slots["distance_m"], color="#8B4513", lw=1.2, label="distance")
     twin.set_ylabel("distance flown [m]", color="#8B4513")
     lines = ax.get_lines() + twin.get_lines()
-    ax.legend(lines, [ln.get_label() for ln in lines], loc="upper left", fontsize=8)
+    ax.legend(lines, [str(ln.get_label()) for ln in lines], loc="upper left", fontsize=8)
     ax.set_title(title)
     ax.grid(alpha=0.3)
     return ax
@@ -134,7 +134,7 @@ def draw_trajectory(
         segments = np.stack([xy[:-1], xy[1:]], axis=1)
         served = slots["served"].to_numpy(str)[:-1]
         seg_colours = [colours.get(name, "0.6") for name in served]
-        ax.add_collection(LineCollection(segments, colors=seg_colours, linewidths=2.0))
+        ax.add_collection(LineCollection(list(segments), colors=seg_colours, linewidths=2.0))
     hovered = slots[(slots["hovering"] == 1) & (slots["served"] != "")]
     for name in names:
         colour = colours[name]

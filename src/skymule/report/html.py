@@ -15,6 +15,7 @@ import json
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import matplotlib.pyplot as plt
 from matplotlib.axes import Axes
@@ -121,10 +122,10 @@ SUMMARY_FIELDS: tuple[tuple[str, str, str], ...] = (
 )
 
 
-def _fmt(template: str, value: object) -> str:
+def _fmt(template: str, value: Any) -> str:
     try:
         if template == "{:d}":
-            return str(int(value))  # type: ignore[call-overload]
+            return str(int(value))
         return template.format(value)
     except (TypeError, ValueError):
         return html.escape(str(value))

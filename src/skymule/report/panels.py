@@ -40,7 +40,7 @@ def draw_flight_map(ax: Axes, run: RunData, title: str = "") -> Axes:
     xy = slots[["x_m", "y_m"]].to_numpy(float)
     if len(xy) > 1:
         segments = np.stack([xy[:-1], xy[1:]], axis=1)
-        ax.add_collection(LineCollection(segments, colors=served_colours(run)[:-1], lw=1.8))
+        ax.add_collection(LineCollection(list(segments), colors=served_colours(run)[:-1], lw=1.8))
     for hover in hover_segments(slots, run.slot_s):
         ax.scatter(
             hover.x_m,
@@ -56,7 +56,8 @@ def draw_flight_map(ax: Axes, run: RunData, title: str = "") -> Axes:
         x_m, y_m = site.sensor_xyz_m[index, :2]
         ax.scatter(x_m, y_m, marker="^", s=80, color=colours.get(name, NEUTRAL), ec="k", zorder=5)
         ax.annotate(name, (x_m, y_m), xytext=(4, 4), textcoords="offset points", fontsize=8)
-    ax.scatter(*site.home_xy_m, marker="*", s=120, color="k", zorder=6)
+    home_x, home_y = site.home_xy_m
+    ax.scatter(home_x, home_y, marker="*", s=120, color="k", zorder=6)
     handles = [Line2D([], [], color=colours[n], lw=2, label=f"serving {n}") for n in colours]
     handles += [
         Line2D([], [], color=NEUTRAL, lw=2, label="no download"),

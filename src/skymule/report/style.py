@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import matplotlib
 
@@ -20,12 +21,15 @@ from matplotlib.figure import Figure
 
 from skymule.report.figures import OKABE_ITO
 
+if TYPE_CHECKING:
+    from matplotlib.typing import RcKeyType
+
 #: Colour of "no sensor served" path segments and of neutral marks.
 NEUTRAL = "#999999"
 #: Colour of the distance-flown axis.
 DISTANCE_COLOUR = "#8B4513"
 
-PAPER_RC: dict[str, object] = {
+PAPER_RC: dict[RcKeyType, Any] = {
     "font.size": 9,
     "axes.titlesize": 10,
     "axes.labelsize": 9,

@@ -16,12 +16,10 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
-from shapely.geometry import Point
 
 from skymule.bounds_autonomous import autonomous_bound
 from skymule.engine import run_mission
-from skymule.engine_autonomous import build_geometry, check_duration
-from skymule.errors import ScenarioError
+from skymule.experiments.layouts import random_autonomous_scenario
 from skymule.metrics import aadm_score, completion_time_s
 from skymule.policies.hgad import HGAD
 from skymule.policies.planner import Planner
@@ -30,51 +28,6 @@ from skymule.world import build_mission
 
 PRESET = "paper-sim-autonomous"
 SEED = 20250601
-
-
-def random_mission_scenario(rng: np.random.Generator, base: Scenario) -> Scenario:
-    """One random flyable autonomous scenario around the preset's fence."""
-    fence = build_mission(base).fence
-    minx, miny, maxx, maxy = fence.bounds
-    while True:
-        home = rng.uniform([minx, miny], [maxx, maxy])
-        if not fence.buffer(-2.0).covers(Point(home)):
-            continue
-        count = int(rng.integers(3, 7))
-        sensors = [
-            base.sensors[0].model_copy(
-                update={
-                    "name": f"S{k + 1}",
-                    "lat": None,
-                    "lon": None,
-                    "x_m": float(rng.uniform(minx - 300, maxx + 300)),
-                    "y_m": float(rng.uniform(miny - 300, maxy + 300)),
-                    "height_m": float(rng.uniform(0, 20)),
-                    "buffer_mbit": float(rng.uniform(300, 1500)),
-                }
-            )
-            for k in range(count)
-        ]
-        scenario = base.model_copy(
-            update={
-                "sensors": sensors,
-                "mission": base.mission.model_copy(
-                    update={"duration_s": float(rng.integers(200, 451))}
-                ),
-                "trajectory": base.trajectory.model_copy(
-                    update={
-                        "home": [float(home[0]), float(home[1])],
-                        "max_speed_mps": float(rng.uniform(6, 12)),
-                    }
-                ),
-            }
-        )
-        mission = build_mission(scenario)
-        try:
-            check_duration(mission, build_geometry(mission))
-        except ScenarioError:
-            continue
-        return scenario
 
 
 def evaluate(scenario: Scenario) -> tuple[float, float, float, float, float]:
@@ -116,7 +69,7 @@ def main() -> None:
         print(f"  {label}: hgad {got[0]:.1f}, planner {got[1]:.1f}, bound {bound:.1f} Mbit")
 
     rng = np.random.default_rng(SEED)
-    scenarios = [random_mission_scenario(rng, base) for _ in range(args.missions)]
+    scenarios = [random_autonomous_scenario(rng, base) for _ in range(args.missions)]
     start = time.perf_counter()
     with ProcessPoolExecutor(args.workers) as pool:
         rows = np.array(list(pool.map(evaluate, scenarios, chunksize=4)))

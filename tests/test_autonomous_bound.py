@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from shapely.geometry import Point
 
 from skymule.bounds_autonomous import autonomous_bound, best_rate_bps, reach_radii_m
 from skymule.engine import run_mission
-from skymule.engine_autonomous import build_geometry, check_duration
-from skymule.errors import ScenarioError, SkymuleError
+from skymule.errors import SkymuleError
+from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
 from skymule.policies.greedy import Greedy
 from skymule.policies.hgad import HGAD
 from skymule.policies.planner import Planner
@@ -22,55 +21,15 @@ REL = 1e-9
 
 def random_scenario(rng: np.random.Generator, base=None, *, n_sensors: int | None = None):
     """A random, flyable autonomous scenario around the Lake Wheeler fence (seeded by ``rng``)."""
-    while True:
-        scenario = _draw_scenario(rng, base, n_sensors)
-        mission = build_mission(scenario)
-        try:
-            check_duration(mission, build_geometry(mission))
-        except ScenarioError:
-            continue
-        return scenario
-
-
-def _draw_scenario(rng: np.random.Generator, base, n_sensors: int | None):
-    base = base or load_scenario(PRESET)
-    fence = build_mission(base).fence
-    minx, miny, maxx, maxy = fence.bounds
-    while True:
-        home = rng.uniform([minx, miny], [maxx, maxy])
-        if fence.buffer(-2.0).covers(Point(home)):
-            break
-    count = n_sensors or int(rng.integers(2, 7))
-    sensors = [
-        base.sensors[0].model_copy(
-            update={
-                "name": f"S{k + 1}",
-                "lat": None,
-                "lon": None,
-                "x_m": float(rng.uniform(minx - 300, maxx + 300)),
-                "y_m": float(rng.uniform(miny - 300, maxy + 300)),
-                "height_m": float(rng.uniform(0, 20)),
-                "buffer_mbit": float(rng.uniform(0, 1500)),
-            }
-        )
-        for k in range(count)
-    ]
-    return base.model_copy(
-        update={
-            "seed": int(rng.integers(1 << 30)),
-            "sensors": sensors,
-            "mission": base.mission.model_copy(
-                update={"duration_s": float(rng.integers(160, 420))}
-            ),
-            "trajectory": base.trajectory.model_copy(
-                update={
-                    "home": [float(home[0]), float(home[1])],
-                    "max_speed_mps": float(rng.uniform(5, 15)),
-                    "return_home": bool(rng.random() < 0.8),
-                }
-            ),
-        }
+    ranges = LayoutRanges(
+        n_sensors=(n_sensors, n_sensors) if n_sensors else (2, 6),
+        buffer_mbit=(0.0, 1500.0),
+        duration_s=(160, 419),
+        max_speed_mps=(5.0, 15.0),
+        return_home_probability=0.8,
+        draw_seed=True,
     )
+    return random_autonomous_scenario(rng, base or load_scenario(PRESET), ranges)
 
 
 def test_reach_radii_with_and_without_return_home():

@@ -39,7 +39,7 @@ from skymule.engine import NO_SENSOR, MissionLog
 from skymule.errors import SkymuleError
 from skymule.geo import load_site
 from skymule.metrics import summarize
-from skymule.policies import POLICIES
+from skymule.policies import POLICIES, unknown_policies
 from skymule.runio import slots_frame, write_run
 from skymule.scenario import Scenario, scenario_from_dict
 from skymule.traces import Trace, TraceError, normalise_column, read_trace, read_volumes
@@ -264,7 +264,7 @@ def analyze_flight(
     """
     from skymule.runner import simulate
 
-    unknown = [p for p in policies if p not in POLICIES]
+    unknown = unknown_policies(list(policies))
     if not policies or unknown:
         raise SkymuleError(
             f"--policies: unknown {', '.join(unknown) or '(empty)'}; "

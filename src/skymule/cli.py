@@ -126,13 +126,13 @@ def compare(
     ] = None,
 ) -> None:
     """Run one scenario under several policies on identical signal draws."""
-    from skymule.policies import POLICIES
+    from skymule.policies import POLICIES, unknown_policies
     from skymule.runner import simulate
     from skymule.scenario import load_scenario
     from skymule.world import build_mission
 
     names = [p.strip() for p in policies.split(",") if p.strip()]
-    unknown = [p for p in names if p not in POLICIES]
+    unknown = unknown_policies(names)
     if not names or unknown:
         raise SkymuleError(
             f"--policies {policies!r}: unknown {', '.join(unknown) or '(empty)'}; "

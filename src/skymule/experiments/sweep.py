@@ -504,12 +504,12 @@ def validate_mission(spec: SweepSpec, mission: SweepMission) -> Scenario:
 
 def _check_axes(spec: SweepSpec) -> None:
     """Each axis alone, on the base: names the axis when a field is unknown or a value bad."""
-    from skymule.policies import POLICIES
+    from skymule.policies import POLICIES, unknown_policies
 
     base = _base_dict(spec.base)
     for axis in spec.axes:
         if axis.key == "policy.name":
-            unknown = [v for v in axis.values or () if v not in POLICIES]
+            unknown = unknown_policies([str(v) for v in axis.values or ()])
             if unknown:
                 raise _fail(
                     spec.source,

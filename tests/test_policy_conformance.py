@@ -1,0 +1,145 @@
+"""Every registered policy obeys the slot contract on the presets it supports.
+
+Policies that do not support a trajectory mode must say so with a one-line SkymuleError;
+every policy must support at least one mode. Also: same seed, same mission (determinism),
+and user policies given as ``module:Class`` import paths.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import shapely
+
+from skymule.engine import NO_SENSOR, MissionLog, run_mission
+from skymule.errors import SkymuleError
+from skymule.policies import POLICIES, make_policy, unknown_policies
+from skymule.runner import simulate
+from skymule.scenario import load_scenario
+from skymule.world import Mission, build_mission
+
+PLUGINS = Path(__file__).parent / "plugins"
+PRESETS = ("paper-sim-fixed", "paper-sim-autonomous")
+
+
+def assert_slot_contract(mission: Mission, log: MissionLog) -> None:
+    assert log.n_slots == mission.n_slots
+    assert (log.remaining_bit >= 0).all()
+    before = np.vstack([log.buffers_bit[None], log.remaining_bit[:-1]])
+    decrement = before - log.remaining_bit
+    np.testing.assert_allclose(decrement.sum(axis=1), log.downloaded_bit, atol=1e-6)
+    changed = decrement > 0
+    assert (changed.sum(axis=1) <= 1).all()  # at most one sensor per slot
+    assert not changed[log.served == NO_SENSOR].any()
+    served = log.served != NO_SENSOR
+    rows = np.flatnonzero(served)
+    expected = np.minimum(
+        log.rate_bps[rows, log.served[rows]] * log.slot_s, before[rows, log.served[rows]]
+    )
+    np.testing.assert_allclose(log.downloaded_bit[rows], expected)  # y = min(R dt, Q)
+    if mission.scenario.trajectory.mode == "autonomous":
+        spec = mission.scenario.trajectory
+        path = np.vstack([log.position_m, log.end_position_m[None]])
+        assert mission.fence is not None
+        inside = shapely.covers(mission.fence.buffer(1e-5), shapely.points(path[:, :2]))
+        assert inside.all()
+        steps = np.hypot(*np.diff(path[:, :2], axis=0).T)
+        assert steps.max() <= spec.max_speed_mps * mission.slot_s + 1e-6
+        assert np.hypot(*(log.end_position_m[:2] - log.home_m)) < 1e-6
+
+
+@pytest.fixture(scope="module")
+def missions() -> dict[str, Mission]:
+    return {name: build_mission(load_scenario(name)) for name in PRESETS}
+
+
+@pytest.mark.parametrize("policy_name", sorted(POLICIES))
+def test_registered_policy_obeys_the_contract(
+    policy_name: str, missions: dict[str, Mission]
+) -> None:
+    supported = 0
+    for mission in missions.values():
+        spec = mission.scenario.policy.model_copy(update={"name": policy_name})
+        try:
+            log = run_mission(mission, make_policy(spec))
+        except SkymuleError as exc:
+            assert "\n" not in str(exc)  # a mode it does not support: one clear line
+            continue
+        supported += 1
+        assert_slot_contract(mission, log)
+        assert log.policy == policy_name
+        assert log.downloaded_bit.sum() > 0
+    assert supported >= 1, f"{policy_name} supports neither fixed nor autonomous missions"
+
+
+@pytest.mark.parametrize("preset", ["paper-sim-fixed", "paper-sim-autonomous"])
+def test_same_seed_same_mission_with_shadowing_and_fading(preset: str) -> None:
+    base = load_scenario(preset)
+    noisy = base.model_copy(
+        update={
+            "radio": base.radio.model_copy(
+                update={
+                    "shadowing_std_db": 6.0,
+                    "shadowing_decorrelation_m": 50.0,
+                    "fading": "rician",
+                    "rician_k_db": 6.0,
+                }
+            )
+        }
+    )
+    first = simulate(noisy, "hgad").log
+    second = simulate(noisy, "hgad").log
+    np.testing.assert_array_equal(first.snr_db, second.snr_db)
+    np.testing.assert_array_equal(first.served, second.served)
+    other_seed = simulate(noisy.model_copy(update={"seed": noisy.seed + 1}), "hgad").log
+    assert not np.array_equal(first.snr_db, other_seed.snr_db)
+
+
+def test_user_policy_by_import_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.syspath_prepend(str(PLUGINS))
+    result = simulate(load_scenario("paper-sim-fixed"), "my_policies:LargestBufferFirst")
+    assert result.summary["policy"] == "largest-buffer-first"
+    assert_slot_contract(result.mission, result.log)
+    assert unknown_policies(["my_policies:LargestBufferFirst", "greedy"]) == []
+    assert unknown_policies(["my_policies:Nope", "no_such_module:X"]) == [
+        "my_policies:Nope",
+        "no_such_module:X",
+    ]
+    with pytest.raises(SkymuleError, match="has no reset, act"):
+        simulate(load_scenario("paper-sim-fixed"), "my_policies:NotAPolicy")
+
+
+def test_cli_runs_and_compares_a_user_policy(tmp_path: Path) -> None:
+    command = [sys.executable, "-c", "from skymule.cli import main; main()"]
+    env = {**os.environ, "PYTHONPATH": str(PLUGINS)}
+    done = subprocess.run(
+        [
+            *command,
+            "compare",
+            "paper-sim-fixed",
+            "--policies",
+            "hgad,my_policies:LargestBufferFirst",
+            "--out",
+            str(tmp_path / "cmp"),
+        ],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "cmp" / "my_policies:LargestBufferFirst" / "summary.json").exists()
+    done = subprocess.run(
+        [*command, "run", "paper-sim-fixed", "--policy", "my_policies:Missing"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
+    assert done.returncode == 2
+    assert done.stderr.strip().count("\n") == 0 and "my_policies" in done.stderr

@@ -11,10 +11,12 @@ README = Path(__file__).resolve().parents[1] / "README.md"
 def test_readme_python_blocks_run() -> None:
     blocks = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
     assert blocks, "the README should show a Python quick start"
+    namespace: dict[str, object] = {}
     for block in blocks:
-        namespace: dict[str, object] = {}
         exec(compile(block, str(README), "exec"), namespace)
     result = namespace["result"]
+    policy = namespace["LargestBufferFirst"]()  # type: ignore[operator]
+    assert policy.name == "largest-buffer-first"
     assert result.summary["policy"] == "greedy"  # type: ignore[attr-defined]
 
 

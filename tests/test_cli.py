@@ -181,3 +181,12 @@ def test_bad_flags_and_folders_exit_2(tmp_path: Path) -> None:
     assert done.returncode == 2 and "not a run folder" in done.stderr
     done = skymule("run", "no-such-preset")
     assert done.returncode == 2 and "paper-sim-fixed" in done.stderr
+
+
+def test_unwritable_output_folder_is_one_line(tmp_path: Path) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    done = skymule("run", "paper-sim-fixed", "--out", str(blocker / "run"))
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and str(blocker) in lines[0], done.stderr

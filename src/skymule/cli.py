@@ -580,6 +580,11 @@ def main(argv: list[str] | None = None) -> None:
     except SkymuleError as exc:
         print(f"skymule: error: {exc}", file=sys.stderr)
         sys.exit(2)
+    except OSError as exc:
+        # a file or folder the user named cannot be read or written (permissions, full disk)
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"skymule: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        sys.exit(2)
     except KeyboardInterrupt:
         print("skymule: interrupted", file=sys.stderr)
         sys.exit(130)

@@ -8,11 +8,29 @@ slot ``t`` it sits at ``r_t``, serves at most one sensor ``i`` and gets
 ``y = min(R_i(r_t) dt, Q_i)`` bits, ``R_i(r) = f(SNR_i(r) + g[t, i])`` with ``f`` the
 (non-decreasing) rate table and ``g`` the per-slot fading of the mission (zero without fading).
 
-Reach sets. Every slot moves at most ``s`` of in-fence travel distance, and Euclidean distance
-never exceeds travel distance, so ``|r_t - h| <= t s``. With ``return_home`` the engine keeps
-``d_home(r_{t+1}) <= (T - t - 1) s`` after every slot (the UAV is home at ``T``), hence also
-``|r_t - h| <= (T - t) s``. So ``r_t`` lies in ``A_t = F  ∩  disc(h, rho_t)`` with
-``rho_t = s min(t, T - t)`` (``s t`` without return home).
+Reach sets. Every slot moves at most ``s`` of in-fence travel (geodesic) distance ``d_F``, so
+``d_F(h, r_t) <= t s``. With ``return_home`` the engine keeps ``d_F(r_{t+1}, h) <= (T - t - 1) s``
+after every slot (the UAV is home at ``T``), hence also ``d_F(h, r_t) <= (T - t) s``. So ``r_t``
+lies in the geodesic ball ``B_t = {p in F : d_F(h, p) <= rho_t}``, ``rho_t = s min(t, T - t)``
+(``s t`` without return home). Two supersets of ``B_t`` (``reach=``):
+
+* ``"euclidean"``: ``E_t = F ∩ disc(h, rho_t)`` (straight-line distance never exceeds ``d_F``).
+* ``"geodesic"`` (default): ``G_t = ∪_a disc(a, rho_t - g_a) ∩ V_a`` over the anchors ``a`` =
+  home and the fence's reflex vertices with ``g_a = d_F(h, a) <= rho_t`` (the navigator's
+  visibility graph), ``V_a`` a superset of the part of ``F`` visible from ``a``. A shortest
+  in-fence path from ``h`` to ``p`` is a polyline bending only at reflex vertices; with ``a``
+  its last bend (or ``h``), ``d_F(h, p) = g_a + |a - p|`` and the segment ``[a, p]`` lies in
+  ``F``, so ``p in B_t`` implies ``|a - p| <= rho_t - g_a`` and ``p in V_a``: ``B_t ⊆ G_t``.
+  ``V_a`` is ``F`` minus the shadows that the edges of ``F`` grown by 1 mm cast from ``a``
+  (each shadow a convex polygon inside the true shadow): a segment inside ``F`` stays 1 mm
+  clear of every grown edge, so no point visible from ``a`` is removed. Also
+  ``G_t ⊆ disc(h, rho_t)`` since ``g_a >= |a - h|``: never looser than ``E_t`` (the code takes
+  the larger of the two distances below, which makes that hold exactly). Without the
+  visibility cut the home term alone would be ``E_t``. Points the UAV could only reach around
+  a concave corner (Lake Wheeler's fence is not convex) are thereby excluded.
+
+The navigator tests visibility with a 1e-6 m tolerance, so flown positions and its ``g_a`` may
+differ from the exact geodesic by about that much: ``REACH_SLACK_M`` (1 mm) on every radius.
 
 Best rate per slot. ``Rbar[t, i] = f(max_{r in A_t} SNR_i(r) + g[t, i])`` bounds the rate
 sensor ``i`` can have in slot ``t`` under any policy.
@@ -22,14 +40,18 @@ sensor ``i`` can have in slot ``t`` under any policy.
   horizontal distance to the sensor (FSPL/log-distance: loss grows with the 3-D distance;
   Al-Hourani: free space plus an excess loss that falls as the elevation angle rises;
   3GPP RMa-AV: LoS probability non-increasing in d2D and ``PL_NLoS >= PL_LoS``). So the max
-  over ``A_t`` is the SNR at horizontal distance ``dist(sensor_i, A_t)``, which shapely
-  computes exactly for the polygon ``F ∩ P_t``; ``P_t`` is a regular polygon *circumscribing*
-  the disc (radius ``rho_t / cos(pi / n)``), a superset, so the distance can only shrink and
-  the bound stays valid. This is the exact best rate (up to that polygon, 2e-5 relative).
-* Other sources (two-ray, 3GPP UMa-AV, shadowing, radio maps): the SNR is evaluated on a grid
-  of spacing ``grid_m`` over the fence plus the hover points, a grid point counts for slot
-  ``t`` when within ``rho_t + grid_m / sqrt(2)`` of home (every point of ``A_t`` has a grid
-  point within ``grid_m / sqrt(2)``), and ``margin_db`` is added. This is a bound *for the
+  over ``A_t`` (``E_t`` or ``G_t``) is the SNR at horizontal distance ``dist(sensor_i, A_t)``,
+  which shapely computes exactly for polygons; every disc is replaced by a regular polygon
+  *circumscribing* it (radius ``rho / cos(pi / n)``) and every geodesic radius
+  ``rho_t - g_a`` is rounded *up* to a 1 mm grid (also the cache key): supersets, so the
+  distance can only shrink and the bound stays valid. The distance to ``G_t`` is the minimum
+  over anchors of the distance to ``disc(a, rho_t - g_a) ∩ V_a``, each evaluated once per
+  distinct radius. This is the exact best rate over the superset (up to 8e-5 relative).
+* Other sources (two-ray, 3GPP UMa-AV, shadowing, radio maps), always with the straight-line
+  reach ``E_t``: the SNR is evaluated on a grid of spacing ``grid_m`` over the fence plus the
+  hover points, a grid point counts for slot ``t`` when within ``rho_t + grid_m / sqrt(2)`` of
+  home (every point of ``A_t`` has a grid point within ``grid_m / sqrt(2)``), and
+  ``margin_db`` is added. This is a bound *for the
   grid*: valid when the SNR varies by less than ``margin_db`` within ``grid_m / sqrt(2)``; the
   method string says so.
 
@@ -45,8 +67,9 @@ gives, and the objective equals the run's download. So the LP optimum bounds eve
 seconds with ``sum_i s[k, i] <= c_k dt``), which has the same optimum; solved with HiGHS.
 
 What it ignores (why it is not tight): the UAV cannot be near two distant sensors in
-consecutive slots; the reach sets use straight-line rather than in-fence travel distance (exact
-for convex fences). Without fading this reduces, for a long mission, to peak-rate time sharing
+consecutive slots; ``G_t`` is a superset of the geodesic ball (``V_a`` is the whole visible
+region rather than the part whose shortest paths end at ``a``; exact for convex fences, where
+``G_t = E_t = B_t``). Without fading this reduces, for a long mission, to peak-rate time sharing
 ``min(sum Q, ...)`` with the out-and-back travel time to each sensor's hover point subtracted.
 """
 
@@ -60,13 +83,26 @@ import scipy.sparse as sp
 import shapely
 from scipy.optimize import linprog
 from shapely.geometry import Point, Polygon
+from shapely.geometry.base import BaseGeometry
 
 from skymule.bounds import BoundResult
 from skymule.engine_autonomous import build_geometry
 from skymule.errors import SkymuleError
+from skymule.flight.navigation import Navigator
 from skymule.world import Mission
 
-__all__ = ["MONOTONE_MODELS", "autonomous_bound", "best_rate_bps", "reach_radii_m"]
+__all__ = [
+    "MONOTONE_MODELS",
+    "REACH_MODES",
+    "autonomous_bound",
+    "best_rate_bps",
+    "closest_distances_m",
+    "geodesic_closest_distances_m",
+    "reach_radii_m",
+]
+
+#: Reach-set constructions (see the module docstring); the first is the default.
+REACH_MODES = ("geodesic", "euclidean")
 
 #: Path-loss models whose SNR (no shadowing) is non-increasing in horizontal distance at a
 #: fixed UAV altitude: the best in-set rate is at the set's point closest to the sensor.
@@ -85,6 +121,16 @@ REACH_SLACK_M = 1e-3
 #: Largest number of grid points for the grid method (the spacing grows to respect it).
 MAX_GRID_POINTS = 400_000
 
+#: Geodesic reach: radii around each anchor are rounded UP to this grid [m] (cache key).
+RADIUS_GRID_M = 1e-3
+
+#: Outward growth [m] of the fence whose edges cast the visibility shadows (far above the
+#: navigator's 1e-6 m tolerance and floating-point round-off).
+VISIBILITY_MARGIN_M = 1e-3
+
+#: Far points per shadow polygon (angular steps <= 15 degrees: an edge subtends < 180).
+SHADOW_FAR_POINTS = 13
+
 
 def reach_radii_m(n_slots: int, step_m: float, return_home: bool) -> np.ndarray:
     """(T,) radius [m] around home that bounds the UAV's position in each slot."""
@@ -102,6 +148,102 @@ def _circumscribed_disc(center: np.ndarray, radius_m: float) -> Polygon:
     return Polygon(
         np.column_stack([center[0] + outer * np.cos(angles), center[1] + outer * np.sin(angles)])
     )
+
+
+def _circumscribed_discs(center: np.ndarray, radii_m: np.ndarray) -> np.ndarray:
+    """(m,) array of regular polygons containing the discs of ``radii_m`` around ``center``."""
+    angles = np.linspace(0.0, 2.0 * np.pi, DISC_SIDES, endpoint=False)
+    outer = np.asarray(radii_m, float)[:, None] / math.cos(math.pi / DISC_SIDES)
+    coords = np.stack(
+        [center[0] + outer * np.cos(angles), center[1] + outer * np.sin(angles)], axis=-1
+    )
+    return np.asarray(shapely.polygons(coords))
+
+
+def _round_up(values_m: np.ndarray, grid_m: float) -> np.ndarray:
+    """``values_m`` rounded up to a multiple of ``grid_m`` (never below the input)."""
+    up = np.ceil(values_m / grid_m) * grid_m
+    return np.where(up < values_m, up + grid_m, up)
+
+
+def visible_region(fence: Polygon, anchor_m: np.ndarray) -> BaseGeometry:
+    """A superset of the part of ``fence`` visible from ``anchor_m`` (a point of the fence).
+
+    ``fence`` minus the shadows cast from the anchor by the edges of the fence grown by
+    ``VISIBILITY_MARGIN_M``: each shadow is the convex hull of an edge and far points on the
+    rays through its ends, hence inside the set of points whose segment to the anchor crosses
+    that edge; a segment inside the fence keeps ``VISIBILITY_MARGIN_M`` from every grown edge,
+    so no visible point is removed (grazing segments included).
+    """
+    anchor = np.asarray(anchor_m, float)
+    grown = fence.buffer(VISIBILITY_MARGIN_M, join_style="mitre")
+    rings = [grown.exterior, *grown.interiors]
+    coords = [np.asarray(ring.coords)[:, :2] for ring in rings]
+    p0 = np.concatenate([c[:-1] for c in coords])
+    p1 = np.concatenate([c[1:] for c in coords])
+    d0, d1 = p0 - anchor, p1 - anchor
+    cross = d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]
+    delta = np.arctan2(cross, np.einsum("ij,ij->i", d0, d1))  # signed angle, |delta| < pi
+    keep = np.abs(delta) > 1e-9  # an edge seen edge-on casts a zero-area shadow
+    far_m = float(np.hypot(*(np.concatenate(coords) - anchor).T).max()) + 1.0
+    half_step = math.pi / (2 * (SHADOW_FAR_POINTS - 1))
+    radius = far_m / math.cos(half_step)  # the far polygon clears the disc of radius far_m
+    angles = np.arctan2(d0[keep, 1], d0[keep, 0])[:, None] + delta[keep, None] * np.linspace(
+        1.0, 0.0, SHADOW_FAR_POINTS
+    )
+    far = anchor + radius * np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+    ring = np.concatenate([p0[keep, None], p1[keep, None], far], axis=1)
+    shadows = shapely.polygons(ring)
+    return fence.difference(shapely.union_all(shadows))
+
+
+def geodesic_closest_distances_m(
+    navigator: Navigator, home_m: np.ndarray, sensor_xy_m: np.ndarray, radii_m: np.ndarray
+) -> np.ndarray:
+    """(U, N) horizontal distance [m] from each sensor to the geodesic reach set ``G`` of
+    each radius (a lower bound on the distance to the in-fence geodesic ball; see the module
+    docstring). Anchors are home and the reflex vertices within the radius."""
+    home = np.asarray(home_m, float)
+    sensors_xy = np.asarray(sensor_xy_m, float)[:, :2]
+    radii = np.asarray(radii_m, float)
+    fence = navigator.fence
+    to_vertex = navigator.vertex_distances((float(home[0]), float(home[1])))
+    finite = np.isfinite(to_vertex)
+    anchors = np.vstack([home[None], navigator.vertices[finite]])
+    anchor_g = np.concatenate([[0.0], to_vertex[finite]])
+    sensors = shapely.points(sensors_xy[:, 0], sensors_xy[:, 1])
+    best = np.full((len(radii), len(sensors_xy)), np.inf)
+    grow = 1.0 / math.cos(math.pi / DISC_SIDES)  # circumscribed polygon / disc radius
+    for anchor, g in zip(anchors, anchor_g, strict=True):  # home first: a good start for best
+        rows = np.flatnonzero(radii >= g)
+        if not len(rows):
+            continue
+        region = visible_region(fence, anchor)
+        # the anchor itself is reachable (d_F(h, a) = g <= radius); also covers empty cuts
+        to_anchor = np.hypot(*(sensors_xy - anchor).T)
+        to_region = np.fmin(shapely.distance(region, sensors), to_anchor)
+        rho_all = _round_up(radii[rows] - g, RADIUS_GRID_M)
+        # skip radii where this anchor's term cannot beat the best so far for any sensor
+        lower = np.minimum(
+            np.maximum(to_region[None, :], to_anchor[None, :] - grow * rho_all[:, None]),
+            to_anchor[None, :],
+        )
+        useful = (lower < best[rows]).any(axis=1)
+        rows = rows[useful]
+        if not len(rows):
+            continue
+        rho, inverse = np.unique(rho_all[useful], return_inverse=True)
+        corners = shapely.get_coordinates(region)
+        whole_m = float(np.hypot(*(corners - anchor).T).max()) if len(corners) else 0.0
+        dist = np.empty((len(rho), len(sensors_xy)))
+        whole = rho >= whole_m  # the disc covers the visible region
+        dist[whole] = to_region
+        if (~whole).any():
+            parts = shapely.intersection(region, _circumscribed_discs(anchor, rho[~whole]))
+            dist[~whole] = shapely.distance(parts[:, None], sensors[None, :])
+        dist = np.fmin(dist, to_anchor[None, :])  # NaN (empty) -> the anchor
+        best[rows] = np.minimum(best[rows], dist[inverse])
+    return best
 
 
 def closest_distances_m(
@@ -126,12 +268,20 @@ def closest_distances_m(
 
 
 def _exact_best_snr(
-    mission: Mission, altitude_m: float, radii_m: np.ndarray, fence: Polygon, home_m: np.ndarray
+    mission: Mission,
+    altitude_m: float,
+    radii_m: np.ndarray,
+    navigator: Navigator,
+    home_m: np.ndarray,
+    reach: str,
 ) -> np.ndarray:
     """(U, N) best SNR [dB] over the reach set of each radius (distance-monotone models)."""
     assert mission.source is not None
     sensors = mission.sensor_m
-    dist = closest_distances_m(fence, home_m, sensors[:, :2], radii_m)
+    dist = closest_distances_m(navigator.fence, home_m, sensors[:, :2], radii_m)
+    if reach == "geodesic" and len(navigator.vertices):  # convex fence: G_t = E_t
+        geodesic = geodesic_closest_distances_m(navigator, home_m, sensors[:, :2], radii_m)
+        dist = np.maximum(dist, geodesic)  # both lower-bound the distance to B_t
     n = mission.n_sensors
     # a UAV position at exactly that horizontal distance from sensor i, at flight altitude
     probe = np.empty((len(radii_m), n, 3))
@@ -176,12 +326,22 @@ def _grid_best_snr(
 
 
 def best_rate_bps(
-    mission: Mission, *, grid_m: float = GRID_M, margin_db: float = MARGIN_DB
+    mission: Mission,
+    *,
+    reach: str = "geodesic",
+    grid_m: float = GRID_M,
+    margin_db: float = MARGIN_DB,
 ) -> tuple[np.ndarray, str]:
     """(T, N) best rate [bit/s] any policy can have to each sensor in each slot, and how.
 
+    ``reach`` is ``"geodesic"`` (in-fence travel distance, the default) or ``"euclidean"``
+    (straight-line disc, never tighter); the grid method always uses the straight-line disc.
     Raises SkymuleError (one line) for missions this bound does not cover.
     """
+    if reach not in REACH_MODES:
+        raise SkymuleError(
+            f"autonomous bound: reach = {reach!r}; allowed: {', '.join(REACH_MODES)}"
+        )
     spec = mission.scenario.trajectory
     if spec.mode != "autonomous":
         raise SkymuleError(
@@ -202,8 +362,10 @@ def best_rate_bps(
         and (radio.model != "al-hourani" or _al_hourani_monotone(mission))
     )
     if monotone:
-        snr = _exact_best_snr(mission, geometry.altitude_m, unique, fence, geometry.home_m)
-        how = f"exact reach sets ({radio.model} is distance-monotone)"
+        snr = _exact_best_snr(
+            mission, geometry.altitude_m, unique, geometry.navigator, geometry.home_m, reach
+        )
+        how = f"exact reach sets, {reach} reach ({radio.model} is distance-monotone)"
     else:
         snr, spacing = _grid_best_snr(
             mission,
@@ -216,8 +378,8 @@ def best_rate_bps(
             margin_db,
         )
         how = (
-            f"grid reach sets ({spacing:g} m grid + {margin_db:g} dB margin; valid if the "
-            f"SNR varies < {margin_db:g} dB within {spacing / math.sqrt(2):.1f} m)"
+            f"grid reach sets, euclidean reach ({spacing:g} m grid + {margin_db:g} dB margin; "
+            f"valid if the SNR varies < {margin_db:g} dB within {spacing / math.sqrt(2):.1f} m)"
         )
     snr_t = snr[inverse]
     if mission.fading_db is not None:
@@ -263,14 +425,15 @@ def time_sharing_lp(
     return float(min(-res.fun, buffers.sum())), str(res.message)
 
 
-def autonomous_bound(mission: Mission) -> BoundResult:
+def autonomous_bound(mission: Mission, *, reach: str = "geodesic") -> BoundResult:
     """Upper bound [bit] on the download of any autonomous policy (see the module docstring).
 
+    ``reach``: ``"geodesic"`` (default) or ``"euclidean"`` reach sets (see ``REACH_MODES``).
     ``served_time_s``/``dwell_time_s`` are empty ((0, N) and (0,)): there is no path to index;
     ``last_sample`` is -1.
     """
     start = time.perf_counter()
-    rate, how = best_rate_bps(mission)
+    rate, how = best_rate_bps(mission, reach=reach)
     bits, status = time_sharing_lp(rate, mission.buffers_bit, mission.slot_s)
     return BoundResult(
         upper_bound_bit=bits,

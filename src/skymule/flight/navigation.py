@@ -259,6 +259,21 @@ class Navigator:
         i, j = divmod(flat, n)
         return [start, *self._vertex_route(i, j), goal]
 
+    def vertex_distances(self, xy: XY) -> np.ndarray:
+        """(k,) shortest in-fence travel distance (m) from ``xy`` to each graph vertex.
+
+        In the order of :attr:`vertices`; ``inf`` where a vertex cannot be reached.
+
+        Raises:
+            ValueError: if ``xy`` is outside the fence.
+        """
+        point = _as_xy(xy)
+        self._check_inside(point, "point")
+        if not len(self._vertices):
+            return np.empty(0)
+        vis, d = self._visible_from(point)
+        return np.asarray(np.min(np.where(vis, d, np.inf)[:, None] + self._dist, axis=0))
+
     def travel_distance(self, a_xy: XY, b_xy: XY) -> float:
         """Length (m) of the shortest in-fence path from ``a_xy`` to ``b_xy``."""
         return path_length(self.shortest_path(a_xy, b_xy))

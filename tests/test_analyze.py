@@ -2,17 +2,16 @@
 
 from __future__ import annotations
 
-import subprocess
 from pathlib import Path
 
 import pandas as pd
 import pytest
 
+from conftest import CliResult, run_cli
 from skymule.analyze import analyze_flight, parse_buffers
 from skymule.errors import SkymuleError
 from skymule.report.inputs import load_input
 
-SKYMULE = "/work/venv/bin/skymule"
 FIXTURES = Path(__file__).parent / "fixtures"
 LOG = FIXTURES / "aadm_merged_small.csv"
 VOLUMES = FIXTURES / "aadm_volumes_small.txt"
@@ -24,8 +23,8 @@ DOWNLOADS = (
 )
 
 
-def skymule(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([SKYMULE, *args], cwd=cwd, capture_output=True, text=True, timeout=120)
+def skymule(*args: str, cwd: Path) -> CliResult:
+    return run_cli(*args, cwd=cwd)
 
 
 def test_cli_analyze_writes_compare_folder_and_report(tmp_path: Path) -> None:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +9,7 @@ import pytest
 import shapely
 from shapely.geometry import Point
 
+from conftest import run_cli
 from skymule.engine import NO_SENSOR, run_mission
 from skymule.metrics import summarize
 from skymule.policies import make_policy
@@ -18,7 +18,6 @@ from skymule.policies.hgad import HGAD
 from skymule.scenario import load_scenario
 from skymule.world import build_mission
 
-SKYMULE = "/work/venv/bin/skymule"
 PRESET = "paper-sim-autonomous"
 
 # paper Table II: buffers (LW1..LW4) [Mbit] -> HGAD navigation order
@@ -159,7 +158,7 @@ def test_greedy_never_hovers_while_touring_and_hgad_hovers():
 
 def test_summary_and_slots_have_energy_and_aadm_fields(tmp_path):
     out = tmp_path / "run"
-    subprocess.run([SKYMULE, "run", PRESET, "--out", str(out)], check=True, capture_output=True)
+    run_cli("run", PRESET, "--out", out, check=True)
     import json
 
     import pandas as pd
@@ -174,7 +173,7 @@ def test_summary_and_slots_have_energy_and_aadm_fields(tmp_path):
     # all 3000 Mbit by time t: 100 + (600 - t)
     t_done = float(slots.index[slots.filter(like="remaining_mbit").sum(axis=1) <= 0][0] + 1)
     assert summary["aadm_score"] == pytest.approx(100.0 + 600.0 - t_done)
-    subprocess.run([SKYMULE, "plot", str(out)], check=True, capture_output=True)
+    run_cli("plot", out, check=True)
     assert (out / "trajectory.png").stat().st_size > 10_000
 
 
@@ -229,7 +228,7 @@ def test_bad_autonomous_input_exits_2_with_one_line(tmp_path, case, expected):
         path = _write_scenario(tmp_path, trajectory="max_speed_mps = 0")
     else:
         path = _write_scenario(tmp_path, mission="10")
-    proc = subprocess.run([SKYMULE, "run", str(path)], capture_output=True, text=True)
+    proc = run_cli("run", path)
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and expected in lines[0], proc.stderr

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
-import subprocess
 import sys
 from pathlib import Path
 
@@ -12,22 +10,22 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from conftest import CliResult, run_cli
 from skymule.bounds import BoundError, mission_bound
 from skymule.errors import SkymuleError
 from skymule.scenario import load_scenario
 from skymule.traces import write_dt_export
 from skymule.world import build_mission
 
-SKYMULE = str(Path(sys.executable).with_name("skymule"))
 BOUND_KEYS = ("upper_bound_mbit", "no_hover_upper_bound_mbit", "method", "status", "solve_time_s")
 
 
-def skymule(*args: str) -> subprocess.CompletedProcess[str]:
-    env = {**os.environ, "COLUMNS": "250"}  # wide enough for rich to print whole headers
-    return subprocess.run([SKYMULE, *args], capture_output=True, text=True, timeout=120, env=env)
+def skymule(*args: str) -> CliResult:
+    # wide enough for rich to print whole headers
+    return run_cli(*args, env={"COLUMNS": "250"})
 
 
-def one_line_error(done: subprocess.CompletedProcess[str], needle: str) -> None:
+def one_line_error(done: CliResult, needle: str) -> None:
     assert done.returncode == 2, done.stderr
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0], done.stderr

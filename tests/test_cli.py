@@ -10,18 +10,25 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from conftest import CliResult, run_cli
 from skymule.scenario import load_scenario
 
-SKYMULE = [sys.executable, "-c", "from skymule.cli import main; main()"]
+SKYMULE = str(Path(sys.executable).with_name("skymule"))
 
 
-def skymule(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([*SKYMULE, *args], capture_output=True, text=True, cwd=cwd, timeout=120)
+def skymule(*args: str, cwd: Path | None = None) -> CliResult:
+    return run_cli(*args, cwd=cwd)
 
 
 def test_run_writes_summary_and_slots(tmp_path: Path) -> None:
+    """Through the installed entry point in its own process (other CLI tests run in-process)."""
     out = tmp_path / "run"
-    done = skymule("run", "paper-sim-fixed", "--out", str(out), "--policy", "greedy")
+    done = subprocess.run(
+        [SKYMULE, "run", "paper-sim-fixed", "--out", str(out), "--policy", "greedy"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 0, done.stderr
     assert "LW4" in done.stdout and "greedy" in done.stdout
     summary = json.loads((out / "summary.json").read_text())
@@ -90,6 +97,16 @@ def test_scenarios_lists_presets() -> None:
     done = skymule("scenarios")
     assert done.returncode == 0
     assert "paper-sim-fixed" in done.stdout and "aadm-default" in done.stdout
+
+
+def test_in_process_runs_capture_tables_and_usage_errors() -> None:
+    """run_cli (conftest) sees what a piped `skymule` prints: rich tables, click's usage."""
+    done = skymule("scenarios")
+    assert done.returncode == 0 and done.stderr == ""
+    assert "paper-sim-fixed" in done.stdout and "\x1b[" not in done.stdout  # no colour codes
+    done = skymule("run", "paper-sim-fixed", "--bogus")
+    assert done.returncode == 2 and done.stdout == ""
+    assert "No such option" in done.stderr and "--bogus" in done.stderr
 
 
 def test_presets_match_the_paper_and_aadm() -> None:

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import json
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from conftest import run_cli
 from skymule.exports import (
     MAV_CMD_NAV_WAYPOINT,
     export_run,
@@ -22,7 +22,6 @@ from skymule.geo import LocalFrame, load_site
 from skymule.report.inputs import hover_segments, load_run
 from skymule.runio import write_run
 
-SKYMULE = "/work/venv/bin/skymule"
 ORIGIN = (35.7274824, -78.6962749)
 FRAME = LocalFrame(*ORIGIN)
 
@@ -187,9 +186,7 @@ def test_plan_waypoints_stay_within_tolerance() -> None:
 
 def test_plan_of_fixed_run_is_one_line_error(tmp_path: Path) -> None:
     fixed = make_run(tmp_path / "fixed", "fixed")
-    done = subprocess.run(
-        [SKYMULE, "export", str(fixed), "--plan"], capture_output=True, text=True, timeout=60
-    )
+    done = run_cli("export", fixed, "--plan")
     assert done.returncode == 2
     assert done.stderr.count("\n") == 1
     assert "trajectory.mode = 'fixed'" in done.stderr and "autonomous" in done.stderr
@@ -197,12 +194,7 @@ def test_plan_of_fixed_run_is_one_line_error(tmp_path: Path) -> None:
 
 
 def test_cli_export_writes_kml_and_geojson(autonomous_run: Path) -> None:
-    done = subprocess.run(
-        [SKYMULE, "export", str(autonomous_run), "--kml", "--geojson"],
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    done = run_cli("export", autonomous_run, "--kml", "--geojson")
     assert done.returncode == 0, done.stderr
     assert read_kml_export(autonomous_run / "flight.kml").path_lat_lon_alt.shape == (38, 3)
     assert read_geojson_export(autonomous_run / "flight.geojson").fence_lat_lon is not None

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 import shapely
 
+from conftest import run_cli
 from skymule.engine import NO_SENSOR, MissionLog, run_mission
 from skymule.errors import SkymuleError
 from skymule.policies import POLICIES, make_policy, unknown_policies
@@ -114,7 +115,10 @@ def test_user_policy_by_import_path(monkeypatch: pytest.MonkeyPatch) -> None:
         simulate(load_scenario("paper-sim-fixed"), "my_policies:NotAPolicy")
 
 
-def test_cli_runs_and_compares_a_user_policy(tmp_path: Path) -> None:
+def test_cli_runs_and_compares_a_user_policy(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # a real process: the policy module is found through PYTHONPATH, as a user sets it
     command = [sys.executable, "-c", "from skymule.cli import main; main()"]
     env = {**os.environ, "PYTHONPATH": str(PLUGINS)}
     done = subprocess.run(
@@ -134,12 +138,7 @@ def test_cli_runs_and_compares_a_user_policy(tmp_path: Path) -> None:
     )
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "cmp" / "my_policies:LargestBufferFirst" / "summary.json").exists()
-    done = subprocess.run(
-        [*command, "run", "paper-sim-fixed", "--policy", "my_policies:Missing"],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=120,
-    )
+    monkeypatch.syspath_prepend(str(PLUGINS))
+    done = run_cli("run", "paper-sim-fixed", "--policy", "my_policies:Missing")
     assert done.returncode == 2
     assert done.stderr.strip().count("\n") == 0 and "my_policies" in done.stderr

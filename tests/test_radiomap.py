@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import json
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from conftest import run_cli
 from skymule.geo import LocalFrame
 from skymule.radio import radiomap
 from skymule.radio.radiomap import (
@@ -28,7 +28,7 @@ from skymule.radio.sources import model_source
 from skymule.scenario import RadioSpec
 from skymule.traces import write_dt_export
 
-SKYMULE = "/work/venv/bin/skymule"
+ROOT = Path(__file__).parents[1]
 FRAME = LocalFrame(35.7274824, -78.6962749)
 SENSORS = np.array([[0.0, 100.0, 10.0], [250.0, -200.0, 5.0]])
 EXPONENT, SIGMA_DB, D_CORR_M = 2.5, 4.0, 60.0
@@ -91,31 +91,19 @@ def test_cli_fit_score_and_compare_sources(synthetic: Path, tmp_path: Path) -> N
         "[trajectory]\nwaypoints = [[-400, -300, 30], [400, 300, 30]]\n"
     )
     out = tmp_path / "map.json"
-    fit = subprocess.run(
-        [SKYMULE, "fit-radiomap", str(synthetic), "--out", str(out), "--scenario", str(scenario)],
-        capture_output=True, text=True, check=True,
-    )  # fmt: skip
+    fit = run_cli("fit-radiomap", synthetic, "--out", out, "--scenario", scenario, check=True)
     assert "LW2" in fit.stdout
     assert read_radiomap(out).names == ("LW1", "LW2")
-    scored = subprocess.run(
-        [SKYMULE, "score-radiomap", str(out), str(synthetic), "--json"],
-        capture_output=True, text=True, check=True,
-    )  # fmt: skip
+    scored = run_cli("score-radiomap", out, synthetic, "--json", check=True)
     scores = json.loads(scored.stdout)
     assert set(scores["rmse_db"]) == {"LW1", "LW2"} and max(scores["rmse_db"].values()) < 1.5
-    free = json.loads(
-        subprocess.run(
-            [SKYMULE, "score-radiomap", str(scenario), str(synthetic), "--json"],
-            capture_output=True, text=True, check=True,
-        ).stdout
-    )  # fmt: skip
+    free = json.loads(run_cli("score-radiomap", scenario, synthetic, "--json", check=True).stdout)
     assert free["rmse_db"]["LW1"] > scores["rmse_db"]["LW1"] + 3.0
     assert abs(free["bias_db"]["LW1"]) > 3.0  # the free-space link budget is off
     cmp_dir = tmp_path / "cmp"
-    subprocess.run(
-        [SKYMULE, "compare", str(scenario), "--sources", f"fspl,radiomap:{out}",
-         "--policies", "greedy", "--out", str(cmp_dir)],
-        capture_output=True, text=True, check=True,
+    run_cli(
+        "compare", scenario, "--sources", f"fspl,radiomap:{out}",
+        "--policies", "greedy", "--out", cmp_dir, check=True,
     )  # fmt: skip
     assert (cmp_dir / "snr_cdf_by_source.png").stat().st_size > 1000
     assert (cmp_dir / "fspl" / "greedy" / "summary.json").exists()
@@ -133,7 +121,7 @@ def test_cli_fit_score_and_compare_sources(synthetic: Path, tmp_path: Path) -> N
     ],
 )  # fmt: skip
 def test_cli_mistakes_are_one_line(args: list[str], needle: str) -> None:
-    done = subprocess.run([SKYMULE, *args], capture_output=True, text=True, cwd="/work/main")
+    done = run_cli(*args, cwd=ROOT)
     assert done.returncode == 2
     assert needle in done.stderr and len(done.stderr.strip().splitlines()) == 1
 
@@ -145,13 +133,13 @@ def test_scenario_errors_name_the_field(tmp_path: Path) -> None:
         '[mission]\nduration_s = 10\n[radio]\nmodel = "3gpp-uma-av"\n'
         "[trajectory]\nwaypoints = [[0, 0, 15], [100, 0, 15]]\n"
     )
-    done = subprocess.run([SKYMULE, "run", str(bad)], capture_output=True, text=True)
+    done = run_cli("run", bad)
     assert done.returncode == 2 and "UAV height 15.0 m is outside the 22.5..300 m" in done.stderr
     bad.write_text(
         '[[sensors]]\nname = "LW1"\nx_m = 0.0\ny_m = 0.0\nbuffer_mbit = 1\n'
         '[signal]\nsource = "radiomap"\n'
     )
-    done = subprocess.run([SKYMULE, "run", str(bad)], capture_output=True, text=True)
+    done = run_cli("run", bad)
     assert done.returncode == 2 and "signal" in done.stderr and "map = 'map.json'" in done.stderr
 
 

@@ -6,17 +6,16 @@ import base64
 import json
 import re
 import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from conftest import CliResult, run_cli
 from skymule.report.html import PER_RUN_PANELS, build_report
 from skymule.report.inputs import hover_segments, load_run, score_breakdown
 
-SKYMULE = "/work/venv/bin/skymule"
 SHORT = """
 name = "short"
 seed = 1
@@ -41,8 +40,8 @@ waypoints = [[0, 0, 30], [6, -70, 30], [148, -160, 30]]
 SECTIONS = ("summary", "score", "interactive", "scenario", *(p.key for p in PER_RUN_PANELS))
 
 
-def skymule(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([SKYMULE, *args], cwd=cwd, capture_output=True, text=True, timeout=120)
+def skymule(*args: str, cwd: Path) -> CliResult:
+    return run_cli(*args, cwd=cwd)
 
 
 @pytest.fixture(scope="module")

@@ -12,6 +12,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from conftest import run_cli
 from skymule.experiments import store
 from skymule.experiments.run import run_sweep
 from skymule.experiments.sweep import iter_missions, load_sweep
@@ -157,12 +158,7 @@ def test_bad_sweep_files_get_one_line_and_exit_2(tmp_path, case):
     path = write(tmp_path, f'base = "paper-sim-fixed"\n[axes]\nseed = [1, 2]\n{axis}\n')
     if case in ("empty axis", "empty range", "unknown dist"):
         path.write_text(f'base = "paper-sim-fixed"\n[axes]\n{axis}\n')
-    result = subprocess.run(
-        [SKYMULE, "sweep", str(path), "--out", str(tmp_path / "out"), "--executor", "inprocess"],
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    result = run_cli("sweep", path, "--out", tmp_path / "out", "--executor", "inprocess")
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1, result.stderr

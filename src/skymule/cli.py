@@ -11,7 +11,6 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
-import pandas as pd
 import typer
 from rich import box
 from rich.console import Console
@@ -126,6 +125,8 @@ def compare(
     ] = None,
 ) -> None:
     """Run one scenario under several policies on identical signal draws."""
+    import pandas as pd
+
     from skymule.policies import POLICIES, unknown_policies
     from skymule.runner import simulate
     from skymule.scenario import load_scenario
@@ -205,6 +206,8 @@ def _write_bound(folder: Path, upper: MissionBound) -> Path:
 
 def _compare_sources(base: Scenario, sources: str, policies: list[str], out: Path | None) -> None:
     """``compare --sources``: every source x policy in one table; SNR-CDF panels with --out."""
+    import pandas as pd
+
     from skymule.sources_compare import compare_sources, folder_name, parse_sources
 
     results = compare_sources(base, parse_sources(sources), policies)

@@ -22,7 +22,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 
 @dataclass(frozen=True)
@@ -125,6 +124,8 @@ def mission_energy_j(
 
 def max_endurance_speed_mps(params: RotaryWingParams = DEFAULT_PARAMS) -> float:
     """Speed (m/s) minimising propulsion power P(V) (≈ 10.2 m/s with the defaults)."""
+    from scipy.optimize import minimize_scalar  # ~0.3 s to import: only when asked
+
     upper = params.tip_speed_mps
     res = minimize_scalar(
         lambda v: float(propulsion_power_w(v, params)),
@@ -137,6 +138,8 @@ def max_endurance_speed_mps(params: RotaryWingParams = DEFAULT_PARAMS) -> float:
 
 def max_range_speed_mps(params: RotaryWingParams = DEFAULT_PARAMS) -> float:
     """Speed (m/s) minimising energy per metre P(V)/V (≈ 18.3 m/s with the defaults)."""
+    from scipy.optimize import minimize_scalar  # ~0.3 s to import: only when asked
+
     upper = params.tip_speed_mps
     res = minimize_scalar(
         lambda v: float(propulsion_power_w(v, params)) / v,

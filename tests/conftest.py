@@ -1,0 +1,116 @@
+"""Shared test helpers: the ``skymule`` command line run inside the test process.
+
+Starting a fresh interpreter per CLI call costs ~1.2 s (imports), so most CLI tests call
+:func:`run_cli` instead: ``skymule.cli.main(args)`` with stdout/stderr redirected into
+strings and ``SystemExit`` turned into a return code. The result has the attributes of
+:class:`subprocess.CompletedProcess` (``returncode``, ``stdout``, ``stderr``), so a test
+reads the same either way. Tests where the process boundary is the point (the installed
+entry point, SIGKILL and resume, ``PYTHONPATH``) keep :func:`subprocess.run`.
+
+Unlike a subprocess, an unexpected exception (a bug: what the real CLI prints as a
+traceback and exit 1) propagates out of :func:`run_cli` and fails the test with its own
+traceback; warnings follow pytest's ``filterwarnings = error``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import subprocess
+import sys
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+
+@dataclass(frozen=True)
+class CliResult:
+    """One finished in-process ``skymule`` call (the fields of ``CompletedProcess``)."""
+
+    args: list[str]
+    returncode: int
+    stdout: str
+    stderr: str
+
+    def check_returncode(self) -> None:
+        """Raise ``CalledProcessError`` on a non-zero status, like ``CompletedProcess``."""
+        if self.returncode:
+            raise subprocess.CalledProcessError(
+                self.returncode, ["skymule", *self.args], self.stdout, self.stderr
+            )
+
+
+@contextlib.contextmanager
+def _environ(env: Mapping[str, str] | None) -> Iterator[None]:
+    """Set ``env`` in ``os.environ`` for the duration, then put the old values back."""
+    saved = {key: os.environ.get(key) for key in env or {}}
+    os.environ.update(env or {})
+    try:
+        yield
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+
+@contextlib.contextmanager
+def _argv0(name: str) -> Iterator[None]:
+    """Click names the program from ``sys.argv[0]`` in usage lines: say ``skymule``."""
+    saved = sys.argv[:]
+    sys.argv[:] = [name]
+    try:
+        yield
+    finally:
+        sys.argv[:] = saved
+
+
+def run_cli(
+    *args: str | Path,
+    cwd: str | Path | None = None,
+    env: Mapping[str, str] | None = None,
+    check: bool = False,
+) -> CliResult:
+    """Run ``skymule <args>`` in this process and return its status and output.
+
+    ``cwd`` runs it from that folder; ``env`` sets environment variables for the call (for
+    an import path use ``monkeypatch.syspath_prepend`` in the test: ``PYTHONPATH`` is only
+    read at interpreter start); ``check`` raises ``CalledProcessError`` on a non-zero
+    status, as ``subprocess.run(check=True)`` does.
+    """
+    from rich.console import Console
+
+    from skymule import cli
+
+    argv = [str(a) for a in args]
+    out, err = io.StringIO(), io.StringIO()
+    console = cli.console
+    code: int = 0
+    with contextlib.ExitStack() as stack:
+        if cwd is not None:
+            stack.enter_context(contextlib.chdir(cwd))
+        stack.enter_context(_environ(env))
+        stack.enter_context(_argv0("skymule"))
+        stack.enter_context(contextlib.redirect_stdout(out))
+        stack.enter_context(contextlib.redirect_stderr(err))
+        if console.color_system is not None:
+            # imported with a terminal on stdout (pytest -s): colour and width were fixed
+            # then; build the console a piped `skymule` builds, as cli.py does
+            cli.console = Console(width=None if sys.stdout.isatty() else 120)
+            stack.callback(setattr, cli, "console", console)
+        # rich resolves sys.stdout when it prints (no file= given): it writes to `out`
+        assert cli.console.file is out
+        try:
+            cli.main(argv)
+        except SystemExit as exc:
+            if exc.code is None or isinstance(exc.code, int):
+                code = exc.code or 0
+            else:  # sys.exit("message"): Python prints it and exits 1
+                print(exc.code, file=sys.stderr)
+                code = 1
+    result = CliResult(argv, code, out.getvalue(), err.getvalue())
+    if check:
+        result.check_returncode()
+    return result

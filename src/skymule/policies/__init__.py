@@ -17,8 +17,6 @@ from skymule.errors import SkymuleError
 from skymule.policies.base import Action, MissionContext, Observation, Policy
 from skymule.policies.greedy import Greedy
 from skymule.policies.hgad import HGAD
-from skymule.policies.optimal_fixed import OptimalFixed
-from skymule.policies.planner import Planner
 from skymule.scenario import PolicySpec
 
 PolicyFactory = Callable[[PolicySpec], Policy]
@@ -26,10 +24,24 @@ PolicyFactory = Callable[[PolicySpec], Policy]
 POLICIES: dict[str, PolicyFactory] = {
     "greedy": lambda spec: Greedy(),
     "hgad": lambda spec: HGAD(spec.hover_threshold, spec.max_hover_s),
-    "planner": lambda spec: Planner(),
-    "optimal-fixed": lambda spec: OptimalFixed(),
+    "planner": lambda spec: _planner(),
+    "optimal-fixed": lambda spec: _optimal_fixed(),
 }
 """Policy registry: name -> factory taking the scenario's ``[policy]`` section."""
+
+
+def _planner() -> Policy:
+    # imported on use: the planners pull in scipy's LP machinery, which `skymule --help` and
+    # the Greedy/HGAD paths do not need
+    from skymule.policies.planner import Planner
+
+    return Planner()
+
+
+def _optimal_fixed() -> Policy:
+    from skymule.policies.optimal_fixed import OptimalFixed
+
+    return OptimalFixed()
 
 
 def _imported_factory(name: str) -> PolicyFactory:

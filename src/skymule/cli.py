@@ -462,7 +462,8 @@ def fit_radiomap_command(
     """Fit a radio map (log-distance + kriged residual) per sensor to recorded flights."""
     import json
 
-    from skymule.radio.radiomap import fit_radiomap, sensor_positions_m, site_tower_positions_m
+    from skymule.geo import sensor_positions_m
+    from skymule.radio.radiomap import fit_radiomap, site_tower_positions_m
     from skymule.radio.sources import model_source
     from skymule.scenario import RadioSpec, SiteSpec, load_scenario
     from skymule.traces import read_trace
@@ -527,13 +528,9 @@ def score_radiomap_command(
 
     import numpy as np
 
+    from skymule.geo import sensor_positions_m
     from skymule.radio.channel import signal_source
-    from skymule.radio.radiomap import (
-        frame_offset_m,
-        read_radiomap,
-        score_source,
-        sensor_positions_m,
-    )
+    from skymule.radio.radiomap import frame_offset_m, read_radiomap, score_source
     from skymule.radio.rates import rate_bps, resolve_rate_table
     from skymule.scenario import RadioSpec, load_scenario
     from skymule.traces import positions_local, read_trace

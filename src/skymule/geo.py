@@ -195,6 +195,22 @@ def load_geofence(spec: str, frame: LocalFrame, base_dir: Path | None = None) ->
     return polygon_from_lonlat(ring, frame, str(path))
 
 
+def sensor_positions_m(sensors: Any, frame: LocalFrame) -> np.ndarray:
+    """(N, 3) antenna positions [m] of scenario sensors (NaN rows where none is given).
+
+    Each sensor gives ``lat``/``lon`` (projected into ``frame``) or ``x_m``/``y_m``, and
+    ``height_m``.
+    """
+    out = np.full((len(sensors), 3), np.nan)
+    for index, sensor in enumerate(sensors):
+        if sensor.lat is not None and sensor.lon is not None:
+            x_m, y_m = frame.to_local(sensor.lat, sensor.lon)
+            out[index] = [float(x_m), float(y_m), sensor.height_m]
+        elif sensor.x_m is not None and sensor.y_m is not None:
+            out[index] = [sensor.x_m, sensor.y_m, sensor.height_m]
+    return out
+
+
 def covers(fence: Polygon, x_m: Any, y_m: Any, tolerance_m: float = 1e-6) -> np.ndarray:
     """Boolean mask: which points lie inside or on the fence (within ``tolerance_m``)."""
     grown = fence.buffer(tolerance_m)

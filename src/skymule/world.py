@@ -16,7 +16,7 @@ from shapely.geometry import Polygon
 
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.flight.paths import Track, read_waypoints_csv, sample_path
-from skymule.geo import LocalFrame, covers, load_geofence
+from skymule.geo import LocalFrame, covers, load_geofence, sensor_positions_m
 from skymule.radio.channel import mission_fading_db, signal_source
 from skymule.radio.rates import RateTable, rate_bps, resolve_rate_table
 from skymule.radio.sources import SignalSource
@@ -74,17 +74,6 @@ class Mission:
         if self.track is None:
             raise SkymuleError("peak rate needs a fixed trajectory or a recorded trace")
         return self.rate_bps(self.track.snr_db).max(axis=0)
-
-
-def _sensor_positions(scenario: Scenario, frame: LocalFrame) -> np.ndarray:
-    positions = np.full((len(scenario.sensors), 3), np.nan)
-    for index, sensor in enumerate(scenario.sensors):
-        if sensor.lat is not None and sensor.lon is not None:
-            x_m, y_m = frame.to_local(sensor.lat, sensor.lon)
-            positions[index] = [float(x_m), float(y_m), sensor.height_m]
-        elif sensor.x_m is not None and sensor.y_m is not None:
-            positions[index] = [sensor.x_m, sensor.y_m, sensor.height_m]
-    return positions
 
 
 def _n_slots(duration_s: float, slot_s: float) -> int:
@@ -162,7 +151,7 @@ def build_mission(scenario: Scenario) -> Mission:
     fence = (
         load_geofence(scenario.site.geofence, frame, base_dir) if scenario.site.geofence else None
     )
-    sensor_m = _sensor_positions(scenario, frame)
+    sensor_m = sensor_positions_m(scenario.sensors, frame)
     rate_table = resolve_rate_table(scenario.radio.rate_table, base_dir)
     slot_s = scenario.mission.slot_s
     buffers_bit = np.array([s.buffer_mbit for s in scenario.sensors], float) * BITS_PER_MBIT

@@ -714,18 +714,6 @@ def score_source(
     return out
 
 
-def sensor_positions_m(sensors: Sequence[Any], frame: LocalFrame) -> np.ndarray:
-    """(N, 3) antenna positions [m] of scenario sensors (NaN rows where none is given)."""
-    out = np.full((len(sensors), 3), np.nan)
-    for j, s in enumerate(sensors):
-        if s.lat is not None and s.lon is not None:
-            x_m, y_m = frame.to_local(s.lat, s.lon)
-            out[j] = [float(x_m), float(y_m), s.height_m]
-        elif s.x_m is not None and s.y_m is not None:
-            out[j] = [s.x_m, s.y_m, s.height_m]
-    return out
-
-
 def site_tower_positions_m(
     names: Sequence[str], frame: LocalFrame, site: str = "lake-wheeler"
 ) -> np.ndarray:

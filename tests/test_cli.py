@@ -147,6 +147,7 @@ waypoints = [[0, 0, 30], [-100, 100, 30]]
         (("buffer_mbit = 100", "buffer_mbit = 100\nbufer = 3"), "unknown field 'sensors[0].bufer'"),
         (("duration_s = 20", 'duration_s = "long"'), "mission.duration_s"),
         (("[site]", "[site]\nspeed = 1\n"), "unknown field 'site.speed'"),
+        (("duration_s = 20", "duration_s = inf"), "mission.duration_s = inf: Input should be a"),
     ],
 )
 def test_bad_scenarios_get_one_line_and_exit_2(

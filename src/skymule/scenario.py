@@ -150,7 +150,8 @@ class PolicySpec(_Spec):
 
 class Scenario(_Spec):
     name: str = "scenario"
-    seed: int = 0
+    seed: Annotated[int, Field(ge=0, lt=2**63)] = 0
+    """Seeds every random draw of the mission (shadowing, fading)."""
     mission: MissionSpec = MissionSpec()
     site: SiteSpec = SiteSpec()
     sensors: Annotated[list[SensorSpec], Field(min_length=1)]

@@ -15,7 +15,7 @@ import numpy as np
 from shapely.geometry import Polygon
 
 from skymule.errors import ScenarioError, SkymuleError
-from skymule.flight.paths import Track, read_waypoints_csv, sample_path
+from skymule.flight.paths import Track, path_length_m, read_waypoints_csv, sample_path
 from skymule.geo import LocalFrame, covers, load_geofence, sensor_positions_m
 from skymule.radio.channel import mission_fading_db, signal_source
 from skymule.radio.rates import RateTable, rate_bps, resolve_rate_table
@@ -76,14 +76,32 @@ class Mission:
         return self.rate_bps(self.track.snr_db).max(axis=0)
 
 
+MAX_SLOTS = 10_000_000
+"""Longest mission and longest sampled path, in slots (115 days of 1-s slots)."""
+
+
 def _n_slots(duration_s: float, slot_s: float) -> int:
     slots = duration_s / slot_s
+    if slots > MAX_SLOTS:
+        raise ScenarioError(
+            f"mission.duration_s = {duration_s:g} with slot_s = {slot_s:g} makes {slots:.3g} "
+            f"slots; at most {MAX_SLOTS:,} are allowed"
+        )
     if abs(slots - round(slots)) > 1e-6 or round(slots) < 1:
         raise ScenarioError(
             f"mission.duration_s = {duration_s}: must be a positive whole number of "
             f"slots of slot_s = {slot_s}"
         )
     return round(slots)
+
+
+def _check_path_samples(waypoints_m: np.ndarray, speed_mps: float, slot_s: float) -> None:
+    samples = path_length_m(waypoints_m) / (speed_mps * slot_s)
+    if samples > MAX_SLOTS:
+        raise ScenarioError(
+            f"trajectory.speed_mps = {speed_mps:g}: the {path_length_m(waypoints_m):.0f} m path "
+            f"would take {samples:.3g} slots of {slot_s:g} s; at most {MAX_SLOTS:,} are allowed"
+        )
 
 
 def _waypoints(scenario: Scenario, frame: LocalFrame) -> np.ndarray:
@@ -182,6 +200,7 @@ def build_mission(scenario: Scenario) -> Mission:
         if scenario.trajectory.mode == "fixed":
             waypoints = _waypoints(scenario, frame)
             _check_inside(fence, waypoints, "trajectory.waypoints")
+            _check_path_samples(waypoints, scenario.trajectory.speed_mps, slot_s)
             samples = sample_path(waypoints, scenario.trajectory.speed_mps, slot_s)
             track = Track(position_m=samples, snr_db=source.snr_db(samples), hold_at_end=True)
 

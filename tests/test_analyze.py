@@ -108,3 +108,25 @@ def test_parse_buffers() -> None:
     for bad in ("1,2", "x", "-1", ""):
         with pytest.raises(SkymuleError, match="--buffers"):
             parse_buffers(bad, 3)
+
+
+def test_digital_twin_export_is_replayed_too(tmp_path: Path) -> None:
+    (tmp_path / "downloads.csv").write_text("time,tower,mbit\n0.2,LW1,1.0\n2.4,LW3,0.5\n")
+    done = skymule(
+        "analyze",
+        str(FIXTURES / "dt_export_small.csv"),
+        "--buffers",
+        "50",
+        "--download-log",
+        "downloads.csv",
+        "--out",
+        "dt",
+        "--no-pdf",
+        cwd=tmp_path,
+    )
+    assert done.returncode == 0, done.stderr
+    report = load_input(tmp_path / "dt")
+    assert [r.label for r in report.runs] == ["flight", "greedy", "hgad"]
+    flight = report.runs[0].slots
+    assert list(flight["served"][:3]) == ["LW1", "", "LW3"]
+    assert report.runs[1].summary["per_sensor_buffer_mbit"]["LW4"] == 50.0

@@ -1,6 +1,8 @@
 """``skymule analyze LOG``: a recorded AERPAW/AADM flight, replayed and reported.
 
-The merged log (see :mod:`skymule.traces`) becomes a trace scenario: one sensor per SNR
+The merged log or digital-twin export (see :mod:`skymule.traces`; a DT export's X/Y are taken
+as metres from the site origin, the AADM launch point for Lake Wheeler towers) becomes a
+trace scenario: one sensor per SNR
 column, buffers from an AADM volume file or ``--buffers`` (default: 1000 Mbit each, the
 challenge's example). Greedy, HGAD (or any registered policies) then replay the same trace
 through the engine (:func:`skymule.runner.simulate`) and each writes a run folder; the
@@ -16,7 +18,8 @@ Download log format (CSV, header required, column names case-insensitive)::
     2025-05-24 16:19:32.190,LW1,2.51
 
 * ``time``: timestamp in the merged log's format (or plain seconds since the log's first
-  sample); the row belongs to the slot that contains it.
+  sample; the only form for a digital-twin export); the row belongs to the slot that
+  contains it.
 * ``tower``: the sensor the data came from (a merged-log SNR column name, ``LW1`` or
   ``snr_lw1``).
 * ``mbit``: data received in that row [Mbit], >= 0.
@@ -42,7 +45,7 @@ from skymule.metrics import summarize
 from skymule.policies import POLICIES, unknown_policies
 from skymule.runio import slots_frame, write_run
 from skymule.scenario import Scenario, scenario_from_dict
-from skymule.traces import Trace, TraceError, normalise_column, read_trace, read_volumes
+from skymule.traces import Trace, normalise_column, read_trace, read_volumes
 from skymule.world import BITS_PER_MBIT, Mission, build_mission
 
 #: Buffer per tower when neither a volume file nor --buffers is given [Mbit].
@@ -142,6 +145,8 @@ def _log_start(log_path: Path) -> pd.Timestamp | None:
     column = next((c for c in head.columns if c.strip().lower() == "time"), None)
     if column is None or head.empty:
         return None
+    if pd.notna(pd.to_numeric(head[column].iloc[0], errors="coerce")):
+        return None  # seconds (digital-twin exports): no timestamp to anchor to
     try:
         return pd.Timestamp(head[column].iloc[0].strip())
     except ValueError:
@@ -270,15 +275,7 @@ def analyze_flight(
             f"--policies: unknown {', '.join(unknown) or '(empty)'}; "
             f"allowed: {', '.join(sorted(POLICIES))}"
         )
-    try:
-        trace = read_trace(log_path)
-    except TraceError:
-        raise
-    if trace.format != "aadm":
-        raise SkymuleError(
-            f"{log_path}: a digital-twin export; `skymule analyze` reads AADM merged logs "
-            "(time, snr_<tower>..., Longitude, Latitude, Altitude)"
-        )
+    trace = read_trace(log_path)
     scenario = analysis_scenario(trace, log_path, resolve_buffers(trace, volumes, buffers))
     mission = build_mission(scenario)
     rows = []

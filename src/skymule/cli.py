@@ -323,7 +323,7 @@ def export(
 
 @app.command()
 def analyze(
-    log: Annotated[Path, typer.Argument(help="AADM merged log (CSV).")],
+    log: Annotated[Path, typer.Argument(help="AADM merged log or digital-twin export (CSV).")],
     out: Annotated[Path | None, typer.Option("--out", help="Compare folder to write.")] = None,
     volumes: Annotated[
         Path | None, typer.Option("--volumes", help="AADM volume file (Mbit a line).")

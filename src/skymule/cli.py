@@ -294,13 +294,17 @@ def plot(
 
 @app.command()
 def report(
-    run_dir: Annotated[Path, typer.Argument(help="A run folder or compare folder.")],
+    run_dir: Annotated[Path, typer.Argument(help="A run, compare or sweep folder.")],
     pdf: Annotated[bool, typer.Option("--pdf/--no-pdf", help="Also write vector PDFs.")] = True,
+    baseline: Annotated[
+        str | None,
+        typer.Option(help="Sweep folders: policy the paired gains are over (default greedy)."),
+    ] = None,
 ) -> None:
     """Write DIR/report.html (self-contained) and DIR/figures/*.png|pdf from its files."""
     from skymule.report.html import build_report
 
-    path = build_report(run_dir, pdf=pdf)
+    path = build_report(run_dir, pdf=pdf, baseline=baseline)
     console.print(f"wrote {path} and {run_dir / 'figures'}/*.png, *.pdf")
 
 

@@ -37,6 +37,7 @@ from skymule.report.panels import (
     draw_snr_time,
 )
 from skymule.report.style import paper_style, save_figure
+from skymule.runio import is_run_dir
 
 REPORT_FILE = "report.html"
 FIGURES_DIR = "figures"
@@ -257,11 +258,17 @@ def _scenario_block(report: ReportInput) -> str:
     return intro + f"<pre>{html.escape(text)}</pre>"
 
 
-def build_report(folder: Path, pdf: bool = True) -> Path:
+def build_report(folder: Path, pdf: bool = True, baseline: str | None = None) -> Path:
     """Write ``folder/report.html`` (and ``folder/figures/*.png|pdf``); returns the HTML path.
 
-    ``pdf=False`` skips the vector PDFs (faster; the HTML only embeds the PNGs).
+    ``pdf=False`` skips the vector PDFs (faster; the HTML only embeds the PNGs). A sweep
+    folder (``results.parquet``) gets the sweep report (:mod:`skymule.report.sweep`), with
+    ``baseline`` as the policy the paired gains are taken over.
     """
+    from skymule.report.sweep import build_sweep_report, is_sweep_dir
+
+    if is_sweep_dir(folder) and not is_run_dir(folder):
+        return build_sweep_report(folder, pdf=pdf, baseline=baseline)
     report = load_input(folder)
     runs = report.runs
     figures = folder / FIGURES_DIR

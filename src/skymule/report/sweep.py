@@ -286,9 +286,15 @@ def draw_gains(paired: Paired, policies: list[str], folder: Path, pdf: bool) -> 
     with paper_style():
         fig, ax = plt.subplots(figsize=(6.0, 3.6))
         for gain in paired.gains:
-            label = f"{gain.policy}: mean {gain.mean:+.1f} ± {gain.ci95:.1f} Mbit"
+            label = (
+                f"{gain.policy}: mean {gain.mean:+.1f} ± {gain.ci95:.1f} Mbit, "
+                f"wins {100 * gain.wins:.0f}%, losses {100 * gain.losses:.0f}%"
+            )
             _ecdf(ax, gain.values, color=colours[gain.policy], label=label)
             ax.axvline(gain.mean, color=colours[gain.policy], ls="--", lw=1.0)
+            if np.isfinite(gain.ci95):
+                low, high = gain.mean - gain.ci95, gain.mean + gain.ci95
+                ax.axvspan(low, high, color=colours[gain.policy], alpha=0.15, lw=0)
         ax.axvline(0.0, color="#000000", lw=0.8)
         ax.set_xlabel(f"gain over {paired.baseline} per mission [Mbit]")
         ax.set_ylabel("fraction of missions")
@@ -471,7 +477,7 @@ def build_sweep_report(folder: Path, pdf: bool = True, baseline: str | None = No
             "sweep-gain",
             draw_gains(paired, policies, figures, pdf),
             f"Empirical CDF of the per-mission gain in total downloaded data over "
-            f"{paired.baseline} on paired missions; dashed: mean gain.",
+            f"{paired.baseline} on paired missions; dashed: mean gain, shaded: its 95% CI.",
         ) + gain_html(paired)
     sections.append(("paired", "Paired comparison", content))
     swept = swept_parameters(results, params)

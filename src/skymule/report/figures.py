@@ -46,8 +46,9 @@ def draw_cumulative_download(ax: Axes, slots: pd.DataFrame, title: str = "") -> 
     ax.set_xlabel("time [s]")
     ax.set_ylabel("downloaded [Mbit]")
     twin = ax.twinx()
-    twin.plot(end_t, slots["distance_m"], color="#8B4513", lw=1.2, label="distance")
-    twin.set_ylabel("distance flown [m]", color="#8B4513")
+    # black and dotted: distinct from every sensor colour of the palette
+    twin.plot(end_t, slots["distance_m"], color="black", ls=":", lw=1.4, label="distance")
+    twin.set_ylabel("distance flown [m] (dotted)")
     lines = ax.get_lines() + twin.get_lines()
     ax.legend(lines, [str(ln.get_label()) for ln in lines], loc="upper left", fontsize=8)
     ax.set_title(title)

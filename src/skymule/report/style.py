@@ -26,8 +26,6 @@ if TYPE_CHECKING:
 
 #: Colour of "no sensor served" path segments and of neutral marks.
 NEUTRAL = "#999999"
-#: Colour of the distance-flown axis.
-DISTANCE_COLOUR = "#8B4513"
 
 PAPER_RC: dict[RcKeyType, Any] = {
     "font.size": 9,

@@ -88,7 +88,7 @@ def mission_context(mission: Mission) -> MissionContext:
     )
 
 
-def _check_serve(serve: int | None, n_sensors: int, policy: Policy) -> int:
+def check_serve(serve: int | None, n_sensors: int, policy: Policy) -> int:
     if serve is None:
         return NO_SENSOR
     if not 0 <= int(serve) < n_sensors:
@@ -133,7 +133,7 @@ def run_fixed(mission: Mission, policy: Policy) -> MissionLog:
             remaining_bit=remaining.copy(),
         )
         action = policy.act(observation)
-        sensor = _check_serve(action.serve, n_sensors, policy)
+        sensor = check_serve(action.serve, n_sensors, policy)
         bits = 0.0
         if sensor != NO_SENSOR:
             bits = float(min(rate_now[sensor] * dt, remaining[sensor]))

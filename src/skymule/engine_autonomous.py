@@ -28,8 +28,7 @@ from typing import TypedDict
 import numpy as np
 from shapely.geometry import Point, Polygon, box
 
-from skymule.engine import NO_SENSOR, MissionLog, mission_context
-from skymule.engine import _check_serve as check_serve
+from skymule.engine import NO_SENSOR, MissionLog, check_serve, mission_context
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.flight.navigation import Navigator, hover_point
 from skymule.geo import LocalFrame

@@ -26,12 +26,13 @@ are file line numbers (the header is row 1), as shown by editors and spreadsheet
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import math
 import os
 import re
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from pathlib import Path
@@ -210,31 +211,15 @@ class _Table:
     lines: np.ndarray
 
 
-def _read_table(label: str, path: Path) -> _Table:
+@contextlib.contextmanager
+def _file_errors(label: str, expected: str) -> Iterator[None]:
+    """Turn the ways reading a user's file fails into one-line TraceErrors."""
     try:
-        with path.open(newline="", encoding="utf-8-sig") as fh:
-            reader = csv.reader(fh)
-            header: list[str] | None = None
-            rows: list[list[str]] = []
-            lines: list[int] = []
-            for record in reader:
-                stripped = [cell.strip() for cell in record]
-                if not any(stripped):
-                    continue
-                if header is None:
-                    header = stripped
-                    continue
-                if len(stripped) != len(header):
-                    raise TraceError(
-                        f"{label}: row {reader.line_num} has {len(stripped)} fields but the "
-                        f"header has {len(header)} (truncated or malformed row)"
-                    )
-                rows.append(stripped)
-                lines.append(reader.line_num)
+        yield
     except FileNotFoundError:
         raise TraceError(f"{label}: file not found") from None
     except IsADirectoryError:
-        raise TraceError(f"{label}: is a directory, expected a CSV file") from None
+        raise TraceError(f"{label}: is a directory, expected {expected}") from None
     except UnicodeDecodeError as exc:
         raise TraceError(
             f"{label}: not a UTF-8 text file (bad byte at offset {exc.start})"
@@ -243,6 +228,28 @@ def _read_table(label: str, path: Path) -> _Table:
         raise TraceError(f"{label}: malformed CSV ({exc})") from None
     except OSError as exc:
         raise TraceError(f"{label}: cannot read file ({exc.strerror or exc})") from None
+
+
+def _read_table(label: str, path: Path) -> _Table:
+    with _file_errors(label, "a CSV file"), path.open(newline="", encoding="utf-8-sig") as fh:
+        reader = csv.reader(fh)
+        header: list[str] | None = None
+        rows: list[list[str]] = []
+        lines: list[int] = []
+        for record in reader:
+            stripped = [cell.strip() for cell in record]
+            if not any(stripped):
+                continue
+            if header is None:
+                header = stripped
+                continue
+            if len(stripped) != len(header):
+                raise TraceError(
+                    f"{label}: row {reader.line_num} has {len(stripped)} fields but the "
+                    f"header has {len(header)} (truncated or malformed row)"
+                )
+            rows.append(stripped)
+            lines.append(reader.line_num)
     if header is None:
         raise TraceError(f"{label}: empty file (expected a CSV header line)")
     cells = np.array(rows, dtype=object).reshape(len(rows), len(header))
@@ -520,18 +527,8 @@ def read_volumes(path: str | os.PathLike[str]) -> np.ndarray:
             no values at all.
     """
     label = os.fspath(path)
-    try:
+    with _file_errors(label, "a volume file"):
         text = Path(path).read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise TraceError(f"{label}: file not found") from None
-    except IsADirectoryError:
-        raise TraceError(f"{label}: is a directory, expected a volume file") from None
-    except UnicodeDecodeError as exc:
-        raise TraceError(
-            f"{label}: not a UTF-8 text file (bad byte at offset {exc.start})"
-        ) from None
-    except OSError as exc:
-        raise TraceError(f"{label}: cannot read file ({exc.strerror or exc})") from None
     values: list[float] = []
     for number, line in enumerate(text.splitlines(), start=1):
         cell = line.strip()

@@ -132,7 +132,7 @@ def _fmt(template: str, value: Any) -> str:
         return html.escape(str(value))
 
 
-def _table(header: list[str], rows: list[list[str]], table_id: str) -> str:
+def table_html(header: list[str], rows: list[list[str]], table_id: str) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>" for row in rows)
     return f'<table id="{table_id}"><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>'
@@ -152,7 +152,7 @@ def summary_table(runs: tuple[RunData, ...]) -> str:
             ["visit order"]
             + [html.escape(" → ".join(map(str, r.summary.get("visit_order", [])))) for r in runs]
         )
-    return _table(["metric", *(r.label for r in runs)], rows, "summary-table")
+    return table_html(["metric", *(r.label for r in runs)], rows, "summary-table")
 
 
 def sensor_table(runs: tuple[RunData, ...]) -> str:
@@ -171,7 +171,7 @@ def sensor_table(runs: tuple[RunData, ...]) -> str:
             ]
         )
     header = ["sensor", "buffer [Mbit]", *(f"{r.label} [Mbit]" for r in runs)]
-    return _table(header, rows, "sensor-table")
+    return table_html(header, rows, "sensor-table")
 
 
 def score_table(runs: tuple[RunData, ...], scores: list[ScoreBreakdown]) -> str:
@@ -193,7 +193,7 @@ def score_table(runs: tuple[RunData, ...], scores: list[ScoreBreakdown]) -> str:
                 *("-" if s.reported is None else f"{s.reported:.1f}" for s in scores),
             ]
         )
-    return _table(["AADM score", *(r.label for r in runs)], rows, "score-table")
+    return table_html(["AADM score", *(r.label for r in runs)], rows, "score-table")
 
 
 def _img(png: Path, alt: str) -> str:
@@ -201,7 +201,7 @@ def _img(png: Path, alt: str) -> str:
     return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
 
 
-def _figure(key: str, png: Path, caption: str) -> str:
+def figure_html(key: str, png: Path, caption: str) -> str:
     written = [p for p in (png, png.with_suffix(".pdf")) if p.is_file()]
     files = ", ".join(f"{FIGURES_DIR}/{p.name}" for p in written)
     return (
@@ -242,7 +242,22 @@ def render_score(
     return png
 
 
-def _section(section_id: str, title: str, content: str) -> str:
+def page_html(
+    title: str, intro_html: str, sections: list[tuple[str, str, str]], tail_html: str = ""
+) -> str:
+    """One self-contained report page: title, ``intro_html`` and a section index in the
+    header, then the sections, then ``tail_html`` (inline scripts)."""
+    nav = "".join(f'<a href="#{sid}">{html.escape(t)}</a>' for sid, t, _ in sections)
+    body = "".join(section_html(sid, t, c) for sid, t, c in sections)
+    return (
+        '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
+        f"<title>{html.escape(title)}</title><style>{STYLE}</style></head><body>"
+        f"<header><h1>{html.escape(title)}</h1>{intro_html}"
+        f"<nav>{nav}</nav></header><main>{body}</main>{tail_html}</body></html>"
+    )
+
+
+def section_html(section_id: str, title: str, content: str) -> str:
     return f'<section id="{section_id}"><h2>{html.escape(title)}</h2>{content}</section>'
 
 
@@ -282,7 +297,7 @@ def build_report(folder: Path, pdf: bool = True, baseline: str | None = None) ->
         (
             "score",
             "AADM score",
-            _figure("score", render_score(runs, scores, figures, pdf), "AADM score breakdown")
+            figure_html("score", render_score(runs, scores, figures, pdf), "AADM score breakdown")
             + score_table(runs, scores),
         ),
     ]
@@ -291,7 +306,7 @@ def build_report(folder: Path, pdf: bool = True, baseline: str | None = None) ->
             (
                 "comparison",
                 "Policy comparison",
-                _figure(
+                figure_html(
                     "policies",
                     render_bars(runs, figures, pdf),
                     "Data downloaded per policy, stacked by sensor; dotted: total buffer.",
@@ -303,7 +318,7 @@ def build_report(folder: Path, pdf: bool = True, baseline: str | None = None) ->
             (
                 spec.key,
                 spec.title,
-                _figure(spec.key, render_panel(spec, runs, figures, pdf), spec.caption),
+                figure_html(spec.key, render_panel(spec, runs, figures, pdf), spec.caption),
             )
         )
     views = "".join(
@@ -323,15 +338,12 @@ def build_report(folder: Path, pdf: bool = True, baseline: str | None = None) ->
     sections.append(("scenario", "Scenario", _scenario_block(report)))
     notes = sorted({note for r in runs for note in r.site.notes})
     note_html = "".join(f'<p class="note">{html.escape(n)}</p>' for n in notes)
-    nav = "".join(f'<a href="#{sid}">{html.escape(t)}</a>' for sid, t, _ in sections)
-    body = "".join(_section(sid, t, c) for sid, t, c in sections)
-    page = (
-        '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
-        f"<title>{html.escape(title)}</title><style>{STYLE}</style></head><body>"
-        f"<header><h1>{html.escape(title)}</h1><p>skymule report of "
-        f"<code>{html.escape(str(folder))}</code> ({report.kind} folder, "
-        f"{len(runs)} run{'s' if len(runs) > 1 else ''}).</p>{note_html}<nav>{nav}</nav></header>"
-        f"<main>{body}</main>{payload_script(list(runs))}<script>{SCRIPT}</script></body></html>"
+    intro = (
+        f"<p>skymule report of <code>{html.escape(str(folder))}</code> ({report.kind} folder, "
+        f"{len(runs)} run{'s' if len(runs) > 1 else ''}).</p>{note_html}"
+    )
+    page = page_html(
+        title, intro, sections, f"{payload_script(list(runs))}<script>{SCRIPT}</script>"
     )
     out = folder / REPORT_FILE
     out.write_text(page, encoding="utf-8")

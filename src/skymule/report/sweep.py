@@ -30,7 +30,7 @@ from skymule.errors import SkymuleError
 from skymule.experiments.store import RESULTS, SUMMARY, SUMMARY_METRICS, ci95_half_width
 from skymule.experiments.store import summary_table as compute_summary
 from skymule.report.figures import OKABE_ITO
-from skymule.report.html import FIGURES_DIR, REPORT_FILE, STYLE, _figure, _section, _table
+from skymule.report.html import FIGURES_DIR, REPORT_FILE, figure_html, page_html, table_html
 from skymule.report.style import paper_style, save_figure
 
 POLICY_COLUMN = "policy"
@@ -364,7 +364,7 @@ def summary_html(summary: pd.DataFrame, source: str) -> str:
     header = ["policy", "missions", *(METRIC_LABELS[m][0] for m in metrics)]
     return (
         f"<p>Mean ± 95% CI half-width (Student t) per policy, from <code>{html.escape(source)}"
-        "</code>.</p>" + _table(header, rows, "sweep-summary-table")
+        "</code>.</p>" + table_html(header, rows, "sweep-summary-table")
     )
 
 
@@ -429,7 +429,7 @@ def parameters_html(results: pd.DataFrame, params: list[str]) -> str:
             shown = [str(v) for v in series.drop_duplicates().head(6)]
             span = ", ".join(shown) + (" …" if distinct > 6 else "")
         rows.append([f"<code>{html.escape(col)}</code>", str(distinct), html.escape(span)])
-    return _table(["parameter", "distinct values", "values"], rows, "parameter-table")
+    return table_html(["parameter", "distinct values", "values"], rows, "parameter-table")
 
 
 def build_sweep_report(folder: Path, pdf: bool = True, baseline: str | None = None) -> Path:
@@ -447,7 +447,7 @@ def build_sweep_report(folder: Path, pdf: bool = True, baseline: str | None = No
         )
     figures = folder / FIGURES_DIR
     sections: list[tuple[str, str, str]] = [("summary", "Summary", summary_html(summary, source))]
-    dist = _figure(
+    dist = figure_html(
         "sweep-download",
         draw_distribution(
             results, GAIN_METRIC, "downloaded [Mbit]", figures, "sweep-download", pdf
@@ -456,7 +456,7 @@ def build_sweep_report(folder: Path, pdf: bool = True, baseline: str | None = No
         "every mission as a dot, and the empirical CDF.",
     )
     if "completion" in results.columns:
-        dist += _figure(
+        dist += figure_html(
             "sweep-completion",
             draw_distribution(
                 results, "completion", "completion", figures, "sweep-completion", pdf
@@ -473,7 +473,7 @@ def build_sweep_report(folder: Path, pdf: bool = True, baseline: str | None = No
             "holds exactly one mission per policy.</p>"
         )
     else:
-        content = _figure(
+        content = figure_html(
             "sweep-gain",
             draw_gains(paired, policies, figures, pdf),
             f"Empirical CDF of the per-mission gain in total downloaded data over "
@@ -483,7 +483,7 @@ def build_sweep_report(folder: Path, pdf: bool = True, baseline: str | None = No
     swept = swept_parameters(results, params)
     if swept:
         content = "".join(
-            _figure(
+            figure_html(
                 f"sweep-parameter-{i}",
                 draw_parameter(results, p, i, figures, pdf),
                 f"Mean downloaded data and completion vs {p.label} per policy; bands: 95% CI of "
@@ -496,16 +496,11 @@ def build_sweep_report(folder: Path, pdf: bool = True, baseline: str | None = No
     sections.append(("parameters", "Swept parameters", content + parameters_html(results, params)))
     scenario = ", ".join(map(str, results["scenario"].unique())) if "scenario" in results else ""
     title = f"{scenario or folder.name}: sweep of {len(results)} missions"
-    nav = "".join(f'<a href="#{sid}">{html.escape(t)}</a>' for sid, t, _ in sections)
-    body = "".join(_section(sid, t, c) for sid, t, c in sections)
-    page = (
-        '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
-        f"<title>{html.escape(title)}</title><style>{STYLE}</style></head><body>"
-        f"<header><h1>{html.escape(title)}</h1><p>skymule report of "
-        f"<code>{html.escape(str(folder))}</code> (sweep folder, {len(results)} missions, "
-        f"policies: {html.escape(', '.join(policies))}).</p><nav>{nav}</nav></header>"
-        f"<main>{body}</main></body></html>"
+    intro = (
+        f"<p>skymule report of <code>{html.escape(str(folder))}</code> (sweep folder, "
+        f"{len(results)} missions, policies: {html.escape(', '.join(policies))}).</p>"
     )
+    page = page_html(title, intro, sections)
     out = folder / REPORT_FILE
     out.write_text(page, encoding="utf-8")
     return out

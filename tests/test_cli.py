@@ -208,3 +208,15 @@ def test_unwritable_output_folder_is_one_line(tmp_path: Path) -> None:
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and str(blocker) in lines[0], done.stderr
+
+
+def test_damaged_run_folder_is_one_line(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    assert skymule("run", "paper-sim-fixed", "--out", str(out)).returncode == 0
+    slots = pd.read_csv(out / "slots.csv", keep_default_na=False)
+    slots.drop(columns=["served"]).to_csv(out / "slots.csv", index=False)
+    for command in (("plot", str(out)), ("report", str(out)), ("export", str(out), "--kml")):
+        done = skymule(*command)
+        assert done.returncode == 2, command
+        lines = done.stderr.strip().splitlines()
+        assert len(lines) == 1 and "missing column(s) served" in lines[0], done.stderr

@@ -72,6 +72,30 @@ def write_run(
     _atomic_write(out_dir / SUMMARY_FILE, json.dumps(summary, indent=2))
 
 
+REQUIRED_SLOT_COLUMNS = (
+    "t_s",
+    "x_m",
+    "y_m",
+    "z_m",
+    "served",
+    "rate_mbps",
+    "downloaded_mbit",
+    "hovering",
+    "distance_m",
+)
+"""slots.csv columns every reader of a run folder relies on (plus snr_db_<name> per sensor)."""
+
+REQUIRED_SUMMARY_KEYS = (
+    "scenario",
+    "policy",
+    "slots",
+    "total_downloaded_mbit",
+    "per_sensor_downloaded_mbit",
+    "per_sensor_buffer_mbit",
+)
+"""summary.json keys every reader of a run folder relies on."""
+
+
 def is_run_dir(path: Path) -> bool:
     return (path / SUMMARY_FILE).is_file() and (path / SLOTS_FILE).is_file()
 
@@ -88,6 +112,21 @@ def read_run(run_dir: Path) -> tuple[dict[str, Any], pd.DataFrame]:
         slots = pd.read_csv(run_dir / SLOTS_FILE, keep_default_na=False, na_values=[""])
     except (OSError, ValueError) as exc:
         raise SkymuleError(f"{run_dir}: cannot read run files ({exc})") from None
+    missing_keys = [
+        k for k in REQUIRED_SUMMARY_KEYS if not isinstance(summary, dict) or k not in summary
+    ]
+    if missing_keys:
+        raise SkymuleError(
+            f"{run_dir / SUMMARY_FILE}: missing {', '.join(missing_keys)}; "
+            "not written by `skymule run` (or damaged)"
+        )
+    missing_columns = [c for c in REQUIRED_SLOT_COLUMNS if c not in slots.columns]
+    if missing_columns or not sensor_names_of(slots):
+        missing = missing_columns or ["snr_db_<sensor>"]
+        raise SkymuleError(
+            f"{run_dir / SLOTS_FILE}: missing column(s) {', '.join(missing)}; "
+            "not written by `skymule run` (or damaged)"
+        )
     slots["served"] = slots["served"].fillna("").astype(str)
     return summary, slots
 

@@ -220,3 +220,13 @@ def test_damaged_run_folder_is_one_line(tmp_path: Path) -> None:
         assert done.returncode == 2, command
         lines = done.stderr.strip().splitlines()
         assert len(lines) == 1 and "missing column(s) served" in lines[0], done.stderr
+
+
+def test_damaged_comparison_table_is_one_line(tmp_path: Path) -> None:
+    out = tmp_path / "cmp"
+    assert skymule("compare", "paper-sim-fixed", "--out", str(out)).returncode == 0
+    (out / "comparison.csv").write_bytes(b"\x00\xff\xfe not a table")
+    done = skymule("report", str(out), "--no-pdf")
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "comparison.csv: cannot read" in lines[0], done.stderr

@@ -104,8 +104,20 @@ def load_input(path: Path) -> ReportInput:
         )
     runs = tuple(load_run(child, child.name) for child in children)
     table_path = path / COMPARISON_FILE
-    comparison = pd.read_csv(table_path) if table_path.is_file() else None
-    return ReportInput(path, "compare", runs, comparison)
+    return ReportInput(path, "compare", runs, _read_comparison(table_path))
+
+
+def _read_comparison(table_path: Path) -> pd.DataFrame | None:
+    """comparison.csv of a compare folder, or None when there is none."""
+    if not table_path.is_file():
+        return None
+    try:
+        return pd.read_csv(table_path)
+    except (OSError, ValueError) as exc:  # pandas' parse errors are ValueErrors
+        raise SkymuleError(
+            f"{table_path}: cannot read ({str(exc).splitlines()[0]}); rewrite it with "
+            "`skymule compare` or delete it"
+        ) from None
 
 
 @dataclass(frozen=True)

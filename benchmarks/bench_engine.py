@@ -23,11 +23,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from skymule.engine import run_fixed
-from skymule.engine_autonomous import fixed_geometry_fields
-from skymule.engine_batch import run_batch, run_fixed_batch, stack_missions, summarize_fixed_batch
 from skymule.policies import make_policy
 from skymule.scenario import PolicySpec, load_scenario
+from skymule.sim.autonomous import fixed_geometry_fields
+from skymule.sim.batch import run_batch, run_fixed_batch, stack_missions, summarize_fixed_batch
+from skymule.sim.engine import run_fixed
 from skymule.world import Mission, build_mission
 
 

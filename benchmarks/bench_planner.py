@@ -18,13 +18,13 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from skymule.bounds_autonomous import autonomous_bound
-from skymule.engine import run_mission
+from skymule.bounds.autonomous import autonomous_bound
 from skymule.experiments.layouts import random_autonomous_scenario
 from skymule.metrics import aadm_score, completion_time_s
 from skymule.policies.hgad import HGAD
 from skymule.policies.planner import Planner
 from skymule.scenario import Scenario, load_scenario
+from skymule.sim.engine import run_mission
 from skymule.world import build_mission
 
 PRESET = "paper-sim-autonomous"

@@ -8,9 +8,9 @@ from __future__ import annotations
 import argparse
 import time
 
-from skymule.engine import run_mission
 from skymule.policies import make_policy
 from skymule.scenario import load_scenario
+from skymule.sim.engine import run_mission
 from skymule.world import build_mission
 
 

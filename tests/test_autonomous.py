@@ -10,12 +10,12 @@ import shapely
 from shapely.geometry import Point
 
 from conftest import run_cli
-from skymule.engine import NO_SENSOR, run_mission
 from skymule.metrics import summarize
 from skymule.policies import make_policy
 from skymule.policies.base import Action, MissionContext, Observation
 from skymule.policies.hgad import HGAD
 from skymule.scenario import load_scenario
+from skymule.sim.engine import NO_SENSOR, run_mission
 from skymule.world import build_mission
 
 PRESET = "paper-sim-autonomous"

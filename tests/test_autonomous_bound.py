@@ -1,4 +1,4 @@
-"""The autonomous upper bound (skymule.bounds_autonomous): validity, tightness, errors."""
+"""The autonomous upper bound (skymule.bounds.autonomous): validity, tightness, errors."""
 
 from __future__ import annotations
 
@@ -9,21 +9,21 @@ import numpy as np
 import pytest
 from shapely.geometry import Point, Polygon
 
-from skymule.bounds_autonomous import (
+from skymule.bounds.autonomous import (
     autonomous_bound,
     best_rate_bps,
     closest_distances_m,
     geodesic_closest_distances_m,
     reach_radii_m,
 )
-from skymule.engine import run_mission
-from skymule.engine_autonomous import build_geometry
 from skymule.errors import SkymuleError
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
 from skymule.policies.greedy import Greedy
 from skymule.policies.hgad import HGAD
 from skymule.policies.planner import Planner
 from skymule.scenario import load_scenario
+from skymule.sim.autonomous import build_geometry
+from skymule.sim.engine import run_mission
 from skymule.world import build_mission
 
 PRESET = "paper-sim-autonomous"

@@ -11,14 +11,6 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from skymule.engine import MissionLog, run_fixed, run_mission
-from skymule.engine_autonomous import fixed_geometry_fields
-from skymule.engine_batch import (
-    batchable,
-    handover_counts,
-    run_fixed_batch,
-    summarize_fixed_batch,
-)
 from skymule.experiments.run import _flat_summary, run_chunk
 from skymule.experiments.sweep import iter_missions, load_sweep
 from skymule.flight.paths import Track
@@ -27,6 +19,14 @@ from skymule.policies import make_policy
 from skymule.radio.rates import Shannon
 from skymule.runner import simulate
 from skymule.scenario import PolicySpec, load_scenario, scenario_from_dict
+from skymule.sim.autonomous import fixed_geometry_fields
+from skymule.sim.batch import (
+    batchable,
+    handover_counts,
+    run_fixed_batch,
+    summarize_fixed_batch,
+)
+from skymule.sim.engine import MissionLog, run_fixed, run_mission
 from skymule.world import build_mission
 
 

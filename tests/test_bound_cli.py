@@ -11,10 +11,10 @@ import pandas as pd
 import pytest
 
 from conftest import CliResult, run_cli
-from skymule.bounds import BoundError, mission_bound
+from skymule.bounds.fixed import BoundError, mission_bound
 from skymule.errors import SkymuleError
+from skymule.io.traces import write_dt_export
 from skymule.scenario import load_scenario
-from skymule.traces import write_dt_export
 from skymule.world import build_mission
 
 BOUND_KEYS = ("upper_bound_mbit", "no_hover_upper_bound_mbit", "method", "status", "solve_time_s")
@@ -90,7 +90,7 @@ def test_bound_bad_scenario_is_one_line() -> None:
 
 def test_autonomous_bound_missing_is_one_line(monkeypatch: pytest.MonkeyPatch) -> None:
     mission = build_mission(load_scenario("paper-sim-autonomous"))
-    monkeypatch.setitem(sys.modules, "skymule.bounds_autonomous", None)
+    monkeypatch.setitem(sys.modules, "skymule.bounds.autonomous", None)
     with pytest.raises(BoundError, match="autonomous bound is not available") as caught:
         mission_bound(mission)
     assert isinstance(caught.value, SkymuleError) and "\n" not in str(caught.value)

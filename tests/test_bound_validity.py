@@ -17,13 +17,13 @@ import pytest
 import shapely
 from shapely.geometry import Polygon
 
-from skymule.bounds import mission_bound, mission_track_rates
-from skymule.engine import run_fixed
+from skymule.bounds.fixed import mission_bound, mission_track_rates
 from skymule.geo import LocalFrame, load_geofence
+from skymule.io.traces import write_dt_export
 from skymule.policies import HGAD, Greedy, Policy
 from skymule.policies.optimal_fixed import OptimalFixed
 from skymule.scenario import Scenario
-from skymule.traces import write_dt_export
+from skymule.sim.engine import run_fixed
 from skymule.world import Mission, build_mission
 
 N_MISSIONS = 30  # per signal source

@@ -1,4 +1,4 @@
-"""Tests for :mod:`skymule.bounds`: hand-solved cases, brute force and a reference MILP."""
+"""Tests for :mod:`skymule.bounds.fixed`: hand-solved cases, brute force and a reference MILP."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 import scipy.sparse as sp
 from scipy.optimize import Bounds, LinearConstraint, milp
 
-from skymule.bounds import BoundError, BoundResult, fixed_path_bound
+from skymule.bounds.fixed import BoundError, BoundResult, fixed_path_bound
 
 REL = 1e-6
 

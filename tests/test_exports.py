@@ -10,7 +10,8 @@ import pandas as pd
 import pytest
 
 from conftest import run_cli
-from skymule.exports import (
+from skymule.geo import LocalFrame, load_site
+from skymule.io.exports import (
     MAV_CMD_NAV_WAYPOINT,
     export_run,
     plan_waypoints,
@@ -18,9 +19,8 @@ from skymule.exports import (
     read_kml_export,
     read_plan,
 )
-from skymule.geo import LocalFrame, load_site
+from skymule.io.runs import write_run
 from skymule.report.inputs import hover_segments, load_run
-from skymule.runio import write_run
 
 ORIGIN = (35.7274824, -78.6962749)
 FRAME = LocalFrame(*ORIGIN)

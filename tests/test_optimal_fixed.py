@@ -10,8 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from skymule.bounds import fixed_path_bound, mission_bound, mission_track_rates
-from skymule.engine import run_fixed
+from skymule.bounds.fixed import fixed_path_bound, mission_bound, mission_track_rates
 from skymule.errors import SkymuleError
 from skymule.flight.paths import Track
 from skymule.metrics import summarize
@@ -19,6 +18,7 @@ from skymule.policies import HGAD, POLICIES, Greedy
 from skymule.policies.optimal_fixed import OptimalFixed, plan_schedule, slot_counts
 from skymule.runner import simulate
 from skymule.scenario import Scenario, load_scenario
+from skymule.sim.engine import run_fixed
 from skymule.world import Mission, build_mission, mission_from_track
 
 REL = 1e-9

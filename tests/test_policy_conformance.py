@@ -17,11 +17,11 @@ import pytest
 import shapely
 
 from conftest import run_cli
-from skymule.engine import NO_SENSOR, MissionLog, run_mission
 from skymule.errors import SkymuleError
 from skymule.policies import POLICIES, make_policy, unknown_policies
 from skymule.runner import simulate
 from skymule.scenario import load_scenario
+from skymule.sim.engine import NO_SENSOR, MissionLog, run_mission
 from skymule.world import Mission, build_mission
 
 PLUGINS = Path(__file__).parent / "plugins"

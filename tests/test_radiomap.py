@@ -10,6 +10,7 @@ import pytest
 
 from conftest import run_cli
 from skymule.geo import LocalFrame
+from skymule.io.traces import write_dt_export
 from skymule.radio import radiomap
 from skymule.radio.radiomap import (
     Variogram,
@@ -26,7 +27,6 @@ from skymule.radio.radiomap import (
 from skymule.radio.shadowing import shadowing_field
 from skymule.radio.sources import model_source
 from skymule.scenario import RadioSpec
-from skymule.traces import write_dt_export
 
 ROOT = Path(__file__).parents[1]
 FRAME = LocalFrame(35.7274824, -78.6962749)

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from skymule.engine import run_fixed
 from skymule.policies import make_policy
 from skymule.radio.fading import rician_power_db
 from skymule.radio.shadowing import shadowing_field
 from skymule.scenario import Scenario, load_scenario
+from skymule.sim.engine import run_fixed
 from skymule.world import build_mission
 
 SIGMA_DB = 6.0

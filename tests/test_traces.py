@@ -1,4 +1,4 @@
-"""Tests for skymule.traces: AADM merged logs, digital-twin exports, volumes, writers."""
+"""Tests for skymule.io.traces: AADM merged logs, digital-twin exports, volumes, writers."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from skymule.traces import (
+from skymule.io.traces import (
     Trace,
     TraceError,
     normalise_column,

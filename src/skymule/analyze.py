@@ -1,6 +1,6 @@
 """``skymule analyze LOG``: a recorded AERPAW/AADM flight, replayed and reported.
 
-The merged log or digital-twin export (see :mod:`skymule.traces`; a DT export's X/Y are taken
+The merged log or digital-twin export (see :mod:`skymule.io.traces`; a DT export's X/Y are taken
 as metres from the site origin, the AADM launch point for Lake Wheeler towers) becomes a
 trace scenario: one sensor per SNR
 column, buffers from an AADM volume file or ``--buffers`` (default: 1000 Mbit each, the
@@ -38,14 +38,14 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from skymule.engine import NO_SENSOR, MissionLog
 from skymule.errors import SkymuleError
 from skymule.geo import load_site
+from skymule.io.runs import slots_frame, write_run
+from skymule.io.traces import Trace, normalise_column, read_trace, read_volumes
 from skymule.metrics import summarize
 from skymule.policies import POLICIES, unknown_policies
-from skymule.runio import slots_frame, write_run
 from skymule.scenario import Scenario, scenario_from_dict
-from skymule.traces import Trace, normalise_column, read_trace, read_volumes
+from skymule.sim.engine import NO_SENSOR, MissionLog
 from skymule.world import BITS_PER_MBIT, Mission, build_mission
 
 #: Buffer per tower when neither a volume file nor --buffers is given [Mbit].

@@ -20,7 +20,7 @@ from skymule.errors import SkymuleError
 from skymule.metrics import HEADLINE_METRICS
 
 if TYPE_CHECKING:
-    from skymule.bounds import MissionBound
+    from skymule.bounds.fixed import MissionBound
     from skymule.geo import LocalFrame
     from skymule.radio.sources import SignalSource
     from skymule.scenario import Scenario
@@ -171,7 +171,7 @@ GAP_COLUMNS = ("gap_to_bound_mbit", "gap_to_bound_frac")
 
 def _bound_or_note(mission: Mission) -> tuple[MissionBound | None, str | None]:
     """(the mission's upper bound, None), or (None, why there is none) for compare."""
-    from skymule.bounds import BoundError, mission_bound
+    from skymule.bounds.fixed import BoundError, mission_bound
 
     try:
         return mission_bound(mission), None
@@ -229,8 +229,8 @@ def _compare_sources(base: Scenario, sources: str, policies: list[str], out: Pat
             console.print(f"{spec}: no upper bound: {note}", markup=False)
     if out is None:
         return
+    from skymule.io.runs import read_run
     from skymule.report.channel import plot_snr_cdf_by_source
-    from skymule.runio import read_run
 
     panels = []
     for spec, policy, result in results:
@@ -257,7 +257,7 @@ def bound(
     out: Annotated[Path | None, typer.Option("--out", help="Folder for bound.json.")] = None,
 ) -> None:
     """Upper bound on the data any policy can download in a scenario (LP/MILP, HiGHS)."""
-    from skymule.bounds import mission_bound
+    from skymule.bounds.fixed import mission_bound
     from skymule.scenario import load_scenario
     from skymule.world import build_mission
 
@@ -274,8 +274,8 @@ def plot(
     run_dir: Annotated[Path, typer.Argument(help="A run folder (or compare folder).")],
 ) -> None:
     """Draw a run's figures from its files (never re-simulates)."""
+    from skymule.io.runs import is_run_dir, read_run
     from skymule.report.figures import plot_run
-    from skymule.runio import is_run_dir, read_run
 
     folders = (
         [run_dir]
@@ -318,7 +318,7 @@ def export(
     ] = False,
 ) -> None:
     """Export a run's path, towers, geofence and hover points (KML/GeoJSON) or its mission."""
-    from skymule.exports import export_run
+    from skymule.io.exports import export_run
 
     chosen = [name for name, on in (("kml", kml), ("geojson", geojson), ("plan", plan)) if on]
     for path in export_run(run_dir, chosen):
@@ -467,10 +467,10 @@ def fit_radiomap_command(
     import json
 
     from skymule.geo import sensor_positions_m
+    from skymule.io.traces import read_trace
     from skymule.radio.radiomap import fit_radiomap, site_tower_positions_m
     from skymule.radio.sources import model_source
     from skymule.scenario import RadioSpec, SiteSpec, load_scenario
-    from skymule.traces import read_trace
 
     spec = load_scenario(scenario) if scenario else None
     site = spec.site.origin if spec else SiteSpec().origin
@@ -533,11 +533,11 @@ def score_radiomap_command(
     import numpy as np
 
     from skymule.geo import sensor_positions_m
+    from skymule.io.traces import positions_local, read_trace
     from skymule.radio.channel import signal_source
     from skymule.radio.radiomap import frame_offset_m, read_radiomap, score_source
     from skymule.radio.rates import rate_bps, resolve_rate_table
     from skymule.scenario import RadioSpec, load_scenario
-    from skymule.traces import positions_local, read_trace
 
     if source.lower().endswith(".json"):
         fitted = read_radiomap(Path(source))

@@ -1,4 +1,4 @@
-"""Mission metrics: pure functions of a :class:`~skymule.engine.MissionLog`."""
+"""Mission metrics: pure functions of a :class:`~skymule.sim.engine.MissionLog`."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from skymule.energy import propulsion_power_w
-from skymule.engine import NO_SENSOR, MissionLog
+from skymule.sim.engine import NO_SENSOR, MissionLog
 
 BITS_PER_MBIT = 1e6
 

@@ -6,11 +6,11 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from skymule.engine import MissionLog, run_mission
+from skymule.io.runs import slots_frame, write_run
 from skymule.metrics import summarize
 from skymule.policies import make_policy
-from skymule.runio import slots_frame, write_run
 from skymule.scenario import Scenario
+from skymule.sim.engine import MissionLog, run_mission
 from skymule.world import Mission, build_mission
 
 

@@ -136,7 +136,7 @@ def _check_inside(fence: Polygon | None, points_m: np.ndarray, what: str) -> Non
 
 def _trace_track(scenario: Scenario, frame: LocalFrame) -> Track:
     # imported here so that model-only use never needs pandas' CSV machinery
-    from skymule.traces import TraceError, positions_local, read_trace
+    from skymule.io.traces import TraceError, positions_local, read_trace
 
     assert scenario.signal.trace is not None
     path = scenario.resolve_path(scenario.signal.trace)

@@ -13,9 +13,9 @@ from dataclasses import dataclass
 import numpy as np
 from shapely.geometry import Point
 
-from skymule.engine_autonomous import build_geometry, check_duration
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.scenario import Scenario
+from skymule.sim.autonomous import build_geometry, check_duration
 from skymule.world import build_mission
 
 

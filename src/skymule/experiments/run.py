@@ -1,7 +1,7 @@
 """Running a sweep: plan, skip what is done, run chunks on an executor, store, summarise.
 
 Fixed-trajectory Greedy/HGAD missions (per-slot fading included) run through the batched
-engine (:mod:`skymule.engine_batch`), whose summaries come straight from the batch arrays
+engine (:mod:`skymule.sim.batch`), whose summaries come straight from the batch arrays
 (``summarize_fixed_batch``: no per-mission log is built); every other mission (other policies,
 autonomous flights) runs through the reference engine, one at a time, in the worker. Either way
 the row is ``metrics.summarize`` of the mission's log, value for value, as ``skymule run``
@@ -27,7 +27,7 @@ from skymule.experiments.executors import default_workers, open_executor
 from skymule.experiments.sweep import SweepMission, SweepSpec, iter_missions, validate_mission
 
 if TYPE_CHECKING:
-    from skymule.engine_autonomous import FixedGeometry
+    from skymule.sim.autonomous import FixedGeometry
 
 Task = tuple[int, str, dict[str, Any], dict[str, Any]]
 """(mission index, mission id, axis values, resolved scenario dict)."""
@@ -69,12 +69,12 @@ def _geometry_key(data: dict[str, Any]) -> str:
 
 def run_chunk(tasks: Sequence[Task], base_dir: str) -> pd.DataFrame:
     """Run a chunk of missions (in a worker); one row per mission, in task order."""
-    from skymule.engine import run_mission
-    from skymule.engine_autonomous import fixed_geometry_fields
-    from skymule.engine_batch import batchable, summarize_fixed_batch
     from skymule.metrics import summarize
     from skymule.policies import make_policy
     from skymule.scenario import scenario_from_dict
+    from skymule.sim.autonomous import fixed_geometry_fields
+    from skymule.sim.batch import batchable, summarize_fixed_batch
+    from skymule.sim.engine import run_mission
     from skymule.world import BITS_PER_MBIT, build_mission
 
     built: dict[str, Any] = {}

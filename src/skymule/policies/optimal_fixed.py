@@ -50,7 +50,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import linprog
 
-from skymule.bounds import BoundResult, fixed_path_bound
+from skymule.bounds.fixed import BoundResult, fixed_path_bound
 from skymule.errors import SkymuleError
 from skymule.policies.base import Action, MissionContext, Observation
 

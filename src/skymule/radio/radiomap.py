@@ -597,7 +597,7 @@ def load_samples(
     paths: Sequence[Path], names: Sequence[str], frame: LocalFrame, folds: int = CV_FOLDS
 ) -> list[SensorSamples]:
     """Per sensor (in ``names`` order), the samples of all traces (positions in ``frame``)."""
-    from skymule.traces import positions_local, read_trace
+    from skymule.io.traces import positions_local, read_trace
 
     positions, snr, segment = [], [], []
     for path in paths:

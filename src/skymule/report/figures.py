@@ -1,6 +1,6 @@
 """Figures drawn from run folders (never from a simulation).
 
-Every function takes what :func:`skymule.runio.read_run` returns and a matplotlib Axes or
+Every function takes what :func:`skymule.io.runs.read_run` returns and a matplotlib Axes or
 output path; nothing here imports the engine. Colours come from the Okabe-Ito palette, which
 stays distinguishable for colour-blind readers.
 """
@@ -20,7 +20,7 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from skymule.runio import sensor_names_of
+from skymule.io.runs import sensor_names_of
 
 #: Okabe & Ito (2008) colour-blind-safe palette.
 OKABE_ITO = ("#0072B2", "#E69F00", "#009E73", "#D55E00", "#CC79A7", "#56B4E9", "#F0E442", "#000000")

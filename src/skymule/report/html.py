@@ -20,6 +20,7 @@ from typing import Any
 import matplotlib.pyplot as plt
 from matplotlib.axes import Axes
 
+from skymule.io.runs import is_run_dir
 from skymule.report.figures import draw_cumulative_download, draw_snr_cdf
 from skymule.report.inputs import (
     ReportInput,
@@ -37,7 +38,6 @@ from skymule.report.panels import (
     draw_snr_time,
 )
 from skymule.report.style import paper_style, save_figure
-from skymule.runio import is_run_dir
 
 REPORT_FILE = "report.html"
 FIGURES_DIR = "figures"

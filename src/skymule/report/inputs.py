@@ -16,8 +16,8 @@ import numpy as np
 import pandas as pd
 
 from skymule.errors import SkymuleError
+from skymule.io.runs import SCENARIO_FILE, is_run_dir, read_run, sensor_names_of
 from skymule.report.site import SiteGeometry, site_geometry
-from skymule.runio import SCENARIO_FILE, is_run_dir, read_run, sensor_names_of
 
 COMPARISON_FILE = "comparison.csv"
 

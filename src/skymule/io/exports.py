@@ -31,8 +31,8 @@ from typing import Any
 import numpy as np
 
 from skymule.errors import SkymuleError
+from skymule.io.runs import is_run_dir
 from skymule.report.inputs import RunData, hover_segments, load_run
-from skymule.runio import is_run_dir
 
 KML_NS = "http://www.opengis.net/kml/2.2"
 #: MAVLink MAV_CMD_NAV_WAYPOINT; param1 = hold time [s].

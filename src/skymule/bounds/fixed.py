@@ -70,7 +70,7 @@ Scenarios: :func:`mission_bound`
 by ``trajectory.mode``. Fixed trajectories (model, radio-map or trace source alike: each gives
 a ``Track``) use the rates ``mission.rate_bps(track.snr_db)``, ``hold_at_end`` of the track and
 ``T = mission.n_slots``, and report both the pause-anywhere bound and the paper's no-hover LP.
-Autonomous trajectories call ``skymule.bounds_autonomous.autonomous_bound`` (imported lazily).
+Autonomous trajectories call ``skymule.bounds.autonomous.autonomous_bound`` (imported lazily).
 
 On fixed trajectories, per-slot small-scale fading (``radio.fading != "none"``) is refused
 (the autonomous bound models it itself): the UAV then sees
@@ -460,14 +460,14 @@ def _fixed_mission_bound(mission: Mission) -> MissionBound:
 
 
 def _autonomous_mission_bound(mission: Mission) -> MissionBound:
-    """``skymule.bounds_autonomous.autonomous_bound`` wrapped as a :class:`MissionBound`."""
+    """``skymule.bounds.autonomous.autonomous_bound`` wrapped as a :class:`MissionBound`."""
     try:
-        from skymule.bounds_autonomous import autonomous_bound
+        from skymule.bounds.autonomous import autonomous_bound
     except ModuleNotFoundError as exc:
-        if exc.name != "skymule.bounds_autonomous":
+        if exc.name != "skymule.bounds.autonomous":
             raise
         raise BoundError(
-            "bound: the autonomous bound is not available (module skymule.bounds_autonomous "
+            "bound: the autonomous bound is not available (module skymule.bounds.autonomous "
             "is missing); only trajectory.mode = 'fixed' is supported here"
         ) from None
     result = autonomous_bound(mission)

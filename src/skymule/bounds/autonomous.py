@@ -1,6 +1,6 @@
 """An upper bound on what any autonomous policy can download (time-expanded reach LP).
 
-Setting (the slot contract of DESIGN.md and :mod:`skymule.engine_autonomous`)
+Setting (the slot contract of DESIGN.md and :mod:`skymule.sim.autonomous`)
 ------------------------------------------------------------------------------
 ``T`` slots of ``dt`` seconds; the UAV starts at home ``h``, flies at altitude ``z`` inside the
 geofence ``F`` and moves at most ``s = v_max dt`` metres per slot along an in-fence path. In
@@ -85,10 +85,10 @@ from scipy.optimize import linprog
 from shapely.geometry import Point, Polygon
 from shapely.geometry.base import BaseGeometry
 
-from skymule.bounds import BoundResult
-from skymule.engine_autonomous import build_geometry
+from skymule.bounds.fixed import BoundResult
 from skymule.errors import SkymuleError
 from skymule.flight.navigation import Navigator
+from skymule.sim.autonomous import build_geometry
 from skymule.world import Mission
 
 __all__ = [

@@ -28,12 +28,12 @@ from typing import TypedDict
 import numpy as np
 from shapely.geometry import Point, Polygon, box
 
-from skymule.engine import NO_SENSOR, MissionLog, check_serve, mission_context
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.flight.navigation import Navigator, hover_point
 from skymule.geo import LocalFrame
 from skymule.policies.base import MissionContext, Observation, Policy
 from skymule.scenario import Scenario
+from skymule.sim.engine import NO_SENSOR, MissionLog, check_serve, mission_context
 from skymule.world import Mission
 
 #: Half-width [m] of the square that stands in for a geofence when a scenario gives none.
@@ -262,7 +262,7 @@ def run_autonomous(mission: Mission, policy: Policy) -> MissionLog:
 
 
 class FixedGeometry(TypedDict):
-    """The :class:`~skymule.engine.MissionLog` fields ``fixed_geometry_fields`` fills in."""
+    """The :class:`~skymule.sim.engine.MissionLog` fields ``fixed_geometry_fields`` fills in."""
 
     home_m: np.ndarray
     hover_points_m: np.ndarray

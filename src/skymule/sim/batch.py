@@ -2,7 +2,7 @@
 
 :func:`run_batch` loops over slots only; every step is a numpy operation over the B missions
 of the batch. It obeys the slot contract exactly as the reference engine
-(:func:`skymule.engine.run_fixed`) and the reference policies do, including their tie rules
+(:func:`skymule.sim.engine.run_fixed`) and the reference policies do, including their tie rules
 and HGAD's state machine (cooldown, hover budget, trigger), and the test suite compares the two
 value for value.
 
@@ -15,7 +15,7 @@ recomputed each slot from the track SNR plus that slot's fading, as the referenc
 Policies covered: :data:`BATCH_POLICIES` (``greedy`` and ``hgad``); other policies and
 autonomous missions run through the reference engine (see :mod:`skymule.experiments.run`).
 
-Two outputs: :func:`run_fixed_batch` gives one :class:`~skymule.engine.MissionLog` per mission
+Two outputs: :func:`run_fixed_batch` gives one :class:`~skymule.sim.engine.MissionLog` per mission
 (for tests and users); :func:`summarize_fixed_batch` gives the ``metrics.summarize`` dictionaries
 straight from the batched arrays (:func:`summarize_batch`), with no per-mission log, which is
 what sweeps use.
@@ -30,7 +30,6 @@ from typing import Any
 import numpy as np
 
 from skymule.energy import propulsion_power_w
-from skymule.engine import NO_SENSOR, MissionLog
 from skymule.errors import SkymuleError
 from skymule.flight.paths import Track
 from skymule.metrics import (
@@ -41,6 +40,7 @@ from skymule.metrics import (
 )
 from skymule.radio.rates import RateTable, rate_bps
 from skymule.scenario import PolicySpec
+from skymule.sim.engine import NO_SENSOR, MissionLog
 from skymule.world import Mission
 
 HOVER_EPS_S = 1e-12
@@ -821,7 +821,7 @@ def summarize_fixed_batch(
 
     Equal to ``[summarize(replace(run_fixed(m, make_policy(s)), **g), name) ...]`` with
     ``g`` the mission's ``geometry`` entry (``fixed_geometry_fields``; None: none), but no
-    :class:`~skymule.engine.MissionLog` is built: the summaries come from the batch arrays.
+    :class:`~skymule.sim.engine.MissionLog` is built: the summaries come from the batch arrays.
     """
     fields = list(geometry) if geometry is not None else [None] * len(missions)
     summaries: list[dict[str, Any] | None] = [None] * len(missions)

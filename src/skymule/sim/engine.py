@@ -171,7 +171,7 @@ def run_fixed(mission: Mission, policy: Policy) -> MissionLog:
 def run_mission(mission: Mission, policy: Policy) -> MissionLog:
     """Run one mission under ``policy`` (fixed or autonomous trajectory)."""
     # imported here: engine_autonomous builds on this module
-    from skymule.engine_autonomous import fixed_geometry_fields, run_autonomous
+    from skymule.sim.autonomous import fixed_geometry_fields, run_autonomous
 
     if mission.scenario.trajectory.mode == "fixed":
         return replace(run_fixed(mission, policy), **fixed_geometry_fields(mission))

@@ -1,0 +1,1 @@
+"""Files at the edges: recorded traces, run folders, map and mission exports."""

@@ -1,0 +1,1 @@
+"""Simulation core: the slot contract, the engines that apply it and the mission log."""

@@ -80,11 +80,14 @@ class HGAD:
         sensor = contract.hover_sensor_or(self._state, choice)
         cell = contract.cells(sensor)
         left = remaining.reshape(-1).take(cell)
-        bits = contract.served_bits(rate.reshape(-1).take(cell), left, self._slot_s)
+        rate_served = rate.reshape(-1).take(cell)
+        bits = contract.served_bits(rate_served, left, self._slot_s)
         hover = contract.hgad_update(
             self._state,
             sensor=sensor,
+            cell=cell,
             rate_bps=rate,
+            rate_served_bps=rate_served,
             left_after_bit=left - bits,
             threshold_bps=self._threshold_bps,
             peak_rate_bps=self._peak_bps,

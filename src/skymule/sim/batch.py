@@ -266,6 +266,7 @@ def run_batch(batch: Batch) -> BatchResult:
     n_missions, n_sensors = batch.buffers_bit.shape
     k_rows = batch.rate_bps.shape[1]
     t_max = int(batch.n_slots.max())
+    columns = np.arange(n_missions)
     # one (2N, U*K) table [rate ; snr seen]: a single column gather per slot; a trace that
     # ran out points one sample past its end, which is padding (the mission is over)
     table = np.ascontiguousarray(
@@ -319,9 +320,10 @@ def run_batch(batch: Batch) -> BatchResult:
             choice = contract.greedy_choice(snr, has_data)
         sensor = contract.hover_sensor_or(state, choice) if any_hgad else choice
         sensor[~active] = NO_SENSOR
-        cell = contract.cells(sensor)
+        cell = contract.cells(sensor, columns)
         left = remaining_flat.take(cell)
-        bits = contract.served_bits(rate.reshape(-1).take(cell), left, dt)
+        rate_served = rate.reshape(-1).take(cell)
+        bits = contract.served_bits(rate_served, left, dt)
         bits[sensor < 0] = 0.0
         left_after = left - bits
         remaining_flat[cell] = left_after
@@ -329,7 +331,9 @@ def run_batch(batch: Batch) -> BatchResult:
             hover_flag = contract.hgad_update(
                 state,
                 sensor=sensor,
+                cell=cell,
                 rate_bps=rate,
+                rate_served_bps=rate_served,
                 left_after_bit=left_after,
                 threshold_bps=threshold,
                 peak_rate_bps=peak,

@@ -84,9 +84,13 @@ def hgad_choice(rate_bps: np.ndarray, snr_db: np.ndarray, has_data: np.ndarray) 
     return choice
 
 
-def cells(sensor: np.ndarray) -> np.ndarray:
-    """(B,) flat index of (sensor[b], b) into a C-ordered (N, B) array (NO_SENSOR -> row 0)."""
-    return np.maximum(sensor, 0) * sensor.shape[0] + np.arange(sensor.shape[0])
+def cells(sensor: np.ndarray, columns: np.ndarray | None = None) -> np.ndarray:
+    """(B,) flat index of (sensor[b], b) into a C-ordered (N, B) array (NO_SENSOR -> row 0).
+
+    ``columns`` is ``np.arange(B)``, passed in by callers that step many slots.
+    """
+    columns = np.arange(sensor.shape[0]) if columns is None else columns
+    return np.maximum(sensor, 0) * sensor.shape[0] + columns
 
 
 @dataclass(frozen=True)
@@ -123,7 +127,9 @@ def hgad_update(
     state: HoverState,
     *,
     sensor: np.ndarray,
+    cell: np.ndarray,
     rate_bps: np.ndarray,
+    rate_served_bps: np.ndarray,
     left_after_bit: np.ndarray,
     threshold_bps: np.ndarray,
     peak_rate_bps: np.ndarray,
@@ -144,7 +150,9 @@ def hgad_update(
     Args:
         state: updated in place.
         sensor: (B,) sensor served this slot (:func:`hover_sensor_or`), or NO_SENSOR.
+        cell: (B,) :func:`cells` of ``sensor``.
         rate_bps: (N, B) rate to each sensor this slot [bit/s] (C order).
+        rate_served_bps: (B,) rate of the served sensor [bit/s] (``rate_bps`` at ``cell``).
         left_after_bit: (B,) the served sensor's buffer after this slot's download [bit].
         threshold_bps: (N * B,) flat (N, B) trigger thresholds gamma_i [bit/s].
         peak_rate_bps: (N * B,) flat (N, B) peak rates R*_i [bit/s].
@@ -153,9 +161,8 @@ def hgad_update(
         enabled: (B,) False for missions whose policy never hovers (mixed batches).
         active: (B,) False for missions that are over (their state is left alone).
     """
-    cell = cells(sensor)
     serving = sensor >= 0
-    rate_served = rate_bps.reshape(-1).take(cell)
+    rate_served = rate_served_bps
     hover_flag = (state.sensor >= 0) & active
     np.logical_and(state.cooling, ~(rate_bps.reshape(-1) < threshold_bps), out=state.cooling)
     np.subtract(state.budget_s, slot_s, out=state.budget_s, where=hover_flag)

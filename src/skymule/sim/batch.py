@@ -307,7 +307,7 @@ def run_batch(batch: Batch) -> BatchResult:
         snr = observed[n_sensors:]
         if any_fading:
             _apply_fading(batch, slot, rate, snr)
-        has_data = remaining > 0
+        has_data = contract.servable(rate, remaining)
         if any_hgad and any_greedy:
             choice = np.where(
                 is_hgad,

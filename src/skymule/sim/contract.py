@@ -39,6 +39,15 @@ def served_bits(rate_bps: Any, remaining_bit: Any, slot_s: Any) -> Any:
     return np.minimum(rate_bps * slot_s, remaining_bit)
 
 
+def servable(rate_bps: np.ndarray, remaining_bit: np.ndarray) -> np.ndarray:
+    """True where a sensor can be served: it has data left and a usable link (R > 0).
+
+    A policy whose every sensor is unservable serves nothing (rather than a sensor that would
+    deliver 0 bits).
+    """
+    return (remaining_bit > 0) & (rate_bps > 0)
+
+
 def first_true(mask: np.ndarray) -> np.ndarray:
     """(B,) index of the first True down each column of ``mask`` (N, B); 0 where none."""
     index = np.zeros(mask.shape[1], np.int64)
@@ -49,14 +58,14 @@ def first_true(mask: np.ndarray) -> np.ndarray:
 
 
 def greedy_choice(snr_db: np.ndarray, has_data: np.ndarray) -> np.ndarray:
-    """(B,) Greedy's sensor: argmax SNR among sensors with data, ties to the lowest index.
+    """(B,) Greedy's sensor: argmax SNR among servable sensors, ties to the lowest index.
 
     Args:
         snr_db: (N, B) SNR the UAV observes [dB] (-inf: no link).
-        has_data: (N, B) True where the buffer is not empty.
+        has_data: (N, B) :func:`servable`: data left and a usable link.
 
     Returns:
-        (B,) sensor index, or NO_SENSOR where every buffer is empty.
+        (B,) sensor index, or NO_SENSOR where no sensor is servable.
     """
     masked = np.where(has_data, snr_db, -np.inf)
     choice = first_true(masked == masked.max(axis=0))
@@ -65,15 +74,15 @@ def greedy_choice(snr_db: np.ndarray, has_data: np.ndarray) -> np.ndarray:
 
 
 def hgad_choice(rate_bps: np.ndarray, snr_db: np.ndarray, has_data: np.ndarray) -> np.ndarray:
-    """(B,) HGAD's sensor: argmax rate among sensors with data; ties: higher SNR, lowest index.
+    """(B,) HGAD's sensor: argmax rate among servable sensors; ties: higher SNR, lowest index.
 
     Args:
         rate_bps: (N, B) rate to each sensor [bit/s].
         snr_db: (N, B) SNR the UAV observes [dB] (-inf: no link).
-        has_data: (N, B) True where the buffer is not empty.
+        has_data: (N, B) :func:`servable`: data left and a usable link.
 
     Returns:
-        (B,) sensor index, or NO_SENSOR where every buffer is empty.
+        (B,) sensor index, or NO_SENSOR where no sensor is servable.
     """
     masked_rate = np.where(has_data, rate_bps, -np.inf)
     best = masked_rate == masked_rate.max(axis=0)

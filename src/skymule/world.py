@@ -63,6 +63,8 @@ class Mission:
         return_home: autonomous: the UAV must be home when the mission ends.
         navigator: autonomous: in-fence shortest paths (a very large square without a fence);
             None on fixed trajectories.
+        window_slots: slots after which nothing is served any more (the AADM download window,
+            ``mission.aadm_window_s``), or None: every slot may serve.
 
     A Mission is immutable: its arrays are read-only (writing raises), so policies and
     engines can share one Mission across runs.
@@ -89,6 +91,7 @@ class Mission:
     max_speed_mps: float = 10.0
     return_home: bool = True
     navigator: Navigator | None = None
+    window_slots: int | None = None
 
     def __post_init__(self) -> None:
         for item in fields(self):
@@ -203,6 +206,12 @@ def with_fence(mission: Mission, fence: Polygon | None) -> Mission:
         hover_points_m=hover_points(fence_or_box(fence) if autonomous else fence, mission.sensor_m),
         navigator=Navigator(fence_or_box(fence)) if autonomous else None,
     )
+
+
+def _window_slots(window_s: float | None, slot_s: float) -> int | None:
+    """Slots that start before the download window closes (a slot starting at or after
+    ``window_s`` serves nothing)."""
+    return None if window_s is None else math.ceil(window_s / slot_s - 1e-9)
 
 
 def _n_slots(duration_s: float, slot_s: float) -> int:
@@ -356,6 +365,7 @@ def build_mission(scenario: Scenario) -> Mission:
         max_speed_mps=trajectory.max_speed_mps,
         return_home=trajectory.return_home,
         navigator=Navigator(fence_or_box(fence)) if autonomous else None,
+        window_slots=_window_slots(scenario.mission.aadm_window_s, slot_s),
     )
     if autonomous:
         check_duration(mission)

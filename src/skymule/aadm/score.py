@@ -34,6 +34,9 @@ AADM_POLL_S = 1.0
 #: SNR the controller uses for a tower whose SNR cannot be read [dB].
 UNREADABLE_SNR_DB = 0.0
 
+#: The controller shares the volumes (and starts t1) at the first poll above this height [m].
+SHARE_ALTITUDE_M = 24.0
+
 #: Relative tolerance under which a buffer counts as emptied (float round-off of Mbit sums).
 COMPLETE_RTOL = 1e-9
 
@@ -158,3 +161,9 @@ def poll_download_bit(
     snr = np.where(np.isnan(np.asarray(snr_db, float)), UNREADABLE_SNR_DB, snr_db)
     offered = BUILTIN_RATE_TABLES["aadm-lte-cqi"].efficiency(snr) * bandwidth_hz * poll_s
     return np.minimum(offered, np.maximum(np.asarray(left_bit, float), 0.0))
+
+
+def share_slot_from_altitude(altitude_m: np.ndarray) -> int:
+    """Slot of the first sample above :data:`SHARE_ALTITUDE_M` (len(altitude_m) if never)."""
+    above = np.asarray(altitude_m, float) > SHARE_ALTITUDE_M
+    return int(np.argmax(above)) if above.any() else int(above.size)

@@ -257,6 +257,8 @@ def fly_tcp(
     waits ``pace_s`` of wall time between polls (default ``poll_s``; 0 = as fast as possible).
     The UAV's position and armed state go with every request (``pos``/``armed``).
     """
+    if poll_s <= 0:
+        raise SkymuleError(f"poll_s = {poll_s:g}: each poll must stand for > 0 s")
     pilot = _Pilot(agent, vehicle, altitude_m)
     vehicle.takeoff(altitude_m)
     state: dict[str, np.ndarray | None] = {"volumes": None}
@@ -277,12 +279,23 @@ def fly_tcp(
     wait_s = poll_s if pace_s is None else pace_s
     for _ in range(max_polls):
         started = time.monotonic()
-        reply, report = poll_once(host, port, choose, vehicle.position_m(), armed=vehicle.armed)
+        try:
+            reply, report = poll_once(host, port, choose, vehicle.position_m(), armed=vehicle.armed)
+        except OSError as exc:
+            if not pilot.done:
+                why = "no controller listening" if isinstance(exc, ConnectionRefusedError) else exc
+                raise SkymuleError(f"controller {host}:{port}: {why}") from None
+            # the mission is over: fly home and land even if the controller went away
+            reply, report = Reply("download_complete", None, None), ""
+            vehicle.goto(agent.home_xy())
         if reply.kind == "error":
             raise SkymuleError(f"controller {host}:{port} refused the poll: {reply.text}")
         pilot.record.reports.append(report)
         if pilot.advance(poll_s):
-            poll_once(host, port, lambda _: 1, vehicle.position_m(), armed=False)
+            try:  # tell the controller the UAV disarmed: the session is over
+                poll_once(host, port, lambda _: 1, vehicle.position_m(), armed=False)
+            except OSError:
+                log.info("controller gone before the final poll")
             break
         time.sleep(max(0.0, wait_s - (time.monotonic() - started)))
     return pilot.record
@@ -294,11 +307,18 @@ def run_file_agent(
     folder: Path,
     *,
     poll_s: float = 1.0,
+    pace_s: float | None = None,
     altitude_m: float = 25.0,
     max_polls: int = 100_000,
     should_stop: Callable[[], bool] = lambda: False,
 ) -> FlightRecord:
-    """Beside the challenge's comm process: read ss/dv/dd/tn.txt, write bc.txt, each poll."""
+    """Beside the challenge's comm process: read ss/dv/dd/tn.txt, write bc.txt, each poll.
+
+    Each poll is one slot of ``poll_s`` for the vehicle; the loop waits ``pace_s`` of wall
+    time between polls (default ``poll_s``; 0 = as fast as possible).
+    """
+    if poll_s <= 0:
+        raise SkymuleError(f"poll_s = {poll_s:g}: each poll must stand for > 0 s")
     pilot = _Pilot(agent, vehicle, altitude_m)
     vehicle.takeoff(altitude_m)
     n_towers = agent.n_towers
@@ -321,7 +341,8 @@ def run_file_agent(
             files.write_choice_file(folder / files.CHOICE_FILE, tower)
         if pilot.advance(poll_s):
             break
-        time.sleep(max(0.0, poll_s - (time.monotonic() - started)))
+        wait_s = poll_s if pace_s is None else pace_s
+        time.sleep(max(0.0, wait_s - (time.monotonic() - started)))
     return pilot.record
 
 

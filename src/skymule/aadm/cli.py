@@ -45,8 +45,9 @@ def controller(
     volumes: Annotated[
         Path | None, typer.Option("--volumes", help="AADM volume file (default: buffers).")
     ] = None,
-    until_done: Annotated[
-        bool, typer.Option("--until-done", help="Exit once serving has stopped.")
+    exit_on_disarm: Annotated[
+        bool,
+        typer.Option("--exit-on-disarm", help="Exit once the UAV reports itself disarmed."),
     ] = False,
 ) -> None:
     """Serve the AADM controller protocol with SNR from the scenario's signal source."""
@@ -66,7 +67,7 @@ def controller(
         with serve_controller(core, host, port) as server:
             _say(f"listening on {server.host}:{server.port}")
             while not stopped.wait(0.2):
-                if until_done and core.stopped is not None:
+                if exit_on_disarm and core.disarmed:
                     break
     finally:
         parts = core.score()
@@ -103,7 +104,9 @@ def agent(
     mavsdk_address: Annotated[
         str, typer.Option("--mavsdk-address", help="MAVSDK system address.")
     ] = "udp://:14540",
-    poll_s: Annotated[float, typer.Option("--poll-s", help="Seconds between polls.")] = 1.0,
+    poll_s: Annotated[
+        float, typer.Option("--poll-s", help="Wall seconds between polls (each is a 1-s slot).")
+    ] = 1.0,
     altitude: Annotated[float, typer.Option("--altitude", help="Take-off altitude [m].")] = 25.0,
 ) -> None:
     """Run a skymule policy as the UAV-side agent (TCP comm protocol or the file protocol)."""
@@ -124,7 +127,7 @@ def agent(
             the_agent,
             craft,
             files_dir,
-            poll_s=poll_s,
+            pace_s=poll_s,
             altitude_m=altitude,  # type: ignore[arg-type]
         )
     else:
@@ -134,7 +137,7 @@ def agent(
                 craft,
                 host,
                 port,
-                poll_s=poll_s,
+                pace_s=poll_s,
                 altitude_m=altitude,  # type: ignore[arg-type]
             )
         except ConnectionRefusedError:

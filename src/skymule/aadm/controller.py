@@ -116,6 +116,7 @@ class ControllerCore:
         self.served_polls = 0  # polls counted since sharing (the clock of t1)
         self.per_poll_bit: list[float] = []
         self.stopped: str | None = None  # why serving stopped
+        self.disarmed = False  # the UAV reported itself disarmed after sharing (session over)
         self.errors = 0
 
     # -- one poll ---------------------------------------------------------------------------
@@ -134,8 +135,9 @@ class ControllerCore:
                 self._last_position = position
             snr, where = self.feed.snr_db(self._last_position, self._requests)
             self._requests += 1
-            if armed is False and self.shared_at is not None and self.stopped is None:
-                self.stopped = "disarmed"
+            if armed is False and self.shared_at is not None:
+                self.disarmed = True
+                self.stopped = self.stopped or "disarmed"
             known = position is not None or self.feed.mission.source is None
             if self.shared_at is None and not (known and where[2] > SHARE_ALTITUDE_M):
                 why = f"wait:UAV below {SHARE_ALTITUDE_M:g} m, cannot share the volumes yet"

@@ -336,7 +336,9 @@ def run_file_agent(
             done = bool(_optional(lambda: files.read_done_file(folder / files.DONE_FILE)))
             got = _optional(lambda: files.read_tower_file(folder / files.DOWNLOADED_FILE, n_towers))
             kind = "wait" if volumes is None else ("download_complete" if done else "download")
-            downloaded = volumes if done else (got if got is not None else np.zeros(n_towers))
+            downloaded = got if got is not None else np.zeros(n_towers)
+            if done and volumes is not None:
+                downloaded = volumes
             tower = pilot.decide(kind, snr, volumes, downloaded)
             files.write_choice_file(folder / files.CHOICE_FILE, tower)
         if pilot.advance(poll_s):

@@ -10,12 +10,16 @@ import logging
 import sys
 import threading
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from skymule.aadm.score import AADM_POLL_S, AADM_WINDOW_S
 from skymule.errors import SkymuleError
+
+if TYPE_CHECKING:
+    from skymule.aadm.agent import AadmAgent
+    from skymule.aadm.vehicle import Vehicle
 
 aadm_app = typer.Typer(
     no_args_is_help=True,
@@ -77,12 +81,10 @@ def controller(
         )
 
 
-def _make_vehicle(kind: str, agent: object, address: str, altitude_m: float) -> object:
-    from skymule.aadm.agent import AadmAgent
+def _make_vehicle(kind: str, agent: AadmAgent, address: str) -> Vehicle:
     from skymule.aadm.loopback import _vehicle
     from skymule.aadm.vehicle import MavsdkVehicle
 
-    assert isinstance(agent, AadmAgent)
     if kind == "kinematic":
         return _vehicle(agent)
     if kind == "mavsdk":
@@ -119,7 +121,7 @@ def agent(
         raise SkymuleError(f"--poll-s {poll_s:g}: must be >= 0")
     spec = load_scenario(scenario).with_policy(policy)
     the_agent = AadmAgent(build_mission(spec), make_policy(spec.policy))
-    craft = _make_vehicle(vehicle, the_agent, mavsdk_address, altitude)
+    craft = _make_vehicle(vehicle, the_agent, mavsdk_address)
     if files_dir is not None:
         if not files_dir.is_dir():
             raise SkymuleError(f"--files {files_dir}: no such folder")
@@ -128,7 +130,7 @@ def agent(
             craft,
             files_dir,
             pace_s=poll_s,
-            altitude_m=altitude,  # type: ignore[arg-type]
+            altitude_m=altitude,
         )
     else:
         try:
@@ -138,7 +140,7 @@ def agent(
                 host,
                 port,
                 pace_s=poll_s,
-                altitude_m=altitude,  # type: ignore[arg-type]
+                altitude_m=altitude,
             )
         except ConnectionRefusedError:
             raise SkymuleError(f"--port {port}: no controller listening on {host}") from None

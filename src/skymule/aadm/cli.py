@@ -196,6 +196,11 @@ def fly(
     for key, label in (("aadm_t1_s", "t1 [s]"), ("aadm_score", "AADM score")):
         flight_v, engine_v = float(result.flight_score[key]), float(result.engine_score[key])
         _say(f"{label:14}{flight_v:12.1f}{engine_v:14.1f}{flight_v - engine_v:12.1f}")
+    if abs(result.engine_mission_mbit - total_e) > 1e-6:
+        _say(
+            f"(skymule run downloads {result.engine_mission_mbit:.1f} Mbit over its whole "
+            "mission; the columns count the controller's window)"
+        )
     _say(f"landed {result.landed_distance_m:.1f} m from the launch point")
     if log is not None:
         _say(f"wrote {log}")

@@ -33,12 +33,17 @@ from skymule.world import BITS_PER_MBIT, build_mission
 
 @dataclass(frozen=True)
 class LoopbackResult:
-    """The flight and the engine's run of the same scenario, side by side."""
+    """The flight and the engine's run of the same scenario, side by side.
+
+    ``engine_mbit`` counts the engine's downloads inside the controller's window (what the
+    controller would have credited); ``engine_mission_mbit`` is its whole mission's total.
+    """
 
     policy: str
     flight_mbit: np.ndarray
     flight_score: dict[str, Any]
     engine_mbit: np.ndarray
+    engine_mission_mbit: float
     engine_score: dict[str, Any]
     polls: int
     share_poll: int
@@ -72,11 +77,11 @@ def fly_loopback(
     mission = build_mission(scenario)
     agent = AadmAgent(mission, make_policy(scenario.policy))
     vehicle = _vehicle(agent)
-    altitude = (
-        scenario.trajectory.altitude_m
-        if scenario.trajectory.mode == "autonomous"
-        else TAKEOFF_ALTITUDE_M
-    )
+    altitude = TAKEOFF_ALTITUDE_M
+    if scenario.trajectory.mode == "autonomous":
+        altitude = scenario.trajectory.altitude_m
+    elif mission.track is not None:  # climb to the path's own altitude, if it is above 24 m
+        altitude = max(TAKEOFF_ALTITUDE_M, float(mission.track.position_m[0, 2]))
     core = ControllerCore(mission, log_path=log_path)
     with serve_controller(core) as server:
         record = fly_tcp(
@@ -84,11 +89,14 @@ def fly_loopback(
         )
     engine = simulate(scenario, mission=mission)
     total = float(mission.buffers_bit.sum())
+    in_window = min(engine.log.n_slots, round(core.window_s / mission.slot_s))
+    left = engine.log.remaining_bit[in_window - 1] if in_window else mission.buffers_bit
     return LoopbackResult(
         policy=scenario.policy.name,
         flight_mbit=core.received_mbit(),
         flight_score=core.score(),
-        engine_mbit=(mission.buffers_bit - engine.log.remaining_bit[-1]) / BITS_PER_MBIT,
+        engine_mbit=(mission.buffers_bit - left) / BITS_PER_MBIT,
+        engine_mission_mbit=float(engine.log.downloaded_bit.sum()) / BITS_PER_MBIT,
         engine_score=aadm_score_one(engine.log.downloaded_bit, total, mission.slot_s),
         polls=record.polls,
         share_poll=record.share_poll if record.share_poll is not None else -1,

@@ -78,12 +78,14 @@ def parse_request(line: str) -> Request:
 
 
 def format_values(values: np.ndarray) -> str:
-    return ",".join(f"{i + 1}:{float(v):.6g}" for i, v in enumerate(values))
+    # full float precision: a rounded total can flip a policy's "data left after this slot"
+    return ",".join(f"{i + 1}:{float(v)!r}" for i, v in enumerate(values))
 
 
 def format_snr(snr_db: np.ndarray) -> str:
     shown = np.where(np.isfinite(snr_db), snr_db, NOT_HEARD_DB)
-    return "snr:" + ",".join(f"{i + 1}:{float(v):.2f}" for i, v in enumerate(shown))
+    # full precision too: a rounded SNR can cross a CQI threshold the controller did not
+    return "snr:" + ",".join(f"{i + 1}:{float(v)!r}" for i, v in enumerate(shown))
 
 
 @dataclass(frozen=True)

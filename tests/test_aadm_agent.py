@@ -159,13 +159,13 @@ def test_plain_script_agent_through_the_files(small: Path, tmp_path: Path) -> No
 
 def test_skymule_agent_through_the_files(small: Path, tmp_path: Path) -> None:
     from skymule.aadm.agent import run_file_agent
-    from skymule.aadm.loopback import _vehicle
+    from skymule.aadm.loopback import kinematic_vehicle
     from skymule.policies import make_policy
 
     scenario = load_scenario(str(small))
     mission = build_mission(scenario)
     agent = AadmAgent(mission, make_policy(scenario.policy))
-    vehicle = _vehicle(agent)
+    vehicle = kinematic_vehicle(agent)
     core = ControllerCore(mission, position_source=lambda: (vehicle.position_m(), vehicle.armed))
     folder = tmp_path / "agent"
     stop = threading.Event()

@@ -82,11 +82,11 @@ def controller(
 
 
 def _make_vehicle(kind: str, agent: AadmAgent, address: str) -> Vehicle:
-    from skymule.aadm.loopback import _vehicle
+    from skymule.aadm.loopback import kinematic_vehicle
     from skymule.aadm.vehicle import MavsdkVehicle
 
     if kind == "kinematic":
-        return _vehicle(agent)
+        return kinematic_vehicle(agent)
     if kind == "mavsdk":
         return MavsdkVehicle(address, agent.mission.frame)
     raise SkymuleError(f"--vehicle {kind!r} is not allowed; allowed: kinematic, mavsdk")

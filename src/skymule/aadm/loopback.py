@@ -51,7 +51,8 @@ class LoopbackResult:
     sensor_names: tuple[str, ...]
 
 
-def _vehicle(agent: AadmAgent) -> KinematicVehicle:
+def kinematic_vehicle(agent: AadmAgent) -> KinematicVehicle:
+    """A kinematic vehicle at the agent's launch point, inside the mission's fence."""
     if agent.geometry is not None:
         navigator = agent.geometry.navigator
     else:
@@ -76,7 +77,7 @@ def fly_loopback(
         scenario = scenario.with_policy(policy)
     mission = build_mission(scenario)
     agent = AadmAgent(mission, make_policy(scenario.policy))
-    vehicle = _vehicle(agent)
+    vehicle = kinematic_vehicle(agent)
     altitude = TAKEOFF_ALTITUDE_M
     if scenario.trajectory.mode == "autonomous":
         altitude = scenario.trajectory.altitude_m

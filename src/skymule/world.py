@@ -15,10 +15,11 @@ from pathlib import Path
 import numpy as np
 from shapely.geometry import Point, Polygon, box
 
+from skymule.aadm.plan import is_plan, plan_waypoints_m, scenario_fence
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.flight.navigation import Navigator, hover_point
 from skymule.flight.paths import Track, path_length_m, read_waypoints_csv, sample_path
-from skymule.geo import LocalFrame, covers, load_geofence, sensor_positions_m
+from skymule.geo import LocalFrame, covers, sensor_positions_m
 from skymule.radio.channel import mission_fading_db, signal_source
 from skymule.radio.rates import RateTable, rate_bps, resolve_rate_table
 from skymule.radio.sources import SignalSource
@@ -242,7 +243,9 @@ def _waypoints(scenario: Scenario, frame: LocalFrame) -> np.ndarray:
     spec = scenario.trajectory.waypoints
     if spec is None:
         raise ScenarioError("trajectory.waypoints is required for mode = 'fixed' with a model")
-    if isinstance(spec, str):
+    if is_plan(spec):  # a QGroundControl .plan (skymule.aadm.plan)
+        waypoints = plan_waypoints_m(scenario.resolve_path(str(spec)), frame)
+    elif isinstance(spec, str):
         waypoints = read_waypoints_csv(scenario.resolve_path(spec), frame.to_local)
     else:
         if any(len(point) != 3 for point in spec):
@@ -300,9 +303,7 @@ def build_mission(scenario: Scenario) -> Mission:
     """Resolve a scenario into a :class:`Mission` (raises ScenarioError on user mistakes)."""
     frame = LocalFrame(scenario.site.origin.lat, scenario.site.origin.lon)
     base_dir = Path(scenario.base_dir)
-    fence = (
-        load_geofence(scenario.site.geofence, frame, base_dir) if scenario.site.geofence else None
-    )
+    fence = scenario_fence(scenario, frame)  # site.geofence, or a .plan's inclusion fence
     sensor_m = sensor_positions_m(scenario.sensors, frame)
     rate_table = resolve_rate_table(scenario.radio.rate_table, base_dir)
     slot_s = scenario.mission.slot_s

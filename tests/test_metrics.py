@@ -96,16 +96,21 @@ def plain_summary(log: MissionLog) -> dict[str, float | int | bool | list[str]]:
         if sensor != NO_SENSOR:
             handovers += previous is not None and sensor != previous
             previous = sensor
-    done = None if total_buffer > 0 else 0.0
+    # AADM rule in force: downloads count in slots starting before the 500 s window; S1 =
+    # 500 - t1 when all data arrived by t1, S2 = 100 x downloaded / total; no landing term
+    counted, t1 = 0.0, None
     for t in range(log.n_slots):
-        if done is None and sum(log.remaining_bit[t]) <= 0:
-            done = (t + 1) * log.slot_s
-    percent = 100.0 * total / total_buffer if total_buffer > 0 else 100.0
-    score = percent + (max(0.0, 600.0 - done) if done is not None else 0.0)
+        if t * log.slot_s < 500.0 - 1e-9:
+            counted += log.downloaded_bit[t]
+            if t1 is None and total_buffer > 0 and counted >= total_buffer * (1 - 1e-9):
+                t1 = (t + 1) * log.slot_s
+    if total_buffer <= 0:
+        t1 = 0.0
+    s2 = 100.0 * min(counted, total_buffer) / total_buffer if total_buffer > 0 else 100.0
+    score = s2 + (max(0.0, 500.0 - t1) if t1 is not None else 0.0)
     to_home = float("nan")
     if log.home_m is not None:
         to_home = math.dist(log.end_position_m[:2], log.home_m)
-        score -= 20.0 * max(0.0, to_home - 3.0)
     return {
         "total_downloaded_mbit": total / 1e6,
         "completion": total / total_buffer if total_buffer > 0 else 1.0,

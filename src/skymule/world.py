@@ -16,6 +16,7 @@ import numpy as np
 from shapely.geometry import Point, Polygon, box
 
 from skymule.aadm.plan import is_plan, plan_waypoints_m, scenario_fence
+from skymule.aadm.score import AADM_WINDOW_S
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.flight.navigation import Navigator, hover_point
 from skymule.flight.paths import Track, path_length_m, read_waypoints_csv, sample_path
@@ -64,8 +65,9 @@ class Mission:
         return_home: autonomous: the UAV must be home when the mission ends.
         navigator: autonomous: in-fence shortest paths (a very large square without a fence);
             None on fixed trajectories.
-        window_slots: slots after which nothing is served any more (the AADM download window,
-            ``mission.aadm_window_s``), or None: every slot may serve.
+        aadm_window_s: the AADM download window [s] (``mission.aadm_window_s``): slots that
+            start at or after it serve nothing; None: every slot may serve (the AADM score
+            still counts only the controller's 500 s).
 
     A Mission is immutable: its arrays are read-only (writing raises), so policies and
     engines can share one Mission across runs.
@@ -92,7 +94,7 @@ class Mission:
     max_speed_mps: float = 10.0
     return_home: bool = True
     navigator: Navigator | None = None
-    window_slots: int | None = None
+    aadm_window_s: float | None = None
 
     def __post_init__(self) -> None:
         for item in fields(self):
@@ -102,6 +104,18 @@ class Mission:
         if self.track is not None:
             self.track.position_m.flags.writeable = False
             self.track.snr_db.flags.writeable = False
+
+    @property
+    def window_slots(self) -> int | None:
+        """Slots that start before the download window closes, or None (no window)."""
+        if self.aadm_window_s is None:
+            return None
+        return math.ceil(self.aadm_window_s / self.slot_s - 1e-9)
+
+    @property
+    def score_window_s(self) -> float:
+        """The window the AADM score counts downloads in [s]."""
+        return AADM_WINDOW_S if self.aadm_window_s is None else self.aadm_window_s
 
     @property
     def max_step_m(self) -> float:
@@ -207,12 +221,6 @@ def with_fence(mission: Mission, fence: Polygon | None) -> Mission:
         hover_points_m=hover_points(fence_or_box(fence) if autonomous else fence, mission.sensor_m),
         navigator=Navigator(fence_or_box(fence)) if autonomous else None,
     )
-
-
-def _window_slots(window_s: float | None, slot_s: float) -> int | None:
-    """Slots that start before the download window closes (a slot starting at or after
-    ``window_s`` serves nothing)."""
-    return None if window_s is None else math.ceil(window_s / slot_s - 1e-9)
 
 
 def _n_slots(duration_s: float, slot_s: float) -> int:
@@ -366,7 +374,7 @@ def build_mission(scenario: Scenario) -> Mission:
         max_speed_mps=trajectory.max_speed_mps,
         return_home=trajectory.return_home,
         navigator=Navigator(fence_or_box(fence)) if autonomous else None,
-        window_slots=_window_slots(scenario.mission.aadm_window_s, slot_s),
+        aadm_window_s=scenario.mission.aadm_window_s,
     )
     if autonomous:
         check_duration(mission)

@@ -24,7 +24,6 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-from shapely.geometry import Point
 
 from skymule.aadm import files
 from skymule.aadm.controller import poll_once
@@ -32,15 +31,10 @@ from skymule.aadm.protocol import NOT_HEARD_DB, Reply
 from skymule.aadm.score import UNREADABLE_SNR_DB
 from skymule.aadm.vehicle import Vehicle
 from skymule.errors import SkymuleError
-from skymule.flight.navigation import hover_point
 from skymule.policies.base import MissionContext, Observation, Policy
-from skymule.sim.autonomous import (
-    FEASIBILITY_SLACK_M,
-    Geometry,
-    autonomous_context,
-    build_geometry,
-)
-from skymule.sim.engine import check_serve, mission_context
+from skymule.sim.autonomous import next_position
+from skymule.sim.context import mission_context
+from skymule.sim.engine import check_serve
 from skymule.world import BITS_PER_MBIT, Mission
 
 log = logging.getLogger("skymule.aadm.agent")
@@ -49,10 +43,8 @@ log = logging.getLogger("skymule.aadm.agent")
 HOME_TOLERANCE_M = 0.5
 
 
-def policy_context(mission: Mission, geometry: Geometry | None = None) -> MissionContext:
-    """The MissionContext the engine gives a policy for ``mission`` (the one place to change)."""
-    if mission.scenario.trajectory.mode == "autonomous":
-        return autonomous_context(mission, geometry or build_geometry(mission))
+def policy_context(mission: Mission) -> MissionContext:
+    """The MissionContext the engine gives a policy for ``mission``."""
     return mission_context(mission)
 
 
@@ -71,9 +63,8 @@ class AadmAgent:
     def __init__(self, mission: Mission, policy: Policy) -> None:
         self.mission = mission
         self.policy = policy
-        autonomous = mission.scenario.trajectory.mode == "autonomous"
-        self.geometry = build_geometry(mission) if autonomous else None
-        self.context = policy_context(mission, self.geometry)
+        self.autonomous = mission.mode == "autonomous"
+        self.context = policy_context(mission)
         self.volumes_bit: np.ndarray | None = None
         self.slot = 0
         self._track_sample = 0
@@ -88,7 +79,8 @@ class AadmAgent:
         return self.slot >= self.context.n_slots
 
     def home_xy(self) -> tuple[float, float]:
-        home = self.geometry.home_m if self.geometry is not None else np.zeros(2)
+        home = self.mission.home_m if self.autonomous else None
+        home = np.zeros(2) if home is None else home
         return float(home[0]), float(home[1])
 
     def start(self, volumes_mbit: np.ndarray) -> None:
@@ -135,7 +127,7 @@ class AadmAgent:
                 remaining_bit=remaining,
             )
         )
-        serve = check_serve(action.serve, self.n_towers, self.policy)
+        serve = check_serve(action.serve, self.n_towers, self.policy.name)
         goto = self._goal(action.goto_m, bool(action.hover), position)
         self.slot += 1
         tower = serve if serve >= 0 else self._idle_tower(remaining, seen)
@@ -150,7 +142,7 @@ class AadmAgent:
     def _goal(
         self, goto_m: tuple[float, float] | None, hover: bool, position: np.ndarray
     ) -> tuple[float, float] | None:
-        if self.geometry is None:
+        if not self.autonomous:
             track = self.mission.track
             if track is None:
                 return None
@@ -158,20 +150,9 @@ class AadmAgent:
                 self._track_sample = min(self._track_sample + 1, track.n_samples - 1)
             target = track.position_m[self._track_sample]
             return float(target[0]), float(target[1])
-        nav, step_m = self.geometry.navigator, self.geometry.max_step_m
+        # the engine's own motion rule (fence, speed cap, return home): one step ahead
         here = (float(position[0]), float(position[1]))
-        goal = here if goto_m is None else (float(goto_m[0]), float(goto_m[1]))
-        if not nav.fence.buffer(1e-6).covers(Point(goal)):
-            goal = hover_point(nav.fence, goal, margin_m=0.0)
-        if not self.context.return_home:
-            return goal
-        home = self.home_xy()
-        budget_m = (self.context.n_slots - self.slot - 1) * step_m + FEASIBILITY_SLACK_M
-        # d_home(next) <= d_home(here) + step: test exactly only when the budget may bind
-        may_bind = nav.travel_distance(here, home) + step_m > budget_m
-        if may_bind and nav.travel_distance(nav.step(here, goal, step_m), home) > budget_m:
-            return home
-        return goal
+        return next_position(self.mission, here, goto_m, self.slot)[0]
 
 
 # ---------------------------------------------------------------------------

@@ -27,8 +27,7 @@ from skymule.aadm.vehicle import TAKEOFF_ALTITUDE_M, KinematicVehicle
 from skymule.flight.navigation import Navigator
 from skymule.policies import make_policy
 from skymule.scenario import Scenario
-from skymule.sim.autonomous import UNFENCED_HALF_WIDTH_M
-from skymule.world import BITS_PER_MBIT, build_mission
+from skymule.world import BITS_PER_MBIT, build_mission, fence_or_box
 
 
 @dataclass(frozen=True)
@@ -53,13 +52,8 @@ class LoopbackResult:
 
 def kinematic_vehicle(agent: AadmAgent) -> KinematicVehicle:
     """A kinematic vehicle at the agent's launch point, inside the mission's fence."""
-    if agent.geometry is not None:
-        navigator = agent.geometry.navigator
-    else:
-        from shapely.geometry import box
-
-        half = UNFENCED_HALF_WIDTH_M
-        navigator = Navigator(agent.mission.fence or box(-half, -half, half, half))
+    mission = agent.mission
+    navigator = mission.navigator or Navigator(fence_or_box(mission.fence))
     return KinematicVehicle(navigator, agent.home_xy())
 
 

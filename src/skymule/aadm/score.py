@@ -66,8 +66,8 @@ def aadm_scores(
     downloaded_bit: np.ndarray,
     total_bit: np.ndarray,
     n_slots: np.ndarray,
-    slot_s: float,
-    window_s: float = AADM_WINDOW_S,
+    slot_s: float | np.ndarray,
+    window_s: float | np.ndarray = AADM_WINDOW_S,
     share_slot: np.ndarray | None = None,
 ) -> AadmScore:
     """The AADM score of B missions.
@@ -76,11 +76,15 @@ def aadm_scores(
         downloaded_bit: (B, T) bits downloaded in each slot (any tower), zero-padded.
         total_bit: (B,) total buffered bits D_tot.
         n_slots: (B,) slots each mission ran (slots at or past it are ignored).
-        slot_s: slot length [s] (the controller's nominal 1 s per poll).
-        window_s: download window since sharing [s].
+        slot_s: slot length [s] (the controller's nominal 1 s per poll); scalar or (B,).
+        window_s: download window since sharing [s]; scalar or (B,).
         share_slot: (B,) slot in which the volumes were shared (default 0).
     """
-    down = np.atleast_2d(np.asarray(downloaded_bit, float))
+    # C order: row sums then take numpy's pairwise order whatever the caller's layout, so one
+    # mission scores bit for bit the same alone or inside a batch
+    down = np.ascontiguousarray(np.atleast_2d(np.asarray(downloaded_bit, float)))
+    if down.shape[1] == 0:  # missions that ran no slot: one empty slot keeps argmax defined
+        down = np.zeros((down.shape[0], 1))
     n_missions, width = down.shape
     total = np.asarray(total_bit, float).reshape(n_missions)
     ran = np.asarray(n_slots, int).reshape(n_missions)
@@ -89,23 +93,29 @@ def aadm_scores(
         if share_slot is None
         else np.asarray(share_slot, int).reshape(n_missions)
     )
+    slot = np.broadcast_to(np.asarray(slot_s, float), (n_missions,))
+    window = np.broadcast_to(np.asarray(window_s, float), (n_missions,))
     slots = np.arange(width)[None, :]
     since = slots - share[:, None]  # slot index since sharing
-    counted = (since >= 0) & (slots < ran[:, None]) & (since * slot_s < window_s - 1e-9)
+    counted = (
+        (since >= 0) & (slots < ran[:, None]) & (since * slot[:, None] < window[:, None] - 1e-9)
+    )
     got = np.where(counted, down, 0.0)
     cumulative = np.cumsum(got, axis=1)
     reached = counted & (cumulative >= total[:, None] * (1.0 - COMPLETE_RTOL))
     nothing = total <= 0
     complete = reached.any(axis=1) | nothing
     first = np.where(reached.any(axis=1), reached.argmax(axis=1), 0)
-    served_s = np.maximum(ran - share, 0) * slot_s
+    served_s = np.maximum(ran - share, 0) * slot
     t1 = np.where(
         nothing,
         0.0,
-        np.where(complete, (first - share + 1) * slot_s, np.minimum(window_s, served_s)),
+        np.where(complete, (first - share + 1) * slot, np.minimum(window, served_s)),
     )
-    downloaded = np.minimum(got.sum(axis=1), total)
-    s1 = np.where(complete, np.maximum(0.0, window_s - t1), 0.0)
+    # the running sum (not a pairwise row sum): trailing padding adds exact zeros, so a mission
+    # scores bit for bit the same alone or inside a padded batch
+    downloaded = np.minimum(cumulative[:, -1], total)
+    s1 = np.where(complete, np.maximum(0.0, window - t1), 0.0)
     s2 = np.where(nothing, 100.0, 100.0 * downloaded / np.where(nothing, 1.0, total))
     return AadmScore(
         t1_s=t1.astype(float),

@@ -404,6 +404,7 @@ def mission_log(
         home_m=mission.home_m,
         hover_points_m=mission.hover_points_m,
         visit_radius_m=mission.visit_radius_m,
+        aadm_window_s=mission.score_window_s,
     )
 
 
@@ -468,6 +469,7 @@ def batch_flights(batch: Batch, result: BatchResult, missions: Sequence[Mission]
         home_m=home,
         hover_points_m=hover,
         visit_radius_m=np.array([m.visit_radius_m for m in missions], float),
+        aadm_window_s=np.array([m.score_window_s for m in missions], float),
     )
 
 

@@ -147,6 +147,7 @@ class FixedFlight:
             home_m=mission.home_m,
             hover_points_m=mission.hover_points_m,
             visit_radius_m=mission.visit_radius_m,
+            aadm_window_s=mission.score_window_s,
         )
 
 

@@ -52,6 +52,7 @@ class MissionLog:
         visit_radius_m: a sensor counts as visited within this distance of its hover point [m].
         target: autonomous: (T',) sensor the policy was heading for in each slot, or
             NO_SENSOR; None on fixed trajectories.
+        aadm_window_s: the AADM download window the score counts downloads in [s].
     """
 
     policy: str
@@ -70,6 +71,7 @@ class MissionLog:
     hover_points_m: np.ndarray | None = None
     visit_radius_m: float = 50.0
     target: np.ndarray | None = None
+    aadm_window_s: float = 500.0
 
     @property
     def n_slots(self) -> int:

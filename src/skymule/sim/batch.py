@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -129,8 +129,10 @@ class BatchResult:
         hovering: (B, T_max) True where the UAV held its position after the slot.
         sample: (B, T_max) track sample the UAV was at during each slot.
         n_run: (B,) slots each mission ran (a recorded trace may end a mission early).
-        remaining_bit: (B, T_max, N) buffers after each slot's download [bit].
+        remaining_bit: (B, T_max, N) buffers after each slot's download [bit] (None when
+            the run was asked not to keep them: summaries need only ``left_bit``).
         end_sample: (B,) track sample after the last slot.
+        left_bit: (B, N) buffers after the last slot [bit].
     """
 
     served: np.ndarray
@@ -138,8 +140,9 @@ class BatchResult:
     hovering: np.ndarray
     sample: np.ndarray
     n_run: np.ndarray
-    remaining_bit: np.ndarray
+    remaining_bit: np.ndarray | None
     end_sample: np.ndarray
+    left_bit: np.ndarray
 
 
 def policy_params(spec: PolicySpec) -> PolicyParams:
@@ -257,7 +260,31 @@ def _apply_fading(batch: Batch, slot: int, rate: np.ndarray, snr: np.ndarray) ->
         rate[:, cols[pick]] = rate_bps(table, faded[:, pick], bandwidth_hz)
 
 
-def run_batch(batch: Batch) -> BatchResult:
+Engine = Literal["auto", "numpy", "compiled"]
+"""Which slot loop runs a batch: ``numpy`` (the reference), ``compiled`` (numba, the ``fast``
+extra; :mod:`skymule.sim.compiled`) or ``auto`` (compiled when numba is installed and no
+mission has per-slot fading, else numpy). Both give the same result, value for value."""
+
+
+def run_batch(batch: Batch, engine: Engine = "auto", keep_remaining: bool = True) -> BatchResult:
+    """Run every mission of ``batch`` through the slot loop ``engine`` chose.
+
+    ``keep_remaining=False`` lets the compiled loop skip the (B, T, N) buffer log.
+    """
+    from skymule.sim import compiled
+
+    if engine not in ("auto", "numpy", "compiled"):
+        raise SkymuleError(f"engine = {engine!r}; allowed: auto, numpy, compiled")
+    fading = batch.fading_index.size > 0
+    if engine == "compiled" and (fading or not compiled.available()):
+        why = "missions with per-slot fading" if fading else "numba is not installed"
+        raise SkymuleError(f"engine = 'compiled' cannot run this batch: {why}")
+    if engine == "compiled" or (engine == "auto" and not fading and compiled.available()):
+        return compiled.run_compiled(batch, keep_remaining)
+    return run_numpy(batch)
+
+
+def run_numpy(batch: Batch) -> BatchResult:
     """Run every mission of ``batch``; one numpy step per slot over all missions.
 
     Inside, arrays are sensor-major (N, B): per-slot reductions over sensors are then N
@@ -357,6 +384,7 @@ def run_batch(batch: Batch) -> BatchResult:
         n_run=n_run,
         remaining_bit=remaining_log.transpose(2, 0, 1),
         end_sample=np.minimum(sample, last_sample),
+        left_bit=np.ascontiguousarray(remaining.T),
     )
 
 
@@ -366,6 +394,7 @@ def mission_log(
     """Mission b's :class:`MissionLog`, field for field as ``engine.run_fixed`` makes it."""
     n = int(result.n_run[b])
     u = int(batch.track_id[b])
+    assert result.remaining_bit is not None, "run_batch(..., keep_remaining=True) for logs"
     index = result.sample[b, :n]
     snr_log, rate_log = batch.snr_db[u][index], batch.rate_bps[u][index]
     if mission.fading_db is not None:
@@ -401,7 +430,10 @@ def _batches(missions: Sequence[Mission], batch_size: int) -> Iterator[list[int]
 
 
 def run_fixed_batch(
-    missions: Sequence[Mission], specs: Sequence[PolicySpec], batch_size: int = 1000
+    missions: Sequence[Mission],
+    specs: Sequence[PolicySpec],
+    batch_size: int = 1000,
+    engine: Engine = "auto",
 ) -> list[MissionLog]:
     """Logs of fixed-trajectory missions (one policy spec each), in input order.
 
@@ -412,7 +444,7 @@ def run_fixed_batch(
     logs: list[MissionLog | None] = [None] * len(missions)
     for part in _batches(missions, batch_size):
         batch = stack_missions([missions[i] for i in part], [specs[i] for i in part])
-        result = run_batch(batch)
+        result = run_batch(batch, engine)
         for b, i in enumerate(part):
             logs[i] = mission_log(batch, result, b, missions[i], specs[i].name)
     return [log for log in logs if log is not None]
@@ -429,17 +461,11 @@ def batch_flights(batch: Batch, result: BatchResult, missions: Sequence[Mission]
             home[row] = mission.home_m
         if mission.hover_points_m is not None:
             hover[row] = mission.hover_points_m
-    n_run = result.n_run
-    left = np.where(
-        n_run[:, None] > 0,
-        result.remaining_bit[np.arange(n_missions), np.maximum(n_run - 1, 0)],
-        batch.buffers_bit,
-    )
     return Flights(
-        n_run=n_run,
+        n_run=result.n_run,
         slot_s=batch.slot_s,
         buffers_bit=batch.buffers_bit,
-        left_bit=left,
+        left_bit=result.left_bit,
         served=result.served,
         downloaded_bit=result.downloaded_bit,
         hovering=result.hovering,
@@ -459,6 +485,7 @@ def summarize_fixed_batch(
     specs: Sequence[PolicySpec],
     scenario_names: Sequence[str],
     batch_size: int = 1000,
+    engine: Engine = "auto",
 ) -> list[dict[str, Any]]:
     """``metrics.summarize`` dictionaries of fixed-trajectory missions, in input order.
 
@@ -469,7 +496,7 @@ def summarize_fixed_batch(
     for part in _batches(missions, batch_size):
         chosen = [missions[i] for i in part]
         batch = stack_missions(chosen, [specs[i] for i in part])
-        result = run_batch(batch)
+        result = run_batch(batch, engine, keep_remaining=False)
         dicts = summary_dicts(
             summaries(batch_flights(batch, result, chosen)),
             [m.sensor_names for m in chosen],

@@ -1,0 +1,212 @@
+"""The batched fixed-trajectory slot loop compiled with numba (the optional ``fast`` extra).
+
+:func:`run_compiled` gives the same :class:`~skymule.sim.batch.BatchResult` as the numpy loop
+(:func:`skymule.sim.batch.run_batch` with ``engine="numpy"``), value for value, padding
+included. The numpy loop steps all B missions one slot at a time and pays numpy's per-call
+overhead in every slot; here one mission runs all its slots in registers before the next,
+which is what the per-slot overhead was hiding (``docs/speed-notes.md``).
+
+The rules are not re-stated here: the loop calls the one-mission kernels of
+:mod:`skymule.sim.kernels` and :func:`skymule.sim.contract.served_bits`, registered with
+numba so the same Python functions run compiled. Missions with per-slot fading (a rate table
+lookup per slot) stay on the numpy loop.
+
+Install: ``pip install skymule[fast]``. Without numba, :func:`available` is False and the
+batched engine runs its numpy loop (the reference).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from collections.abc import Callable
+from functools import cache
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from skymule.sim import contract, kernels
+from skymule.sim.contract import NO_SENSOR
+
+if TYPE_CHECKING:
+    from skymule.sim.batch import Batch, BatchResult
+
+
+def available() -> bool:
+    """True if numba is installed (``pip install skymule[fast]``)."""
+    return importlib.util.find_spec("numba") is not None
+
+
+def slot_loop(
+    rate: np.ndarray,
+    snr: np.ndarray,
+    track_id: np.ndarray,
+    n_samples: np.ndarray,
+    limit: np.ndarray,
+    last_sample: np.ndarray,
+    n_slots: np.ndarray,
+    slot_s: np.ndarray,
+    buffers: np.ndarray,
+    hgad: np.ndarray,
+    threshold: np.ndarray,
+    peak: np.ndarray,
+    max_hover: np.ndarray,
+    keep_remaining: bool,
+    served: np.ndarray,
+    downloaded: np.ndarray,
+    hovering: np.ndarray,
+    sample_log: np.ndarray,
+    remaining_log: np.ndarray,
+    n_run: np.ndarray,
+    end_sample: np.ndarray,
+    left: np.ndarray,
+) -> None:
+    """Every slot of every mission; fills the (B, T) logs, ``n_run``, ``end_sample``, ``left``.
+
+    Arrays are those of :class:`~skymule.sim.batch.Batch` (rate and snr seen per track sample,
+    per-mission parameters with thresholds and peaks as (B, N)); ``remaining_log`` is (B, T, N)
+    when ``keep_remaining``, else unused. Pure Python numba compiles (see :func:`compiled_loop`).
+    """
+    n_missions, n_sensors = buffers.shape
+    remaining = np.empty(n_sensors)
+    masked = np.empty(n_sensors)
+    cooling = np.zeros(n_sensors, np.bool_)
+    hover = np.empty(2)
+    final = np.zeros(n_missions, np.int64)
+    for b in range(n_missions):
+        u = track_id[b]
+        dt = slot_s[b]
+        is_hgad = hgad[b]
+        threshold_b, peak_b, max_hover_b = threshold[b], peak[b], max_hover[b]
+        remaining[:] = buffers[b]
+        cooling[:] = False
+        hover[0] = NO_SENSOR
+        hover[1] = 0.0
+        sample = 0
+        run = 0
+        for slot in range(n_slots[b]):
+            if sample >= n_samples[b]:
+                break
+            rate_now = rate[u, sample]
+            if is_hgad:
+                choice = kernels.hgad_pick(rate_now, snr[u, sample], remaining, masked)
+            else:
+                choice = kernels.greedy_pick(snr[u, sample], remaining, masked)
+            sensor = int(hover[0]) if hover[0] >= 0 else choice
+            cell = max(sensor, 0)
+            before = remaining[cell]
+            bits = contract.served_bits(rate_now[cell], before, dt) if sensor >= 0 else 0.0
+            after = before - bits
+            remaining[cell] = after
+            held = False
+            if is_hgad:
+                held = kernels.hgad_hover_step(
+                    hover,
+                    cooling,
+                    sensor,
+                    rate_now,
+                    after,
+                    threshold_b,
+                    peak_b,
+                    max_hover_b,
+                    dt,
+                    True,
+                )
+            served[b, slot] = sensor
+            downloaded[b, slot] = bits
+            hovering[b, slot] = held
+            sample_log[b, slot] = sample
+            if keep_remaining:
+                remaining_log[b, slot] = remaining
+            run += 1
+            if not held:
+                sample = min(sample + 1, limit[b])
+        n_run[b] = run
+        final[b] = sample
+        end_sample[b] = min(sample, last_sample[b])
+        left[b] = remaining
+    # the numpy loop keeps writing an ended mission's sample and buffers until every mission
+    # has ended; the same padding here makes the two results equal array for array
+    stop = 0
+    for b in range(n_missions):
+        stop = max(stop, n_run[b])
+    for b in range(n_missions):
+        for slot in range(n_run[b], stop):
+            sample_log[b, slot] = final[b]
+            if keep_remaining:
+                remaining_log[b, slot] = left[b]
+
+
+@cache
+def compiled_loop() -> Callable[..., None]:
+    """:func:`slot_loop` compiled by numba (compiled once per process, cached on disk)."""
+    import numba
+    from numba.extending import register_jitable
+
+    for kernel in (
+        contract.served_bits,
+        kernels.column_max,
+        kernels.first_equal,
+        kernels.greedy_pick,
+        kernels.hgad_pick,
+        kernels.hgad_hover_step,
+    ):
+        register_jitable(kernel)
+    return numba.njit(nogil=True)(slot_loop)  # type: ignore[no-any-return]
+
+
+def run_compiled(batch: Batch, keep_remaining: bool = True) -> BatchResult:
+    """:func:`skymule.sim.batch.run_batch` through the compiled loop (no fading missions).
+
+    With ``keep_remaining=False`` the (B, T, N) buffer log is not written (``remaining_bit``
+    is then None; summaries need only ``left_bit``).
+    """
+    from skymule.sim.batch import BatchResult
+
+    if batch.fading_index.size:
+        raise ValueError("the compiled loop does not run missions with per-slot fading")
+    n_missions, n_sensors = batch.buffers_bit.shape
+    t_max = int(batch.n_slots.max())
+    n_samples = batch.n_samples[batch.track_id]
+    limit = np.where(batch.hold_at_end[batch.track_id], n_samples - 1, n_samples)
+    served = np.full((n_missions, t_max), NO_SENSOR, np.int64)
+    downloaded = np.zeros((n_missions, t_max))
+    hovering = np.zeros((n_missions, t_max), bool)
+    sample = np.zeros((n_missions, t_max), np.int64)
+    remaining: Any = np.zeros((n_missions, t_max if keep_remaining else 0, n_sensors))
+    n_run = np.zeros(n_missions, np.int64)
+    end_sample = np.zeros(n_missions, np.int64)
+    left = np.zeros((n_missions, n_sensors))
+    compiled_loop()(
+        batch.rate_bps,
+        batch.snr_seen_db,
+        batch.track_id,
+        n_samples,
+        limit,
+        n_samples - 1,
+        batch.n_slots,
+        batch.slot_s,
+        np.ascontiguousarray(batch.buffers_bit, float),
+        batch.hgad,
+        batch.threshold_bps,
+        batch.peak_rate_bps[batch.track_id],
+        batch.max_hover_s,
+        keep_remaining,
+        served,
+        downloaded,
+        hovering,
+        sample,
+        remaining,
+        n_run,
+        end_sample,
+        left,
+    )
+    return BatchResult(
+        served=served,
+        downloaded_bit=downloaded,
+        hovering=hovering,
+        sample=sample,
+        n_run=n_run,
+        remaining_bit=remaining if keep_remaining else None,
+        end_sample=end_sample,
+        left_bit=left,
+    )

@@ -208,7 +208,7 @@ def stack_missions(missions: Sequence[Mission], specs: Sequence[PolicySpec]) -> 
         slot_s=np.array([m.slot_s for m in missions], float),
         buffers_bit=np.array([m.buffers_bit for m in missions], float).reshape(-1, n),
         hgad=np.array([p.hgad for p in params], bool),
-        threshold_bps=np.stack([t * peak[u] for t, u in zip(thresholds, track_id, strict=True)]),
+        threshold_bps=thresholds[:, None] * peak[track_id],
         max_hover_s=np.array([p.max_hover_s for p in params], float),
         fading_index=fading_index,
         fading_db=fading,

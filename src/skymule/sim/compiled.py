@@ -17,7 +17,10 @@ batched engine runs its numpy loop (the reference).
 
 from __future__ import annotations
 
+import hashlib
 import importlib.util
+import inspect
+import types
 from collections.abc import Callable
 from functools import cache
 from typing import TYPE_CHECKING, Any
@@ -136,9 +139,21 @@ def slot_loop(
                 remaining_log[b, slot] = left[b]
 
 
+def rules_digest() -> str:
+    """A short hash of the rule code the compiled loop calls (kernels + served bits)."""
+    source = inspect.getsource(kernels) + inspect.getsource(contract.served_bits)
+    source += inspect.getsource(slot_loop)
+    return hashlib.sha256(source.encode()).hexdigest()[:12]
+
+
 @cache
 def compiled_loop() -> Callable[..., None]:
-    """:func:`slot_loop` compiled by numba (compiled once per process, cached on disk)."""
+    """:func:`slot_loop` compiled by numba, once per process and cached on disk.
+
+    numba's disk cache notices changes to this file only, not to the kernels it calls, so the
+    compiled function is named after :func:`rules_digest`: a change to any rule gives a new
+    name, hence a new cache entry, never a stale one.
+    """
     import numba
     from numba.extending import register_jitable
 
@@ -151,7 +166,10 @@ def compiled_loop() -> Callable[..., None]:
         kernels.hgad_hover_step,
     ):
         register_jitable(kernel)
-    return numba.njit(nogil=True)(slot_loop)  # type: ignore[no-any-return]
+    name = f"slot_loop_{rules_digest()}"
+    loop = types.FunctionType(slot_loop.__code__, slot_loop.__globals__, name)
+    loop.__qualname__ = name
+    return numba.njit(nogil=True, cache=True)(loop)  # type: ignore[no-any-return]
 
 
 def run_compiled(batch: Batch, keep_remaining: bool = True) -> BatchResult:

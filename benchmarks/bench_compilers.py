@@ -69,7 +69,7 @@ def main(n_missions: int = 2000) -> None:
     index = np.minimum(np.arange(base.n_slots), batch.n_samples[0] - 1)
     rate, snr = batch.rate_bps[0, index], batch.snr_seen_db[0, index]
     run, args = jax_greedy(rate, snr, batch.buffers_bit, float(base.slot_s))
-    _, (choice, bits) = run(*args)
+    _, (_, bits) = run(*args)
     bits.block_until_ready()
     jax_s = best_cpu(lambda: run(*args)[1][1].block_until_ready())
     same = np.array_equal(np.ascontiguousarray(np.asarray(bits).T), result.downloaded_bit)

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_batch import random_mission, random_spec
 
 from skymule.errors import SkymuleError
 from skymule.scenario import PolicySpec, load_scenario
 from skymule.sim import compiled, contract, kernels
 from skymule.sim.batch import BatchResult, run_batch, stack_missions, summarize_fixed_batch
 from skymule.world import build_mission
+from test_batch import random_mission, random_spec
 
 needs_numba = pytest.mark.skipif(not compiled.available(), reason="numba not installed")
 

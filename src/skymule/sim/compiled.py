@@ -169,7 +169,7 @@ def compiled_loop() -> Callable[..., None]:
     name = f"slot_loop_{rules_digest()}"
     loop = types.FunctionType(slot_loop.__code__, slot_loop.__globals__, name)
     loop.__qualname__ = name
-    return numba.njit(nogil=True, cache=True)(loop)  # type: ignore[no-any-return]
+    return numba.njit(nogil=True, cache=True)(loop)
 
 
 def run_compiled(batch: Batch, keep_remaining: bool = True) -> BatchResult:

@@ -11,8 +11,9 @@ Run: /work/venv/bin/python benchmarks/bench_planner.py [--missions 200] [--worke
 
 Speed only: /work/venv/bin/python benchmarks/bench_planner.py --speed 20 [--before main]
 prints planner missions per CPU-second of the planner at git revision ``--before`` (its
-planner.py, loaded from git) and of this one, on the preset plus random missions, the ratio,
-and whether every mission's log is identical (same plans, slot for slot).
+planner.py, loaded from git) and of this one (with the compiled look-ahead, and with the same
+look-ahead as plain Python, as without numba), on the preset plus random missions, the ratios,
+and whether every mission's log is identical to before (same plans, slot for slot).
 """
 
 from __future__ import annotations
@@ -30,9 +31,11 @@ import numpy as np
 from skymule.bounds.autonomous import autonomous_bound
 from skymule.experiments.layouts import random_autonomous_scenario
 from skymule.metrics import aadm_score, completion_time_s
+from skymule.policies import planner as planner_module
 from skymule.policies.hgad import HGAD
 from skymule.policies.planner import Planner
 from skymule.scenario import Scenario, load_scenario
+from skymule.sim import plans
 from skymule.sim.log import MissionLog
 from skymule.sim.run import run_mission
 from skymule.world import build_mission
@@ -90,16 +93,27 @@ def speed(n_missions: int, revision: str) -> None:
     run_mission(missions[0], Planner())  # compile (or load) the batched look-ahead first
     before_cls = planner_at(revision)
     seconds, logs = {}, {}
-    for label, cls in (("before", before_cls), ("now", Planner)):
+    compiled_kernel = planner_module.plans_kernel
+    for label, cls, kernel in (
+        ("before", before_cls, compiled_kernel),
+        ("now", Planner, compiled_kernel),
+        ("now, plain Python look-ahead (no numba)", Planner, lambda: plans.simulate_plans),
+    ):
+        planner_module.plans_kernel = kernel  # type: ignore[assignment]
         start = time.process_time()
         logs[label] = [run_mission(m, cls()) for m in missions]
         seconds[label] = time.process_time() - start
-    same = sum(same_log(a, b) for a, b in zip(logs["before"], logs["now"], strict=True))
+    planner_module.plans_kernel = compiled_kernel  # type: ignore[assignment]
+    before = logs.pop("before")
     rates = {label: n_missions / s for label, s in seconds.items()}
     print(f"planner on {n_missions} missions ({PRESET} + random), missions per CPU-second:")
-    print(f"  before ({revision}): {rates['before']:.2f}")
-    print(f"  now (batched look-ahead): {rates['now']:.2f}  x{rates['now'] / rates['before']:.1f}")
-    print(f"  identical logs: {same} of {n_missions}")
+    print(f"  before ({revision}): {rates.pop('before'):.2f}")
+    for label, rate in rates.items():
+        same = sum(same_log(a, b) for a, b in zip(before, logs[label], strict=True))
+        print(
+            f"  {label}: {rate:.2f}  x{rate * seconds['before'] / n_missions:.1f}, "
+            f"identical logs: {same} of {n_missions}"
+        )
 
 
 def main() -> None:

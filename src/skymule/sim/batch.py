@@ -32,9 +32,10 @@ import numpy as np
 from skymule.errors import SkymuleError
 from skymule.flight.paths import Track
 from skymule.metrics import Flights, summaries, summary_dicts
-from skymule.radio.rates import RateTable, rate_bps
+from skymule.radio.rates import RateTable
 from skymule.scenario import PolicySpec
 from skymule.sim import contract
+from skymule.sim.batch_fading import apply_fading, stack_fading
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.log import MissionLog
 from skymule.world import Mission
@@ -194,7 +195,7 @@ def stack_missions(missions: Sequence[Mission], specs: Sequence[PolicySpec]) -> 
         peak[u] = mission.peak_rate_bps()
     params = [policy_params(spec) for spec in specs]
     thresholds = np.array([p.hover_threshold for p in params])
-    fading_index, fading, rate_model, rate_models = _stack_fading(missions, n)
+    fading_index, fading, rate_model, rate_models = stack_fading(missions, n)
     return Batch(
         track_id=track_id,
         rate_bps=rate,
@@ -217,49 +218,6 @@ def stack_missions(missions: Sequence[Mission], specs: Sequence[PolicySpec]) -> 
     )
 
 
-def _stack_fading(
-    missions: Sequence[Mission], n_sensors: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[tuple[RateTable, float], ...]]:
-    """The fading missions' indices (F,), fading (T_max, N, F) [dB], rate models (F,) + list.
-
-    Fading of mission f is its ``fading_db`` (T, N), zero-padded to T_max slots.
-    """
-    index = [b for b, m in enumerate(missions) if m.fading_db is not None]
-    t_max = max(m.n_slots for m in missions)
-    fading = np.zeros((t_max, n_sensors, len(index)))
-    models: dict[tuple[int, float], int] = {}
-    tables: list[tuple[RateTable, float]] = []
-    rate_model = np.empty(len(index), np.int64)
-    for f, b in enumerate(index):
-        mission = missions[b]
-        gains = np.asarray(mission.fading_db, float)
-        if gains.shape != (mission.n_slots, n_sensors):
-            raise ValueError(
-                f"fading_db has shape {gains.shape}; need (n_slots, N) = "
-                f"({mission.n_slots}, {n_sensors})"
-            )
-        fading[: mission.n_slots, :, f] = gains
-        key = (id(mission.rate_table), mission.bandwidth_hz)
-        if key not in models:
-            models[key] = len(tables)
-            tables.append((mission.rate_table, mission.bandwidth_hz))
-        rate_model[f] = models[key]
-    return np.asarray(index, np.int64), fading, rate_model, tuple(tables)
-
-
-def _apply_fading(batch: Batch, slot: int, rate: np.ndarray, snr: np.ndarray) -> None:
-    """Add slot ``slot``'s fading to the SNR (N, B) of fading missions; recompute their rate.
-
-    In place, as ``engine.run_fixed``: SNR seen + fading [dB], then the mission's rate table.
-    """
-    cols = batch.fading_index
-    faded = snr[:, cols] + batch.fading_db[slot]
-    snr[:, cols] = faded
-    for model, (table, bandwidth_hz) in enumerate(batch.rate_models):
-        pick = batch.rate_model == model
-        rate[:, cols[pick]] = rate_bps(table, faded[:, pick], bandwidth_hz)
-
-
 Engine = Literal["auto", "numpy", "compiled"]
 """Which slot loop runs a batch: ``numpy`` (the reference), ``compiled`` (numba, the ``fast``
 extra; :mod:`skymule.sim.compiled`) or ``auto`` (compiled when numba is installed and no
@@ -280,8 +238,40 @@ def run_batch(batch: Batch, engine: Engine = "auto", keep_remaining: bool = True
         why = "missions with per-slot fading" if fading else "numba is not installed"
         raise SkymuleError(f"engine = 'compiled' cannot run this batch: {why}")
     if engine == "compiled" or (engine == "auto" and not fading and compiled.available()):
-        return compiled.run_compiled(batch, keep_remaining)
+        return run_compiled(batch, keep_remaining)
     return run_numpy(batch)
+
+
+def run_compiled(batch: Batch, keep_remaining: bool = True) -> BatchResult:
+    """The batch through :func:`skymule.sim.compiled.slot_loop`, compiled (no fading).
+
+    ``keep_remaining=False``: no (B, T, N) buffer log (``remaining_bit`` None).
+    """
+    from skymule.sim import compiled
+
+    n_missions, n_sensors = batch.buffers_bit.shape
+    t_max = int(batch.n_slots.max())
+    n_samples = batch.n_samples[batch.track_id]
+    limit = np.where(batch.hold_at_end[batch.track_id], n_samples - 1, n_samples)
+    result = BatchResult(
+        served=np.full((n_missions, t_max), NO_SENSOR, np.int64),
+        downloaded_bit=np.zeros((n_missions, t_max)),
+        hovering=np.zeros((n_missions, t_max), bool),
+        sample=np.zeros((n_missions, t_max), np.int64),
+        n_run=np.zeros(n_missions, np.int64),
+        remaining_bit=np.zeros((n_missions, t_max, n_sensors)) if keep_remaining else None,
+        end_sample=np.zeros(n_missions, np.int64),
+        left_bit=np.zeros((n_missions, n_sensors)),
+    )
+    compiled.compiled_loop()(
+        batch.rate_bps, batch.snr_seen_db, batch.track_id, n_samples, limit, n_samples - 1,
+        batch.n_slots, batch.slot_s, np.ascontiguousarray(batch.buffers_bit, float), batch.hgad,
+        batch.threshold_bps, batch.peak_rate_bps[batch.track_id], batch.max_hover_s,
+        keep_remaining, result.served, result.downloaded_bit, result.hovering, result.sample,
+        np.zeros((0, 0, 0)) if result.remaining_bit is None else result.remaining_bit,
+        result.n_run, result.end_sample, result.left_bit,
+    )  # fmt: skip
+    return result
 
 
 def run_numpy(batch: Batch) -> BatchResult:
@@ -332,7 +322,10 @@ def run_numpy(batch: Batch) -> BatchResult:
         rate = observed[:n_sensors]
         snr = observed[n_sensors:]
         if any_fading:
-            _apply_fading(batch, slot, rate, snr)
+            apply_fading(
+                batch.fading_index, batch.fading_db[slot], batch.rate_model, batch.rate_models,
+                rate, snr,
+            )  # fmt: skip
         has_data = remaining > 0
         if any_hgad and any_greedy:
             choice = np.where(

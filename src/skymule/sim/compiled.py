@@ -1,8 +1,8 @@
 """The batched fixed-trajectory slot loop compiled with numba (the optional ``fast`` extra).
 
-:func:`run_compiled` gives the same :class:`~skymule.sim.batch.BatchResult` as the numpy loop
-(:func:`skymule.sim.batch.run_batch` with ``engine="numpy"``), value for value, padding
-included. The numpy loop steps all B missions one slot at a time and pays numpy's per-call
+``run_batch(batch, engine="compiled")`` (:mod:`skymule.sim.batch`) runs :func:`slot_loop`
+compiled, and gives the same result as the numpy loop (``engine="numpy"``), value for value,
+padding included. The numpy loop steps all B missions one slot at a time and pays numpy's per-call
 overhead in every slot; here one mission runs all its slots in registers before the next,
 which is what the per-slot overhead was hiding (``docs/speed-notes.md``).
 
@@ -23,15 +23,11 @@ import inspect
 import types
 from collections.abc import Callable
 from functools import cache
-from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from skymule.sim import contract, kernels
 from skymule.sim.contract import NO_SENSOR
-
-if TYPE_CHECKING:
-    from skymule.sim.batch import Batch, BatchResult
 
 
 def available() -> bool:
@@ -170,61 +166,3 @@ def compiled_loop() -> Callable[..., None]:
     loop = types.FunctionType(slot_loop.__code__, slot_loop.__globals__, name)
     loop.__qualname__ = name
     return numba.njit(nogil=True, cache=True)(loop)
-
-
-def run_compiled(batch: Batch, keep_remaining: bool = True) -> BatchResult:
-    """:func:`skymule.sim.batch.run_batch` through the compiled loop (no fading missions).
-
-    With ``keep_remaining=False`` the (B, T, N) buffer log is not written (``remaining_bit``
-    is then None; summaries need only ``left_bit``).
-    """
-    from skymule.sim.batch import BatchResult
-
-    if batch.fading_index.size:
-        raise ValueError("the compiled loop does not run missions with per-slot fading")
-    n_missions, n_sensors = batch.buffers_bit.shape
-    t_max = int(batch.n_slots.max())
-    n_samples = batch.n_samples[batch.track_id]
-    limit = np.where(batch.hold_at_end[batch.track_id], n_samples - 1, n_samples)
-    served = np.full((n_missions, t_max), NO_SENSOR, np.int64)
-    downloaded = np.zeros((n_missions, t_max))
-    hovering = np.zeros((n_missions, t_max), bool)
-    sample = np.zeros((n_missions, t_max), np.int64)
-    remaining: Any = np.zeros((n_missions, t_max if keep_remaining else 0, n_sensors))
-    n_run = np.zeros(n_missions, np.int64)
-    end_sample = np.zeros(n_missions, np.int64)
-    left = np.zeros((n_missions, n_sensors))
-    compiled_loop()(
-        batch.rate_bps,
-        batch.snr_seen_db,
-        batch.track_id,
-        n_samples,
-        limit,
-        n_samples - 1,
-        batch.n_slots,
-        batch.slot_s,
-        np.ascontiguousarray(batch.buffers_bit, float),
-        batch.hgad,
-        batch.threshold_bps,
-        batch.peak_rate_bps[batch.track_id],
-        batch.max_hover_s,
-        keep_remaining,
-        served,
-        downloaded,
-        hovering,
-        sample,
-        remaining,
-        n_run,
-        end_sample,
-        left,
-    )
-    return BatchResult(
-        served=served,
-        downloaded_bit=downloaded,
-        hovering=hovering,
-        sample=sample,
-        n_run=n_run,
-        remaining_bit=remaining if keep_remaining else None,
-        end_sample=end_sample,
-        left_bit=left,
-    )

@@ -89,7 +89,7 @@ def base_mission():
 
 @needs_numba
 @settings(
-    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+    max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(seed=st.integers(0, 2**32 - 1), n_missions=st.integers(1, 12), n_sensors=st.integers(1, 5))
 def test_compiled_batch_equals_numpy_batch(base_mission, seed, n_missions, n_sensors):

@@ -69,7 +69,7 @@ def run_plans(kernel, orders, extras, legs, table) -> tuple[np.ndarray, ...]:
     return bits, done, arrival
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 5), count=st.integers(1, 8))
 def test_a_batch_of_plans_equals_each_plan_alone(seed, n, count):
     rng = np.random.default_rng(seed)
@@ -88,7 +88,7 @@ def test_a_batch_of_plans_equals_each_plan_alone(seed, n, count):
 
 
 @pytest.mark.skipif(not compiled.available(), reason="numba not installed")
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=20, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 5), count=st.integers(1, 8))
 def test_compiled_plans_equal_plain_python(seed, n, count):
     rng = np.random.default_rng(seed)

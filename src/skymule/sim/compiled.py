@@ -23,6 +23,7 @@ import inspect
 import types
 from collections.abc import Callable
 from functools import cache
+from typing import Any
 
 import numpy as np
 
@@ -135,34 +136,38 @@ def slot_loop(
                 remaining_log[b, slot] = left[b]
 
 
-def rules_digest() -> str:
-    """A short hash of the rule code the compiled loop calls (kernels + served bits)."""
-    source = inspect.getsource(kernels) + inspect.getsource(contract.served_bits)
-    source += inspect.getsource(slot_loop)
-    return hashlib.sha256(source.encode()).hexdigest()[:12]
+def jit(
+    function: Callable[..., None], calls: tuple[Callable[..., Any], ...]
+) -> Callable[..., None]:
+    """``function`` compiled by numba, with the plain-Python functions it ``calls``.
 
-
-@cache
-def compiled_loop() -> Callable[..., None]:
-    """:func:`slot_loop` compiled by numba, once per process and cached on disk.
-
-    numba's disk cache notices changes to this file only, not to the kernels it calls, so the
-    compiled function is named after :func:`rules_digest`: a change to any rule gives a new
-    name, hence a new cache entry, never a stale one.
+    Cached on disk; numba's cache notices changes to ``function``'s own source only, not to
+    what it calls, so the compiled copy is named after a hash of all their sources: a change
+    to any rule gives a new name, hence a new cache entry, never a stale one.
     """
     import numba
     from numba.extending import register_jitable
 
-    for kernel in (
-        contract.served_bits,
-        kernels.column_max,
-        kernels.first_equal,
-        kernels.greedy_pick,
-        kernels.hgad_pick,
-        kernels.hgad_hover_step,
-    ):
+    for kernel in calls:
         register_jitable(kernel)
-    name = f"slot_loop_{rules_digest()}"
-    loop = types.FunctionType(slot_loop.__code__, slot_loop.__globals__, name)
-    loop.__qualname__ = name
-    return numba.njit(nogil=True, cache=True)(loop)
+    source = "".join(inspect.getsource(f) for f in (function, *calls))
+    name = f"{function.__name__}_{hashlib.sha256(source.encode()).hexdigest()[:12]}"
+    copy = types.FunctionType(function.__code__, function.__globals__, name)
+    copy.__qualname__ = name
+    return numba.njit(nogil=True, cache=True)(copy)
+
+
+@cache
+def compiled_loop() -> Callable[..., None]:
+    """:func:`slot_loop` compiled (once per process; cached on disk, see :func:`jit`)."""
+    return jit(
+        slot_loop,
+        (
+            contract.served_bits,
+            kernels.column_max,
+            kernels.first_equal,
+            kernels.greedy_pick,
+            kernels.hgad_pick,
+            kernels.hgad_hover_step,
+        ),
+    )

@@ -187,9 +187,4 @@ def plans_kernel() -> Callable[..., None]:
     """:func:`simulate_plans`, compiled by numba when it is installed (else plain Python)."""
     if not compiled.available():
         return simulate_plans
-    import numba
-    from numba.extending import register_jitable
-
-    for kernel in (contract.served_bits, has_data, serve):
-        register_jitable(kernel)
-    return numba.njit(nogil=True, cache=True)(simulate_plans)
+    return compiled.jit(simulate_plans, (contract.served_bits, has_data, serve))

@@ -87,11 +87,12 @@ def slot_loop(
             if sample >= n_samples[b]:
                 break
             rate_now = rate[u, sample]
-            if is_hgad:
-                choice = kernels.hgad_pick(rate_now, snr[u, sample], remaining, masked)
+            if hover[0] >= 0:  # hovering: the hovered sensor (the choice would go unused)
+                sensor = int(hover[0])
+            elif is_hgad:
+                sensor = kernels.hgad_pick(rate_now, snr[u, sample], remaining, masked)
             else:
-                choice = kernels.greedy_pick(snr[u, sample], remaining, masked)
-            sensor = int(hover[0]) if hover[0] >= 0 else choice
+                sensor = kernels.greedy_pick(snr[u, sample], remaining, masked)
             cell = max(sensor, 0)
             before = remaining[cell]
             bits = contract.served_bits(rate_now[cell], before, dt) if sensor >= 0 else 0.0

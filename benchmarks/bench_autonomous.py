@@ -1,13 +1,22 @@
 """Autonomous missions: Greedy vs HGAD on paper-sim-autonomous, the Table II orders, speed.
 
-Run: /work/venv/bin/python benchmarks/bench_autonomous.py
+Run: /work/venv/bin/python benchmarks/bench_autonomous.py [n_random]
+
+Last, the reference engine's speed (sim/autonomous.py + the tours): missions and mission-slots
+per CPU-second of Greedy and HGAD on the preset plus ``n_random`` random layouts
+(skymule.experiments.layouts), the baseline a batched autonomous engine is measured against.
 """
 
 from __future__ import annotations
 
+import sys
 import time
 
+import numpy as np
+
+from skymule.experiments.layouts import random_autonomous_scenario
 from skymule.metrics import summarize
+from skymule.policies.greedy import Greedy
 from skymule.policies.hgad import HGAD
 from skymule.runner import simulate
 from skymule.scenario import load_scenario
@@ -23,7 +32,26 @@ TABLE_II = [
 ]
 
 
-def main() -> None:
+def reference_speed(n_random: int) -> None:
+    """Missions and mission-slots per CPU-second of the reference autonomous engine."""
+    base = load_scenario(PRESET)
+    rng = np.random.default_rng(0)
+    scenarios = [base, *(random_autonomous_scenario(rng, base) for _ in range(n_random))]
+    missions = [build_mission(s) for s in scenarios]
+    slots = sum(m.n_slots for m in missions)
+    print(f"reference engine, {len(missions)} missions ({PRESET} + random layouts), per CPU-s:")
+    for policy in (Greedy, HGAD):
+        start = time.process_time()
+        for mission in missions:
+            run_mission(mission, policy())
+        seconds = time.process_time() - start
+        print(
+            f"  {policy.name:6s} {len(missions) / seconds:6.2f} missions, "
+            f"{slots / seconds:8,.0f} mission-slots"
+        )
+
+
+def main(n_random: int = 10) -> None:
     scenario = load_scenario(PRESET)
     mission = build_mission(scenario)
     print(f"{PRESET}: policy, Mbit, completion, hover s, distance m, energy kJ, AADM score, s/run")
@@ -48,7 +76,8 @@ def main() -> None:
             for p in ("initial", "remaining")
         ]
         print(f"  {buffers}  {paper}  {orders[0]} ({orders[0] == paper})  {orders[1]}")
+    reference_speed(n_random)
 
 
 if __name__ == "__main__":
-    main()
+    main(*(int(a) for a in sys.argv[1:]))

@@ -1,17 +1,20 @@
-"""Batched vs single-mission engine on 1,000 missions of paper-sim-fixed (random buffers).
+"""Batched fixed-path Greedy/HGAD: the compiled core vs the numpy core vs one mission at a time.
 
 Run: /work/venv/bin/python benchmarks/bench_engine.py [n_missions] [n_single] [repeats]
 
-Prints mission-slots per second (same machine, same run) of:
+Missions: paper-sim-fixed (4 sensors, 500 slots) with random buffers. For each policy it prints
+mission-slots per CPU-second (the machine is shared, so CPU time of this process is the fair
+"per core" figure; each figure is the best of ``repeats``) of:
 
-* single: ``engine.run_fixed`` one mission at a time (its MissionLog);
-* batched, logs: ``run_fixed_batch`` (one MissionLog per mission, for tests and users);
-* batched, summaries: ``summarize_fixed_batch`` (the ``metrics.summarize`` dictionaries from
-  the batch arrays, no MissionLog) -- what sweeps run, so the figure issue 6's 50x is about;
-* slot loop only: ``run_batch`` on a stacked batch;
+* single: ``engine.run_fixed`` one mission at a time (the reference engine);
+* numpy loop / compiled loop: ``run_batch`` on a stacked batch, slot loop only;
+* numpy + summaries / compiled + summaries: ``summarize_fixed_batch`` (what sweeps run: the
+  ``metrics.summarize`` dictionaries straight from the batch arrays);
 
-and each one's speed-up over single. Each figure is the best of ``repeats`` runs (the machine
-is shared; the best run is the least disturbed one).
+with the compiled/numpy ratio measured in the same run. Then the bytes the slot loop writes per
+mission-slot (its per-slot logs, which the summaries read back), this machine's memory
+bandwidth (best numpy copy of a 256 MB array: read + write), and the rate memory would allow.
+Without numba (``pip install skymule[fast]``) the compiled rows are skipped.
 """
 
 from __future__ import annotations
@@ -25,63 +28,83 @@ import numpy as np
 
 from skymule.policies import make_policy
 from skymule.scenario import PolicySpec, load_scenario
-from skymule.sim.autonomous import fixed_geometry_fields
-from skymule.sim.batch import run_batch, run_fixed_batch, stack_missions, summarize_fixed_batch
+from skymule.sim import compiled
+from skymule.sim.batch import run_batch, stack_missions, summarize_fixed_batch
 from skymule.sim.engine import run_fixed
 from skymule.world import Mission, build_mission
 
 
-def best_seconds(run: Callable[[], object], repeats: int) -> float:
-    """Shortest wall time of ``repeats`` calls of ``run`` [s]."""
+def best_cpu_seconds(run: Callable[[], object], repeats: int) -> float:
+    """Least CPU time of this process over ``repeats`` calls of ``run`` [s]."""
     times = []
     for _ in range(repeats):
-        start = time.perf_counter()
+        start = time.process_time()
         run()
-        times.append(time.perf_counter() - start)
-    return min(times)
+        times.append(time.process_time() - start)
+    return max(min(times), 1e-9)
 
 
-def bench_policy(
-    name: str,
-    missions: list[Mission],
-    geometry: list[dict[str, object]],
-    n_single: int,
-    repeats: int,
-) -> None:
-    """Print the mission-slots/s of each engine path under policy ``name``, and speed-ups."""
-    n_missions = len(missions)
-    specs = [PolicySpec(name=name)] * n_missions
+def memory_bandwidth_bps(repeats: int = 5, size_bytes: int = 256 * 2**20) -> float:
+    """Bytes per second a numpy copy moves (read + write), best of ``repeats``."""
+    source = np.ones(size_bytes // 8)
+    target = np.empty_like(source)
+    seconds = best_cpu_seconds(lambda: np.copyto(target, source), repeats)
+    return 2 * size_bytes / seconds
+
+
+def bench_policy(name: str, missions: list[Mission], n_single: int, repeats: int) -> float:
+    """Print each path's mission-slots per CPU-second; returns compiled + summaries (or 0)."""
+    specs = [PolicySpec(name=name)] * len(missions)
     names = [m.scenario.name for m in missions]
-    slots = sum(row["slots"] for row in summarize_fixed_batch(missions, specs, names, geometry))
+    batch = stack_missions(missions, specs)
+    slots = int(run_batch(batch, "numpy").n_run.sum())
     single = missions[:n_single]
-    single_slots = sum(run_fixed(m, make_policy(specs[0])).n_slots for m in single)
-    single_s = best_seconds(lambda: [run_fixed(m, make_policy(specs[0])) for m in single], repeats)
-    single_rate = single_slots / single_s
-    print(f"{name:6s} {'single (' + str(n_single) + ' missions)':26s} {single_rate:12,.0f}")
-    paths: dict[str, Callable[[], object]] = {
-        "batched, logs": lambda: run_fixed_batch(missions, specs, batch_size=n_missions),
-        "batched, summaries": lambda: summarize_fixed_batch(
-            missions, specs, names, geometry, batch_size=n_missions
-        ),
-        "slot loop only": lambda: run_batch(stack_missions(missions, specs)),
-    }
-    for label, run in paths.items():
-        seconds = best_seconds(run, repeats)
-        rate = slots / seconds
-        print(f"{name:6s} {label:26s} {rate:12,.0f}  ({seconds:.3f} s)  x{rate / single_rate:.0f}")
+    single_slots = sum(m.n_slots for m in single)
+    rate = single_slots / best_cpu_seconds(
+        lambda: [run_fixed(m, make_policy(specs[0])) for m in single], repeats
+    )
+    print(f"{name:6s} {'single (' + str(n_single) + ' missions)':24s} {rate / 1e6:8.2f} M")
+    engines = ["numpy", "compiled"] if compiled.available() else ["numpy"]
+    rates: dict[str, float] = {}
+    for engine in engines:
+        paths: dict[str, Callable[[], object]] = {
+            "loop": lambda e=engine: run_batch(batch, e, keep_remaining=False),
+            "+ summaries": lambda e=engine: summarize_fixed_batch(
+                missions, specs, names, batch_size=len(missions), engine=e
+            ),
+        }
+        paths["loop"]()  # compile (or load the compiled loop from disk) outside the timing
+        for label, run in paths.items():
+            rates[f"{engine} {label}"] = slots / best_cpu_seconds(run, repeats)
+            ratio = ""
+            if engine == "compiled":
+                ratio = f"x{rates[f'{engine} {label}'] / rates[f'numpy {label}']:.1f} vs numpy"
+            print(f"{name:6s} {engine + ' ' + label:24s} {rates[f'{engine} {label}'] / 1e6:8.2f} M"
+                  f"  {ratio}")  # fmt: skip
+    return rates.get("compiled + summaries", 0.0)
 
 
-def main(n_missions: int = 1000, n_single: int = 100, repeats: int = 3) -> None:
+def main(n_missions: int = 2000, n_single: int = 50, repeats: int = 3) -> None:
     base = build_mission(load_scenario("paper-sim-fixed"))
     rng = np.random.default_rng(0)
     missions = [
         replace(base, buffers_bit=rng.uniform(200e6, 1500e6, base.n_sensors))
         for _ in range(n_missions)
     ]
-    geometry = [fixed_geometry_fields(base)] * n_missions
-    print(f"{n_missions} missions x {base.n_slots} slots, best of {repeats}; mission-slots/s")
-    for name in ("hgad", "greedy"):
-        bench_policy(name, missions, geometry, n_single, repeats)
+    print(
+        f"{n_missions} missions x {base.n_slots} slots x {base.n_sensors} sensors; "
+        f"mission-slots per CPU-second, best of {repeats}"
+        + ("" if compiled.available() else " (numba not installed: numpy only)")
+    )
+    for name in ("greedy", "hgad"):
+        bench_policy(name, missions, n_single, repeats)
+    # per mission-slot the loop writes served (int64), downloaded (float64), hovering (bool)
+    # and the track sample (int64); the numpy loop also writes the N buffers (float64)
+    written = 8 + 8 + 1 + 8
+    bandwidth = memory_bandwidth_bps()
+    print(f"bytes written per mission-slot: {written} (numpy loop: {written + 8 * base.n_sensors})")
+    print(f"memory bandwidth (numpy copy, read + write): {bandwidth / 1e9:.1f} GB/s")
+    print(f"memory-bound ceiling at {written} B: {bandwidth / written / 1e6:.0f} M mission-slots/s")
 
 
 if __name__ == "__main__":

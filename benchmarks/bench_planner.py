@@ -8,11 +8,21 @@ reach, the default, and the straight-line reach it tightens), the bound's run ti
 preset's time-to-complete / AADM score.
 
 Run: /work/venv/bin/python benchmarks/bench_planner.py [--missions 200] [--workers 2]
+
+Speed only: /work/venv/bin/python benchmarks/bench_planner.py --speed 20 [--before main]
+prints planner missions per CPU-second of the planner at git revision ``--before`` (its
+planner.py, loaded from git) and of this one (with the compiled look-ahead, and with the same
+look-ahead as plain Python, as without numba), on the preset plus random missions, the ratios,
+and whether every mission's log is identical to before (same plans, slot for slot).
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
+import subprocess
+import sys
+import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 
@@ -21,9 +31,12 @@ import numpy as np
 from skymule.bounds.autonomous import autonomous_bound
 from skymule.experiments.layouts import random_autonomous_scenario
 from skymule.metrics import aadm_score, completion_time_s
+from skymule.policies import planner as planner_module
 from skymule.policies.hgad import HGAD
 from skymule.policies.planner import Planner
 from skymule.scenario import Scenario, load_scenario
+from skymule.sim import plans
+from skymule.sim.log import MissionLog
 from skymule.sim.run import run_mission
 from skymule.world import build_mission
 
@@ -46,11 +59,73 @@ def evaluate(scenario: Scenario) -> tuple[float, ...]:
     return total, hgad, planner, bound, euclidean, took, bound_took
 
 
+def planner_at(revision: str) -> type[Planner]:
+    """The Planner class of ``policies/planner.py`` at git ``revision``."""
+    source = subprocess.run(
+        ["git", "show", f"{revision}:src/skymule/policies/planner.py"],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
+    with tempfile.NamedTemporaryFile("w", suffix=".py", delete=False) as handle:
+        handle.write(source)
+    spec = importlib.util.spec_from_file_location("planner_before", handle.name)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["planner_before"] = module  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module.Planner  # type: ignore[no-any-return]
+
+
+def same_log(a: MissionLog, b: MissionLog) -> bool:
+    return all(
+        np.array_equal(x, y) if isinstance(x, np.ndarray) else x == y
+        for x, y in zip(vars(a).values(), vars(b).values(), strict=True)
+    )
+
+
+def speed(n_missions: int, revision: str) -> None:
+    """Planner missions per CPU-second, before (``revision``) and now; identical logs?"""
+    base = load_scenario(PRESET)
+    rng = np.random.default_rng(SEED)
+    scenarios = [base, *(random_autonomous_scenario(rng, base) for _ in range(n_missions - 1))]
+    missions = [build_mission(s) for s in scenarios]
+    run_mission(missions[0], Planner())  # compile (or load) the batched look-ahead first
+    before_cls = planner_at(revision)
+    seconds, logs = {}, {}
+    compiled_kernel = planner_module.plans_kernel
+    for label, cls, kernel in (
+        ("before", before_cls, compiled_kernel),
+        ("now", Planner, compiled_kernel),
+        ("now, plain Python look-ahead (no numba)", Planner, lambda: plans.simulate_plans),
+    ):
+        planner_module.plans_kernel = kernel  # type: ignore[assignment]
+        start = time.process_time()
+        logs[label] = [run_mission(m, cls()) for m in missions]
+        seconds[label] = time.process_time() - start
+    planner_module.plans_kernel = compiled_kernel  # type: ignore[assignment]
+    before = logs.pop("before")
+    rates = {label: n_missions / s for label, s in seconds.items()}
+    print(f"planner on {n_missions} missions ({PRESET} + random), missions per CPU-second:")
+    print(f"  before ({revision}): {rates.pop('before'):.2f}")
+    for label, rate in rates.items():
+        same = sum(same_log(a, b) for a, b in zip(before, logs[label], strict=True))
+        print(
+            f"  {label}: {rate:.2f}  x{rate * seconds['before'] / n_missions:.1f}, "
+            f"identical logs: {same} of {n_missions}"
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--missions", type=int, default=200)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--speed", type=int, default=0, help="only the speed comparison")
+    parser.add_argument("--before", default="main", help="git revision to compare with")
     args = parser.parse_args()
+    if args.speed:
+        speed(args.speed, args.before)
+        return
 
     base = load_scenario(PRESET)
     mission = build_mission(base)

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -52,6 +53,7 @@ import numpy as np
 from skymule.errors import SkymuleError
 from skymule.policies.base import Action, MissionContext, Observation
 from skymule.sim.contract import served_bits
+from skymule.sim.plans import plans_kernel
 
 XY = tuple[float, float]
 
@@ -301,93 +303,69 @@ class Planner:
             self._legs[key] = (slots, np.zeros((0, self._n)) if snr is None else snr)
         return self._legs[key]
 
-    # --- simulation of one plan on the predicted rates -----------------------------------------
+    # --- simulation of candidate plans on the predicted rates ---------------------------------
 
-    def _simulate(
+    def _simulate_many(
         self,
         start: XY,
         slot: int,
         remaining: np.ndarray,
-        order: tuple[int, ...],
-        extra: np.ndarray,
+        orders: Sequence[tuple[int, ...]],
+        extras: Sequence[np.ndarray],
         altitude_m: float,
-    ) -> tuple[float, int, np.ndarray]:
-        """Predicted (bits, done slot, remaining at each arrival (len(order),)) of a plan."""
+    ) -> list[tuple[float, int, np.ndarray]]:
+        """Predicted (bits, done slot, remaining at each arrival) of each plan (order, extra).
+
+        All plans run as one batch through :func:`skymule.sim.plans.simulate_plans` (compiled
+        when numba is installed); the legs come from the leg cache.
+        """
         assert self._context is not None
-        n_slots, dt = self._context.n_slots, self._context.slot_s
-        q = remaining.astype(float).copy()
+        context = self._context
         hover_rates = self._hover_rates(altitude_m)
-        bits = 0.0
-        done = slot if not (q > 0).any() else n_slots
-        t = slot
-        here = start
-        at_arrival = np.zeros(len(order))
-        home_rates: np.ndarray | None = None
+        start_rates = self._rates(self._predict_snr(np.asarray([start]), altitude_m), 1)[0]
+        home_rates = self._rates(self._predict_snr(np.asarray([self._home]), altitude_m), 1)[0]
+        table: dict[tuple[XY, XY] | None, int] = {None: 0}  # leg 0: no leg (0 slots)
+        slots, has_rates, rows, blocks = [0], [False], [0], [np.zeros((0, self._n))]
 
-        def serve(rates: np.ndarray, prefer: int | None) -> None:
-            nonlocal bits, done
-            if prefer is not None and q[prefer] > 0:
-                i = prefer
-            else:
-                masked = np.where(q > 0, rates, -1.0)
-                i = int(np.argmax(masked))
-                if masked[i] <= 0:
-                    return
-            got = float(served_bits(rates[i], q[i], dt))
-            q[i] -= got
-            bits += got
-            if done == n_slots and not (q > 0).any():
-                done = t + 1
+        def leg(a: XY, b: XY | None) -> int:
+            if b is None:
+                return 0
+            key = (a, b)
+            if key not in table:
+                n_slots, snr = self._leg(a, b)
+                table[key] = len(slots)
+                slots.append(n_slots)
+                has_rates.append(len(snr) > 0)
+                rows.append(sum(len(block) for block in blocks))
+                blocks.append(self._rates(snr, len(snr)) if len(snr) else np.zeros((0, self._n)))
+            return table[key]
 
-        def fly(goal: XY) -> None:
-            nonlocal t
-            slots, snr = self._leg(here, goal)
-            if slots == 0:
-                return
-            # departure slot at ``here`` was served by the caller; then the in-between points
-            rates = self._rates(snr, len(snr)) if len(snr) else np.zeros((0, self._n))
-            for k in range(slots - 1):
-                if t >= n_slots:
-                    return
-                serve(rates[k], None) if len(rates) else None
-                t += 1
-
-        departing_rates = self._rates(self._predict_snr(np.asarray([start]), altitude_m), 1)[0]
-        prefer: int | None = None
-        for pos, j in enumerate(order):
-            goal = _xy(self._hover[j])
-            if self._leg(here, goal)[0] > 0:
-                if t >= n_slots:
-                    break
-                serve(departing_rates, prefer)
-                t += 1
-                fly(goal)
-            here = goal
-            at_arrival[pos] = q[j]
-            stay = int(extra[pos])
-            departing_rates, prefer = hover_rates[j], j
-            while t < n_slots and stay > 0 and q[j] > 0:
-                serve(hover_rates[j], j)
-                stay -= 1
-                t += 1
-                if q[j] <= 0:  # emptied while staying: that slot was the departure slot
-                    departing_rates = np.zeros(self._n)
-                    t -= 1
-                    break
-        # then home (or stay at the last point without return home)
-        if self._context.return_home and self._leg(here, self._home)[0] > 0:
-            if t < n_slots:
-                serve(departing_rates, prefer)
-                t += 1
-                fly(self._home)
-            here = self._home
-            home_rates = self._rates(self._predict_snr(np.asarray([here]), altitude_m), 1)[0]
-        else:
-            home_rates = departing_rates
-        while t < n_slots and (q > 0).any() and home_rates.max() > 0:
-            serve(home_rates, None)
-            t += 1
-        return bits, done, at_arrival
+        home = self._home if context.return_home else None
+        legs: list[int] = []
+        for order in orders:
+            here = start
+            for j in order:
+                legs.append(leg(here, _xy(self._hover[j])))
+                here = _xy(self._hover[j])
+            legs.append(leg(here, home))
+        lengths = np.array([len(order) for order in orders], np.int64)
+        first = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+        stops = int(lengths.sum())
+        flat_order = np.fromiter(itertools.chain.from_iterable(orders), np.int64, stops)
+        flat_extra = np.concatenate([np.zeros(0, np.int64), *extras]).astype(np.int64)
+        bits = np.zeros(len(orders))
+        done = np.zeros(len(orders), np.int64)
+        arrival = np.zeros(stops)
+        plans_kernel()(
+            slot, context.n_slots, context.slot_s, context.return_home, remaining.astype(float),
+            start_rates, hover_rates, home_rates, np.array(slots, np.int64),
+            np.array(has_rates, bool), np.array(rows, np.int64), np.concatenate(blocks),
+            flat_order, flat_extra, first, lengths, np.array(legs, np.int64), bits, done, arrival,
+        )  # fmt: skip
+        return [
+            (float(bits[p]), int(done[p]), arrival[first[p] : first[p] + lengths[p]])
+            for p in range(len(orders))
+        ]
 
     # --- planning -----------------------------------------------------------------------------
 
@@ -504,15 +482,18 @@ class Planner:
         slot, remaining = observation.slot, observation.remaining_bit
         dt, n_slots = self._context.slot_s, self._context.n_slots
         rates = np.diag(self._hover_rates(altitude)).copy()
-        best: Plan | None = None
-        for order in self._candidate_orders(position, slot, remaining, rates):
-            zero = np.zeros(len(order), int)
-            _, _, at_arrival = self._simulate(position, slot, remaining, order, zero, altitude)
+        orders = self._candidate_orders(position, slot, remaining, rates)
+        zeros = [np.zeros(len(order), np.int64) for order in orders]
+        first = self._simulate_many(position, slot, remaining, orders, zeros, altitude)
+        extras = []
+        for order, (_, _, at_arrival) in zip(orders, first, strict=True):
             travel = self._travel_slots(position, order)
             idx = np.asarray(order, int)
             need = at_arrival - served_bits(rates[idx], at_arrival, dt)
-            extra = allocate_hover(rates[idx], need, n_slots - slot - travel, dt)
-            bits, done, _ = self._simulate(position, slot, remaining, order, extra, altitude)
+            extras.append(allocate_hover(rates[idx], need, n_slots - slot - travel, dt))
+        best: Plan | None = None
+        simulated = self._simulate_many(position, slot, remaining, orders, extras, altitude)
+        for order, extra, (bits, done, _) in zip(orders, extras, simulated, strict=True):
             plan = Plan(order, tuple(int(e) for e in extra), bits, done)
             if best is None or _better(plan, best):
                 best = plan
@@ -536,23 +517,37 @@ class Planner:
         """
         budget = REFINE_SIMULATIONS
         extra = np.asarray(plan.extra_slots, int)
+        pairs = list(itertools.permutations(range(len(extra)), 2))
         for size in (16, 4, 1):
             improved = True
             while improved and budget > 0:
                 improved = False
-                for a, b in itertools.permutations(range(len(extra)), 2):
-                    if extra[a] < size or budget <= 0:
-                        continue
-                    trial = extra.copy()
-                    trial[a] -= size
-                    trial[b] += size
-                    budget -= 1
-                    bits, done, _ = self._simulate(
-                        position, slot, remaining, plan.order, trial, altitude
+                # the moves a one-at-a-time search would try next, simulated as one batch;
+                # after an accepted move the search goes on from the move after it
+                k = 0
+                while k < len(pairs) and budget > 0:
+                    moves = [m for m in range(k, len(pairs)) if extra[pairs[m][0]] >= size]
+                    moves = moves[:budget]
+                    if not moves:
+                        break
+                    trials = []
+                    for m in moves:
+                        trial = extra.copy()
+                        trial[pairs[m][0]] -= size
+                        trial[pairs[m][1]] += size
+                        trials.append(trial)
+                    orders = [plan.order] * len(trials)
+                    results = self._simulate_many(
+                        position, slot, remaining, orders, trials, altitude
                     )
-                    candidate = Plan(plan.order, tuple(int(e) for e in trial), bits, done)
-                    if _better(candidate, plan):
-                        plan, extra, improved = candidate, trial, True
+                    k = len(pairs)
+                    for m, trial, (bits, done, _) in zip(moves, trials, results, strict=True):
+                        budget -= 1
+                        candidate = Plan(plan.order, tuple(int(e) for e in trial), bits, done)
+                        if _better(candidate, plan):
+                            plan, extra, improved = candidate, trial, True
+                            k = m + 1
+                            break
         return plan
 
     def _travel_slots(self, position: XY, order: tuple[int, ...]) -> int:

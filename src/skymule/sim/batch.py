@@ -25,16 +25,17 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
 from skymule.errors import SkymuleError
 from skymule.flight.paths import Track
 from skymule.metrics import Flights, summaries, summary_dicts
-from skymule.radio.rates import RateTable, rate_bps
+from skymule.radio.rates import RateTable
 from skymule.scenario import PolicySpec
 from skymule.sim import contract
+from skymule.sim.batch_fading import apply_fading, stack_fading
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.log import MissionLog
 from skymule.world import Mission
@@ -132,8 +133,10 @@ class BatchResult:
         hovering: (B, T_max) True where the UAV held its position after the slot.
         sample: (B, T_max) track sample the UAV was at during each slot.
         n_run: (B,) slots each mission ran (a recorded trace may end a mission early).
-        remaining_bit: (B, T_max, N) buffers after each slot's download [bit].
+        remaining_bit: (B, T_max, N) buffers after each slot's download [bit] (None when
+            the run was asked not to keep them: summaries need only ``left_bit``).
         end_sample: (B,) track sample after the last slot.
+        left_bit: (B, N) buffers after the last slot [bit].
     """
 
     served: np.ndarray
@@ -141,8 +144,9 @@ class BatchResult:
     hovering: np.ndarray
     sample: np.ndarray
     n_run: np.ndarray
-    remaining_bit: np.ndarray
+    remaining_bit: np.ndarray | None
     end_sample: np.ndarray
+    left_bit: np.ndarray
 
 
 def policy_params(spec: PolicySpec) -> PolicyParams:
@@ -194,7 +198,7 @@ def stack_missions(missions: Sequence[Mission], specs: Sequence[PolicySpec]) -> 
         peak[u] = mission.peak_rate_bps()
     params = [policy_params(spec) for spec in specs]
     thresholds = np.array([p.hover_threshold for p in params])
-    fading_index, fading, rate_model, rate_models = _stack_fading(missions, n)
+    fading_index, fading, rate_model, rate_models = stack_fading(missions, n)
     return Batch(
         track_id=track_id,
         rate_bps=rate,
@@ -211,7 +215,7 @@ def stack_missions(missions: Sequence[Mission], specs: Sequence[PolicySpec]) -> 
         slot_s=np.array([m.slot_s for m in missions], float),
         buffers_bit=np.array([m.buffers_bit for m in missions], float).reshape(-1, n),
         hgad=np.array([p.hgad for p in params], bool),
-        threshold_bps=np.stack([t * peak[u] for t, u in zip(thresholds, track_id, strict=True)]),
+        threshold_bps=thresholds[:, None] * peak[track_id],
         max_hover_s=np.array([p.max_hover_s for p in params], float),
         fading_index=fading_index,
         fading_db=fading,
@@ -220,50 +224,64 @@ def stack_missions(missions: Sequence[Mission], specs: Sequence[PolicySpec]) -> 
     )
 
 
-def _stack_fading(
-    missions: Sequence[Mission], n_sensors: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[tuple[RateTable, float], ...]]:
-    """The fading missions' indices (F,), fading (T_max, N, F) [dB], rate models (F,) + list.
+Engine = Literal["auto", "numpy", "compiled"]
+"""Which slot loop runs a batch: ``numpy`` (the reference), ``compiled`` (numba, the ``fast``
+extra; :mod:`skymule.sim.compiled`) or ``auto`` (compiled when numba is installed and no
+mission has per-slot fading, else numpy). Both give the same result, value for value."""
 
-    Fading of mission f is its ``fading_db`` (T, N), zero-padded to T_max slots.
+
+def run_batch(batch: Batch, engine: Engine = "auto", keep_remaining: bool = True) -> BatchResult:
+    """Run every mission of ``batch`` through the slot loop ``engine`` chose.
+
+    ``keep_remaining=False`` lets the compiled loop skip the (B, T, N) buffer log.
     """
-    index = [b for b, m in enumerate(missions) if m.fading_db is not None]
-    t_max = max(m.n_slots for m in missions)
-    fading = np.zeros((t_max, n_sensors, len(index)))
-    models: dict[tuple[int, float], int] = {}
-    tables: list[tuple[RateTable, float]] = []
-    rate_model = np.empty(len(index), np.int64)
-    for f, b in enumerate(index):
-        mission = missions[b]
-        gains = np.asarray(mission.fading_db, float)
-        if gains.shape != (mission.n_slots, n_sensors):
-            raise ValueError(
-                f"fading_db has shape {gains.shape}; need (n_slots, N) = "
-                f"({mission.n_slots}, {n_sensors})"
-            )
-        fading[: mission.n_slots, :, f] = gains
-        key = (id(mission.rate_table), mission.bandwidth_hz)
-        if key not in models:
-            models[key] = len(tables)
-            tables.append((mission.rate_table, mission.bandwidth_hz))
-        rate_model[f] = models[key]
-    return np.asarray(index, np.int64), fading, rate_model, tuple(tables)
+    from skymule.sim import compiled
+
+    if engine not in ("auto", "numpy", "compiled"):
+        raise SkymuleError(f"engine = {engine!r}; allowed: auto, numpy, compiled")
+    fading = batch.fading_index.size > 0
+    if engine == "compiled" and (fading or not compiled.available()):
+        why = "missions with per-slot fading" if fading else "numba is not installed"
+        raise SkymuleError(f"engine = 'compiled' cannot run this batch: {why}")
+    if engine == "compiled" or (engine == "auto" and not fading and compiled.available()):
+        return run_compiled(batch, keep_remaining)
+    return run_numpy(batch)
 
 
-def _apply_fading(batch: Batch, slot: int, rate: np.ndarray, snr: np.ndarray) -> None:
-    """Add slot ``slot``'s fading to the SNR (N, B) of fading missions; recompute their rate.
+def run_compiled(batch: Batch, keep_remaining: bool = True) -> BatchResult:
+    """The batch through :func:`skymule.sim.compiled.slot_loop`, compiled (no fading).
 
-    In place, as ``engine.run_fixed``: SNR seen + fading [dB], then the mission's rate table.
+    ``keep_remaining=False``: no (B, T, N) buffer log (``remaining_bit`` None).
     """
-    cols = batch.fading_index
-    faded = snr[:, cols] + batch.fading_db[slot]
-    snr[:, cols] = faded
-    for model, (table, bandwidth_hz) in enumerate(batch.rate_models):
-        pick = batch.rate_model == model
-        rate[:, cols[pick]] = rate_bps(table, faded[:, pick], bandwidth_hz)
+    from skymule.sim import compiled
+
+    n_missions, n_sensors = batch.buffers_bit.shape
+    t_max = int(batch.n_slots.max())
+    n_samples = batch.n_samples[batch.track_id]
+    limit = np.where(batch.hold_at_end[batch.track_id], n_samples - 1, n_samples)
+    result = BatchResult(
+        served=np.full((n_missions, t_max), NO_SENSOR, np.int64),
+        downloaded_bit=np.zeros((n_missions, t_max)),
+        hovering=np.zeros((n_missions, t_max), bool),
+        sample=np.zeros((n_missions, t_max), np.int64),
+        n_run=np.zeros(n_missions, np.int64),
+        remaining_bit=np.zeros((n_missions, t_max, n_sensors)) if keep_remaining else None,
+        end_sample=np.zeros(n_missions, np.int64),
+        left_bit=np.zeros((n_missions, n_sensors)),
+    )
+    compiled.compiled_loop()(
+        batch.rate_bps, batch.snr_seen_db, batch.track_id, n_samples, limit, n_samples - 1,
+        batch.n_slots, batch.window_slots, batch.slot_s,
+        np.ascontiguousarray(batch.buffers_bit, float), batch.hgad,
+        batch.threshold_bps, batch.peak_rate_bps[batch.track_id], batch.max_hover_s,
+        keep_remaining, result.served, result.downloaded_bit, result.hovering, result.sample,
+        np.zeros((0, 0, 0)) if result.remaining_bit is None else result.remaining_bit,
+        result.n_run, result.end_sample, result.left_bit,
+    )  # fmt: skip
+    return result
 
 
-def run_batch(batch: Batch) -> BatchResult:
+def run_numpy(batch: Batch) -> BatchResult:
     """Run every mission of ``batch``; one numpy step per slot over all missions.
 
     Inside, arrays are sensor-major (N, B): per-slot reductions over sensors are then N
@@ -314,7 +332,10 @@ def run_batch(batch: Batch) -> BatchResult:
         rate = observed[:n_sensors]
         snr = observed[n_sensors:]
         if any_fading:
-            _apply_fading(batch, slot, rate, snr)
+            apply_fading(
+                batch.fading_index, batch.fading_db[slot], batch.rate_model, batch.rate_models,
+                rate, snr,
+            )  # fmt: skip
         has_data = contract.servable(rate, remaining)
         if any_hgad and any_greedy:
             choice = np.where(
@@ -374,6 +395,7 @@ def run_batch(batch: Batch) -> BatchResult:
         n_run=n_run,
         remaining_bit=remaining_log.transpose(2, 0, 1),
         end_sample=np.minimum(sample, last_sample),
+        left_bit=np.ascontiguousarray(remaining.T),
     )
 
 
@@ -383,6 +405,7 @@ def mission_log(
     """Mission b's :class:`MissionLog`, field for field as ``engine.run_fixed`` makes it."""
     n = int(result.n_run[b])
     u = int(batch.track_id[b])
+    assert result.remaining_bit is not None, "run_batch(..., keep_remaining=True) for logs"
     index = result.sample[b, :n]
     snr_log, rate_log = batch.snr_db[u][index], batch.rate_bps[u][index]
     if mission.fading_db is not None:
@@ -419,7 +442,10 @@ def _batches(missions: Sequence[Mission], batch_size: int) -> Iterator[list[int]
 
 
 def run_fixed_batch(
-    missions: Sequence[Mission], specs: Sequence[PolicySpec], batch_size: int = 1000
+    missions: Sequence[Mission],
+    specs: Sequence[PolicySpec],
+    batch_size: int = 1000,
+    engine: Engine = "auto",
 ) -> list[MissionLog]:
     """Logs of fixed-trajectory missions (one policy spec each), in input order.
 
@@ -430,7 +456,7 @@ def run_fixed_batch(
     logs: list[MissionLog | None] = [None] * len(missions)
     for part in _batches(missions, batch_size):
         batch = stack_missions([missions[i] for i in part], [specs[i] for i in part])
-        result = run_batch(batch)
+        result = run_batch(batch, engine)
         for b, i in enumerate(part):
             logs[i] = mission_log(batch, result, b, missions[i], specs[i].name)
     return [log for log in logs if log is not None]
@@ -447,17 +473,11 @@ def batch_flights(batch: Batch, result: BatchResult, missions: Sequence[Mission]
             home[row] = mission.home_m
         if mission.hover_points_m is not None:
             hover[row] = mission.hover_points_m
-    n_run = result.n_run
-    left = np.where(
-        n_run[:, None] > 0,
-        result.remaining_bit[np.arange(n_missions), np.maximum(n_run - 1, 0)],
-        batch.buffers_bit,
-    )
     return Flights(
-        n_run=n_run,
+        n_run=result.n_run,
         slot_s=batch.slot_s,
         buffers_bit=batch.buffers_bit,
-        left_bit=left,
+        left_bit=result.left_bit,
         served=result.served,
         downloaded_bit=result.downloaded_bit,
         hovering=result.hovering,
@@ -478,6 +498,7 @@ def summarize_fixed_batch(
     specs: Sequence[PolicySpec],
     scenario_names: Sequence[str],
     batch_size: int = 1000,
+    engine: Engine = "auto",
 ) -> list[dict[str, Any]]:
     """``metrics.summarize`` dictionaries of fixed-trajectory missions, in input order.
 
@@ -488,7 +509,7 @@ def summarize_fixed_batch(
     for part in _batches(missions, batch_size):
         chosen = [missions[i] for i in part]
         batch = stack_missions(chosen, [specs[i] for i in part])
-        result = run_batch(batch)
+        result = run_batch(batch, engine, keep_remaining=False)
         dicts = summary_dicts(
             summaries(batch_flights(batch, result, chosen)),
             [m.sensor_names for m in chosen],

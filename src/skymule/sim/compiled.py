@@ -1,0 +1,179 @@
+"""The batched fixed-trajectory slot loop compiled with numba (the optional ``fast`` extra).
+
+``run_batch(batch, engine="compiled")`` (:mod:`skymule.sim.batch`) runs :func:`slot_loop`
+compiled, and gives the same result as the numpy loop (``engine="numpy"``), value for value,
+padding included. The numpy loop steps all B missions one slot at a time and pays numpy's per-call
+overhead in every slot; here one mission runs all its slots in registers before the next,
+which is what the per-slot overhead was hiding (``docs/speed-notes.md``).
+
+The rules are not re-stated here: the loop calls the one-mission kernels of
+:mod:`skymule.sim.kernels` and :func:`skymule.sim.contract.served_bits`, registered with
+numba so the same Python functions run compiled. Missions with per-slot fading (a rate table
+lookup per slot) stay on the numpy loop.
+
+Install: ``pip install skymule[fast]``. Without numba, :func:`available` is False and the
+batched engine runs its numpy loop (the reference).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import inspect
+import types
+from collections.abc import Callable
+from functools import cache
+from typing import Any
+
+import numpy as np
+
+from skymule.sim import contract, kernels
+from skymule.sim.contract import NO_SENSOR
+
+
+def available() -> bool:
+    """True if numba is installed (``pip install skymule[fast]``)."""
+    return importlib.util.find_spec("numba") is not None
+
+
+def slot_loop(
+    rate: np.ndarray,
+    snr: np.ndarray,
+    track_id: np.ndarray,
+    n_samples: np.ndarray,
+    limit: np.ndarray,
+    last_sample: np.ndarray,
+    n_slots: np.ndarray,
+    window_slots: np.ndarray,
+    slot_s: np.ndarray,
+    buffers: np.ndarray,
+    hgad: np.ndarray,
+    threshold: np.ndarray,
+    peak: np.ndarray,
+    max_hover: np.ndarray,
+    keep_remaining: bool,
+    served: np.ndarray,
+    downloaded: np.ndarray,
+    hovering: np.ndarray,
+    sample_log: np.ndarray,
+    remaining_log: np.ndarray,
+    n_run: np.ndarray,
+    end_sample: np.ndarray,
+    left: np.ndarray,
+) -> None:
+    """Every slot of every mission; fills the (B, T) logs, ``n_run``, ``end_sample``, ``left``.
+
+    Arrays are those of :class:`~skymule.sim.batch.Batch` (rate and snr seen per track sample,
+    per-mission parameters with thresholds and peaks as (B, N)); ``remaining_log`` is (B, T, N)
+    when ``keep_remaining``, else unused. Pure Python numba compiles (see :func:`compiled_loop`).
+    """
+    n_missions, n_sensors = buffers.shape
+    remaining = np.empty(n_sensors)
+    masked = np.empty(n_sensors)
+    cooling = np.zeros(n_sensors, np.bool_)
+    hover = np.empty(2)
+    final = np.zeros(n_missions, np.int64)
+    for b in range(n_missions):
+        u = track_id[b]
+        dt = slot_s[b]
+        is_hgad = hgad[b]
+        threshold_b, peak_b, max_hover_b = threshold[b], peak[b], max_hover[b]
+        remaining[:] = buffers[b]
+        cooling[:] = False
+        hover[0] = NO_SENSOR
+        hover[1] = 0.0
+        sample = 0
+        run = 0
+        for slot in range(n_slots[b]):
+            if sample >= n_samples[b]:
+                break
+            rate_now = rate[u, sample]
+            if hover[0] >= 0:  # hovering: the hovered sensor (the choice would go unused)
+                sensor = int(hover[0])
+            elif is_hgad:
+                sensor = kernels.hgad_pick(rate_now, snr[u, sample], remaining, masked)
+            else:
+                sensor = kernels.greedy_pick(snr[u, sample], rate_now, remaining, masked)
+            cell = max(sensor, 0)
+            before = remaining[cell]
+            bits = contract.served_bits(rate_now[cell], before, dt) if sensor >= 0 else 0.0
+            after = before - bits  # what the policy expects after this slot
+            delivered = sensor
+            if slot >= window_slots[b]:  # the download window has closed: nothing arrives
+                delivered = NO_SENSOR
+                bits = 0.0
+            remaining[cell] = before - bits
+            held = False
+            if is_hgad:
+                held = kernels.hgad_hover_step(
+                    hover,
+                    cooling,
+                    sensor,
+                    rate_now,
+                    after,
+                    threshold_b,
+                    peak_b,
+                    max_hover_b,
+                    dt,
+                    True,
+                )
+            served[b, slot] = delivered
+            downloaded[b, slot] = bits
+            hovering[b, slot] = held
+            sample_log[b, slot] = sample
+            if keep_remaining:
+                remaining_log[b, slot] = remaining
+            run += 1
+            if not held:
+                sample = min(sample + 1, limit[b])
+        n_run[b] = run
+        final[b] = sample
+        end_sample[b] = min(sample, last_sample[b])
+        left[b] = remaining
+    # the numpy loop keeps writing an ended mission's sample and buffers until every mission
+    # has ended; the same padding here makes the two results equal array for array
+    stop = 0
+    for b in range(n_missions):
+        stop = max(stop, n_run[b])
+    for b in range(n_missions):
+        for slot in range(n_run[b], stop):
+            sample_log[b, slot] = final[b]
+            if keep_remaining:
+                remaining_log[b, slot] = left[b]
+
+
+def jit(
+    function: Callable[..., None], calls: tuple[Callable[..., Any], ...]
+) -> Callable[..., None]:
+    """``function`` compiled by numba, with the plain-Python functions it ``calls``.
+
+    Cached on disk; numba's cache notices changes to ``function``'s own source only, not to
+    what it calls, so the compiled copy is named after a hash of all their sources: a change
+    to any rule gives a new name, hence a new cache entry, never a stale one.
+    """
+    import numba
+    from numba.extending import register_jitable
+
+    for kernel in calls:
+        register_jitable(kernel)
+    source = "".join(inspect.getsource(f) for f in (function, *calls))
+    name = f"{function.__name__}_{hashlib.sha256(source.encode()).hexdigest()[:12]}"
+    copy = types.FunctionType(function.__code__, function.__globals__, name)
+    copy.__qualname__ = name
+    return numba.njit(nogil=True, cache=True)(copy)
+
+
+@cache
+def compiled_loop() -> Callable[..., None]:
+    """:func:`slot_loop` compiled (once per process; cached on disk, see :func:`jit`)."""
+    return jit(
+        slot_loop,
+        (
+            contract.served_bits,
+            kernels.column_max,
+            kernels.first_equal,
+            kernels.greedy_pick,
+            kernels.hgad_pick,
+            kernels.hgad_hover_step,
+        ),
+    )

@@ -1,0 +1,136 @@
+"""The compiled core equals the numpy core: kernels vs contract, compiled batch vs numpy batch."""
+
+from __future__ import annotations
+
+from dataclasses import fields, replace
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from skymule.errors import SkymuleError
+from skymule.scenario import PolicySpec, load_scenario
+from skymule.sim import compiled, contract, kernels
+from skymule.sim.batch import BatchResult, run_batch, stack_missions, summarize_fixed_batch
+from skymule.world import build_mission
+from test_batch import random_mission, random_spec
+
+needs_numba = pytest.mark.skipif(not compiled.available(), reason="numba not installed")
+
+
+def random_columns(rng: np.random.Generator, n: int) -> tuple[np.ndarray, ...]:
+    """(rate, snr, remaining) for one mission: ties, zeros, -inf, NaN and empty buffers."""
+    rate = rng.choice([0.0, 1e6, 2e6, 2e6, 5e6, np.nan], size=n)
+    snr = rng.choice([-np.inf, -3.0, 4.0, 4.0, 12.0, np.nan], size=n)
+    remaining = rng.choice([0.0, 0.0, 1.0, 3e6], size=n)
+    return rate, snr, remaining
+
+
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 6))
+def test_choice_kernels_equal_contract(seed, n):
+    rng = np.random.default_rng(seed)
+    rate, snr, remaining = random_columns(rng, n)
+    masked = np.empty(n)
+    has_data = contract.servable(rate[:, None], remaining[:, None])
+    want_greedy = contract.greedy_choice(snr[:, None], has_data)[0]
+    want_hgad = contract.hgad_choice(rate[:, None], snr[:, None], has_data)[0]
+    assert kernels.greedy_pick(snr, rate, remaining, masked) == want_greedy
+    assert kernels.hgad_pick(rate, snr, remaining, masked) == want_hgad
+
+
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 5), hgad=st.booleans())
+def test_hover_kernel_equals_contract_over_a_run(seed, n, hgad):
+    """Serve through a random run of slots with both; the hover state stays equal."""
+    rng = np.random.default_rng(seed)
+    threshold = rng.choice([0.0, 1e6, 4e6], size=n)
+    peak = rng.choice([0.0, 2e6, 5e6], size=n)
+    max_hover, dt = float(rng.choice([1.0, 2.5, 60.0])), float(rng.choice([0.5, 1.0]))
+    remaining = rng.choice([0.0, 2e6, 2e7], size=n)
+    state = contract.HoverState.start(n, 1)
+    hover, cooling = np.array([contract.NO_SENSOR, 0.0]), np.zeros(n, bool)
+    for _ in range(30):
+        rate = rng.choice([0.0, 1e6, 3e6, 5e6], size=n)
+        choice = contract.hgad_choice(rate[:, None], rate[:, None], remaining[:, None] > 0)
+        sensor = int(contract.hover_sensor_or(state, choice)[0])
+        bits = contract.served_bits(rate[sensor], remaining[sensor], dt) if sensor >= 0 else 0.0
+        remaining[max(sensor, 0)] -= bits
+        want = contract.hgad_update(
+            state,
+            sensor=np.array([sensor]),
+            cell=contract.cells(np.array([sensor])),
+            rate_bps=rate[:, None],
+            rate_served_bps=np.array([rate[max(sensor, 0)]]),
+            left_after_bit=np.array([remaining[max(sensor, 0)]]),
+            threshold_bps=threshold,
+            peak_rate_bps=peak,
+            max_hover_s=np.array([max_hover]),
+            slot_s=np.array([dt]),
+            enabled=hgad,
+        )[0]
+        got = kernels.hgad_hover_step(
+            hover, cooling, sensor, rate, remaining[max(sensor, 0)], threshold, peak,
+            max_hover, dt, hgad,
+        )  # fmt: skip
+        assert got == want
+        assert (hover[0], hover[1]) == (state.sensor[0], state.budget_s[0])
+        np.testing.assert_array_equal(cooling, state.cooling)
+
+
+def assert_results_equal(got: BatchResult, want: BatchResult) -> None:
+    for field in fields(BatchResult):
+        np.testing.assert_array_equal(
+            getattr(got, field.name), getattr(want, field.name), err_msg=field.name, strict=True
+        )
+
+
+@pytest.fixture(scope="module")
+def base_mission():
+    return build_mission(load_scenario("paper-sim-fixed"))
+
+
+@needs_numba
+@settings(
+    max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(seed=st.integers(0, 2**32 - 1), n_missions=st.integers(1, 12), n_sensors=st.integers(1, 5))
+def test_compiled_batch_equals_numpy_batch(base_mission, seed, n_missions, n_sensors):
+    """Array for array, padding included, on random tracks, buffers and HGAD parameters."""
+    rng = np.random.default_rng(seed)
+    missions = [random_mission(base_mission, rng, n_sensors) for _ in range(n_missions)]
+    batch = stack_missions(missions, [random_spec(rng) for _ in range(n_missions)])
+    assert_results_equal(run_batch(batch, "compiled"), run_batch(batch, "numpy"))
+
+
+@needs_numba
+def test_compiled_summaries_equal_numpy_on_paper_preset(base_mission):
+    rng = np.random.default_rng(5)
+    missions = [replace(base_mission, buffers_bit=rng.uniform(0, 1500e6, 4)) for _ in range(20)]
+    specs = [PolicySpec(name="greedy"), PolicySpec(name="hgad", max_hover_s=20.0)] * 10
+    names = ["paper"] * 20
+    numpy_rows = summarize_fixed_batch(missions, specs, names, engine="numpy")
+    assert summarize_fixed_batch(missions, specs, names, engine="compiled") == numpy_rows
+    assert any(row["hover_time_s"] > 0 for row in numpy_rows)
+
+
+@needs_numba
+def test_compiled_refuses_fading(base_mission):
+    faded = replace(base_mission, fading_db=np.zeros((base_mission.n_slots, 4)))
+    batch = stack_missions([faded], [PolicySpec(name="greedy")])
+    with pytest.raises(SkymuleError, match="per-slot fading"):
+        run_batch(batch, "compiled")
+    assert run_batch(batch).n_run[0] == base_mission.n_slots  # auto: the numpy loop
+
+
+def test_auto_without_numba_runs_numpy(base_mission, monkeypatch):
+    batch = stack_missions([base_mission], [PolicySpec(name="hgad")])
+    monkeypatch.setattr(compiled, "available", lambda: False)
+    assert_results_equal(run_batch(batch), run_batch(batch, "numpy"))
+    with pytest.raises(SkymuleError, match="numba is not installed"):
+        run_batch(batch, "compiled")
+
+
+def test_unknown_engine_is_one_line(base_mission):
+    batch = stack_missions([base_mission], [PolicySpec(name="greedy")])
+    with pytest.raises(SkymuleError, match="engine = 'fast'; allowed: auto, numpy, compiled"):
+        run_batch(batch, "fast")  # type: ignore[arg-type]

@@ -171,6 +171,7 @@ class Navigator:
 
     fence: Polygon
     _cover: Polygon = field(init=False, repr=False, compare=False)
+    _goal_cover: Polygon = field(init=False, repr=False, compare=False)
     _vertices: np.ndarray = field(init=False, repr=False, compare=False)
     _dist: np.ndarray = field(init=False, repr=False, compare=False)
     _pred: np.ndarray = field(init=False, repr=False, compare=False)
@@ -198,7 +199,11 @@ class Navigator:
             )
         else:
             dist, pred = np.empty((0, 0)), np.empty((0, 0), dtype=np.int32)
+        # the fence grown by 1e-6 m (round joins), prepared once: goals are tested every slot
+        goal_cover = self.fence.buffer(1e-6)
+        shapely.prepare(goal_cover)
         object.__setattr__(self, "_cover", cover)
+        object.__setattr__(self, "_goal_cover", goal_cover)
         object.__setattr__(self, "_vertices", verts)
         object.__setattr__(self, "_dist", dist)
         object.__setattr__(self, "_pred", pred)
@@ -208,8 +213,15 @@ class Navigator:
         """Reflex vertices used as graph nodes, shape (k, 2), metres (read-only copy)."""
         return self._vertices.copy()
 
+    def covers_goal(self, xy: XY) -> bool:
+        """True if ``xy`` is inside the fence (within 1e-6 m): a goal the UAV may fly to.
+
+        (For a point, "the polygon covers it" and "it intersects the polygon" are the same.)
+        """
+        return bool(shapely.intersects_xy(self._goal_cover, xy[0], xy[1]))
+
     def _check_inside(self, xy: XY, name: str) -> None:
-        if not self._cover.covers(Point(xy)):
+        if not shapely.intersects_xy(self._cover, xy[0], xy[1]):
             raise ValueError(f"{name} {xy} is outside the fence")
 
     def _visible_from(self, xy: XY) -> tuple[np.ndarray, np.ndarray]:

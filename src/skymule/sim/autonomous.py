@@ -26,7 +26,6 @@ the engine overrode it) is logged as ``hovering``. The engine reads only the :cl
 from __future__ import annotations
 
 import numpy as np
-from shapely.geometry import Point
 
 from skymule.errors import SkymuleError
 from skymule.flight.navigation import Navigator, hover_point
@@ -46,10 +45,9 @@ XY = tuple[float, float]
 
 def legal_goal(navigator: Navigator, goal: XY) -> XY:
     """``goal`` if it is inside the fence, else the nearest point of the fence."""
-    fence = navigator.fence
-    if fence.buffer(1e-6).covers(Point(goal)):
+    if navigator.covers_goal(goal):
         return goal
-    return hover_point(fence, goal, margin_m=0.0)
+    return hover_point(navigator.fence, goal, margin_m=0.0)
 
 
 def next_position(mission: Mission, position: XY, goto_m: XY | None, slot: int) -> tuple[XY, bool]:

@@ -10,7 +10,9 @@ path is accepted.
 
 from __future__ import annotations
 
+import re
 import tomllib
+from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -21,7 +23,7 @@ from pydantic_core import ErrorDetails, PydanticCustomError
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.policies import POLICIES, policy_params_model
 from skymule.radio.pathloss import PATHLOSS_MODELS
-from skymule.registry import did_you_mean, unknown_name_message
+from skymule.registry import Registry, did_you_mean, unknown_name_message
 
 PositiveFloat = Annotated[float, Field(gt=0)]
 
@@ -242,7 +244,7 @@ def validate_params(
     Keys that belong to other components of the same kind (``shared``) and not to this one
     are ignored; anything else wrong is a one-line ``PydanticCustomError`` naming the key.
     """
-    fields = set(model.model_fields)
+    fields = list(model.model_fields)
     own = {k: v for k, v in params.items() if k in fields or k not in shared}
     try:
         return model.model_validate(own)
@@ -377,7 +379,9 @@ def format_validation_error(source: str, error: ValidationError) -> str:
     if first["type"] == "extra_forbidden":
         fields = [f for f in _fields_at(loc[:-1]) if f != "base_dir"]
         hint = did_you_mean(str(loc[-1]), fields)
-        return f"{source}: unknown field {where!r}{hint or '; check its spelling against the schema'}"
+        return (
+            f"{source}: unknown field {where!r}{hint or '; check its spelling against the schema'}"
+        )
     if first["type"] == "missing":
         return f"{source}: {where} is required"
     value = first.get("input")
@@ -392,34 +396,114 @@ def scenario_from_dict(data: dict[str, Any], source: str, base_dir: Path) -> Sce
         raise ScenarioError(format_validation_error(source, exc)) from None
 
 
+def presets() -> Registry[str]:
+    """The built-in scenario presets: name -> TOML text (with its comments)."""
+    folder = resources.files("skymule").joinpath("scenarios")
+    registry: Registry[str] = Registry("scenario", extra_allowed="or a scenario TOML path")
+    for item in sorted(folder.iterdir(), key=lambda p: p.name):
+        if item.name.endswith(".toml"):
+            registry.register(item.name[:-5], item.read_text())
+    return registry
+
+
 def preset_names() -> list[str]:
     """Names of the built-in scenario presets."""
-    folder = resources.files("skymule").joinpath("scenarios")
-    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+    return presets().names()
 
 
-def load_scenario(spec: str | Path) -> Scenario:
-    """Load a scenario from a TOML path or a built-in preset name."""
+def load_scenario(spec: str | Path, overrides: Sequence[str] = ()) -> Scenario:
+    """Load a scenario from a TOML path or a built-in preset name.
+
+    ``overrides`` are ``key=value`` strings (``--set``): a dotted scenario key such as
+    ``sensors[2].buffer_mbit`` and a TOML value, applied before validation.
+    """
     path = Path(spec)
-    if not path.exists() and str(spec) in preset_names():
-        resource = resources.files("skymule").joinpath("scenarios", f"{spec}.toml")
-        text = resource.read_text()
-        return _parse(text, f"preset {spec}", Path("."))
     if not path.exists():
-        raise ScenarioError(
-            f"scenario {str(spec)!r}: no such file and not a preset "
-            f"(presets: {', '.join(preset_names())})"
-        )
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ScenarioError(f"{path}: cannot read ({exc.strerror})") from None
-    return _parse(text, str(path), path.parent)
+        text = presets().get(str(spec))  # unknown: one line with "did you mean"
+        source, base_dir = f"preset {spec}", Path(".")
+    else:
+        try:
+            text = path.read_text()
+        except OSError as exc:
+            raise ScenarioError(f"{path}: cannot read ({exc.strerror})") from None
+        source, base_dir = str(path), path.parent
+    data = _toml(text, source)
+    for override in overrides:
+        data = apply_override(data, override)
+    return scenario_from_dict(data, source, base_dir)
 
 
-def _parse(text: str, source: str, base_dir: Path) -> Scenario:
+def _toml(text: str, source: str) -> dict[str, Any]:
     try:
-        data = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{source}: not valid TOML ({exc})") from None
-    return scenario_from_dict(data, source, base_dir)
+
+
+_KEY_PART = re.compile(r"([A-Za-z_][A-Za-z0-9_-]*)((?:\[\d+\])*)")
+
+
+def parse_override_key(key: str) -> list[str | int]:
+    """``sensors[2].buffer_mbit`` -> ``["sensors", 2, "buffer_mbit"]`` (one-line error if bad)."""
+    path: list[str | int] = []
+    for part in key.split("."):
+        match = _KEY_PART.fullmatch(part.strip())
+        if match is None:
+            raise ScenarioError(
+                f"--set {key!r}: not a scenario key; use dotted names with [i], "
+                "e.g. sensors[2].buffer_mbit or policy.params.max_hover_s"
+            )
+        path.append(match.group(1))
+        path.extend(int(i) for i in re.findall(r"\[(\d+)\]", match.group(2)))
+    return path
+
+
+def parse_override_value(text: str) -> Any:
+    """A TOML value (``3``, ``1.5``, ``true``, ``[1, 2]``, ``"a"``); a bare word is a string."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text.strip()
+
+
+def apply_override(data: dict[str, Any], override: str) -> dict[str, Any]:
+    """``data`` (a scenario's TOML tables) with one ``key=value`` override applied."""
+    key, sep, value = override.partition("=")
+    if not sep or not key.strip():
+        raise ScenarioError(f"--set {override!r}: expected key=value, e.g. seed=3")
+    path = parse_override_key(key.strip())
+    if len(path) >= 2 and path[-2] == "params":
+        # an older flat key next to [params] would override the value set here
+        data = _assign(data, path[:-2], _without(_lookup(data, path[:-2]), path[-1]), key)
+    return _assign(data, path, parse_override_value(value), key.strip())
+
+
+def _lookup(data: Any, path: list[str | int]) -> Any:
+    for part in path:
+        try:
+            data = data[part]
+        except (KeyError, IndexError, TypeError):
+            return None
+    return data
+
+
+def _without(section: Any, key: str | int) -> Any:
+    return {k: v for k, v in section.items() if k != key} if isinstance(section, dict) else section
+
+
+def _assign(node: Any, path: list[str | int], value: Any, key: str) -> Any:
+    if not path:
+        return value
+    head, rest = path[0], path[1:]
+    if isinstance(head, int):
+        if not isinstance(node, list) or not 0 <= head < len(node):
+            size = len(node) if isinstance(node, list) else 0
+            raise ScenarioError(f"--set {key}: index [{head}] is out of range (0..{size - 1})")
+        copy = list(node)
+        copy[head] = _assign(node[head], rest, value, key)
+        return copy
+    if node is None:
+        node = {}
+    if not isinstance(node, dict):
+        raise ScenarioError(f"--set {key}: {head!r} is inside a value, not a table")
+    return {**node, head: _assign(node.get(head), rest, value, key)}

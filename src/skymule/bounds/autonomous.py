@@ -105,11 +105,13 @@ __all__ = [
 #: Reach-set constructions (see the module docstring); the first is the default.
 REACH_MODES = ("geodesic", "euclidean")
 
+
 def monotone_models() -> list[str]:
     """Path-loss models whose SNR (no shadowing) is non-increasing in horizontal distance at
     a fixed UAV altitude (their registered ``monotone`` flag): the best in-set rate is at the
     set's point closest to the sensor."""
     return PATHLOSS_MODELS.where(lambda entry: entry.obj.monotone)
+
 
 #: Sides of the regular polygon that circumscribes each reach disc.
 DISC_SIDES = 256

@@ -8,13 +8,13 @@ import pytest
 from skymule.errors import SkymuleError
 from skymule.radio.pathloss import (
     AL_HOURANI_ENVIRONMENTS,
+    PATHLOSS_MODELS,
     Aerial3GPP,
     AlHourani,
     FreeSpace,
     LogDistance,
     TwoRay,
 )
-from skymule.radio.pathloss import PATHLOSS_MODELS
 from skymule.radio.sources import build_pathloss
 from skymule.scenario import RadioSpec
 

@@ -259,7 +259,7 @@ def analyze_flight(
 
     Returns the comparison rows (one per run folder written).
     """
-    from skymule.compare import comparison_row, compare_policies, write_compare
+    from skymule.compare import compare_policies, comparison_row, write_compare
 
     check_policies(list(policies))
     trace = read_trace(log_path)

@@ -93,12 +93,12 @@ from skymule.sim.autonomous import build_geometry
 from skymule.world import Mission
 
 __all__ = [
-    "monotone_models",
     "REACH_MODES",
     "autonomous_bound",
     "best_rate_bps",
     "closest_distances_m",
     "geodesic_closest_distances_m",
+    "monotone_models",
     "reach_radii_m",
 ]
 

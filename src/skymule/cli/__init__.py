@@ -20,13 +20,13 @@ from rich.console import Console
 
 from skymule.errors import SkymuleError
 
-app = typer.Typer(
+app: typer.Typer = typer.Typer(
     pretty_exceptions_enable=False,
     no_args_is_help=True,
     rich_markup_mode=None,
     help="UAV data-mule missions: simulate, replay, compare and plot.",
 )
-console = Console()
+console: Console = Console()
 """Where tables go (stdout). Tests swap it for one of a chosen width."""
 
 

@@ -98,10 +98,9 @@ def guard_compare(out: Path, scenario: str, policies: list[str], force: bool) ->
     holds = inspect_folder(out)
     if force or holds.kind == "empty":
         return
-    if holds.kind == "compare" and holds.scenario == scenario:
-        # same runs again (a flight row from analyze or the sources' layout may differ)
-        if set(policies) <= set(holds.policies) or not holds.policies:
-            return
+    same = holds.kind == "compare" and holds.scenario == scenario
+    if same and (set(policies) <= set(holds.policies) or not holds.policies):
+        return  # the same comparison again
     raise _refuse(out, holds, f"a comparison of {', '.join(policies)} on scenario {scenario!r}")
 
 

@@ -49,13 +49,13 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DT_MISSING",
+    "TRACE_FORMATS",
     "Trace",
     "TraceError",
     "normalise_column",
     "positions_local",
     "read_trace",
     "read_volumes",
-    "TRACE_FORMATS",
     "write_aadm_log",
     "write_dt_export",
 ]

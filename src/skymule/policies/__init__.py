@@ -91,7 +91,9 @@ def _import_target(name: str) -> Any:
         module = importlib.import_module(module_name)
     except Exception as exc:  # any failure inside the user's module is theirs to see
         reason = f"{type(exc).__name__}: {exc}"
-        raise SkymuleError(f"policy {name!r}: could not import module {module_name}: {reason}")
+        raise SkymuleError(
+            f"policy {name!r}: could not import module {module_name}: {reason}"
+        ) from None
     try:
         target = getattr(module, attribute)
     except AttributeError:
@@ -137,7 +139,7 @@ class _Checked:
                 f"policy {self.name!r}: the object it makes has no {', '.join(missing)}; "
                 "a policy needs name, reset(context) and act(observation)"
             )
-        return policy  # type: ignore[no-any-return]
+        return policy
 
 
 def _takes_argument(target: Any) -> bool:

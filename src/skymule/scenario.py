@@ -316,8 +316,16 @@ class Scenario(_Spec):
 
     def with_policy(self, name: str) -> Scenario:
         """This scenario under another policy (its parameters carried over where they fit)."""
+        params = self.policy.params
+        if name != self.policy.name:
+            try:
+                model = policy_params_model(name)
+            except SkymuleError as exc:
+                raise ScenarioError(str(exc)) from None
+            if model is not None:  # carry over only what the other policy declares
+                params = {k: v for k, v in params.items() if k in model.model_fields}
         try:
-            policy = PolicySpec.model_validate({"name": name, "params": self.policy.params})
+            policy = PolicySpec.model_validate({"name": name, "params": params})
         except ValidationError as exc:
             message = _first_error(exc)["msg"]
             where = "policy." if message.startswith("params.") else ""

@@ -46,13 +46,6 @@ def cells(rows: Sequence[Mapping[str, Any]], columns: Sequence[str]) -> list[lis
     return [[fmt(row.get(c, "")) for c in columns] for row in rows]
 
 
-def table_width(rows: Sequence[Mapping[str, Any]], columns: Sequence[str]) -> int:
-    """Characters a horizontal table of ``rows`` needs (rich's SIMPLE_HEAD box, no edge pad)."""
-    body = cells(rows, columns)
-    widths = [max([len(label(c))] + [len(r[i]) for r in body]) for i, c in enumerate(columns)]
-    return sum(widths) + _GAP * (len(columns) - 1)
-
-
 def print_table(
     console: Console, title: str, rows: Sequence[Mapping[str, Any]], columns: Sequence[str]
 ) -> None:
@@ -65,8 +58,11 @@ def print_table(
             crop=False,
             soft_wrap=True,
         )
-    elif table_width(rows, columns) <= console.width:
-        console.print(_rich_table(title, rows, columns))
+        return
+    table = _rich_table(title, rows, columns)
+    wide = console.options.update_width(100_000)  # measure unclamped, then compare
+    if console.measure(table, options=wide).maximum <= console.width:
+        console.print(table)
     else:
         _print_vertical(console, title, rows, columns)
 

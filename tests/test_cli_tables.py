@@ -10,9 +10,9 @@ from typing import Any
 
 import numpy as np
 import pytest
-from conftest import run_cli
 from rich.console import Console
 
+from conftest import run_cli
 from skymule import cli
 from skymule.cli.tables import fmt
 from skymule.io.traces import write_dt_export

@@ -24,7 +24,12 @@ T = TypeVar("T")
 
 def did_you_mean(name: str, choices: Iterable[str]) -> str:
     """``"; did you mean 'x'?"`` for the closest of ``choices`` to ``name``, else ``""``."""
-    close = difflib.get_close_matches(name, list(choices), n=1, cutoff=0.6)
+    names = list(choices)
+    close = difflib.get_close_matches(name, names, n=1, cutoff=0.6)
+    if not close and name:
+        # a unique prefix ("aadm" for "aadm-default") is a likely meant name as well
+        close = [n for n in names if n.startswith(name)][:2]
+        close = close if len(close) == 1 else []
     return f"; did you mean {close[0]!r}?" if close else ""
 
 

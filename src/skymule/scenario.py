@@ -246,16 +246,19 @@ def validate_params(
     """
     fields = list(model.model_fields)
     own = {k: v for k, v in params.items() if k in fields or k not in shared}
+    unknown = [k for k in own if k not in fields]  # also when the model allows extra keys
+    if unknown:
+        allowed = ", ".join(fields) or "none"
+        hint = did_you_mean(unknown[0], fields)
+        raise _component_error(
+            f"params.{unknown[0]}: unknown parameter of {owner}; its parameters: {allowed}{hint}"
+        )
     try:
         return model.model_validate(own)
     except ValidationError as exc:
         first = _first_error(exc)
         key = _location(tuple(first["loc"]))
-        if first["type"] == "extra_forbidden":
-            allowed = ", ".join(fields) or "none"
-            hint = did_you_mean(key, fields)
-            text = f"params.{key}: unknown parameter of {owner}; its parameters: {allowed}{hint}"
-        elif first["type"] == "missing":
+        if first["type"] == "missing":
             text = f"params.{key} is required by {owner}"
         else:
             message = first["msg"].removeprefix("Value error, ")

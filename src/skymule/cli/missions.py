@@ -328,7 +328,8 @@ def _sweep_with_overrides(spec: Any, overrides: list[str]) -> Any:
     """The sweep with ``--set`` applied to its base scenario (validated like a file)."""
     from dataclasses import replace
 
-    from skymule.scenario import apply_override, scenario_from_dict
+    from skymule.overrides import apply_override
+    from skymule.scenario import scenario_from_dict
 
     data = spec.base.to_toml_dict()
     for override in overrides:

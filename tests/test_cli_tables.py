@@ -13,7 +13,7 @@ import pytest
 from rich.console import Console
 
 from conftest import run_cli
-from skymule import cli
+from skymule.cli import output
 from skymule.cli.tables import fmt
 from skymule.io.traces import write_dt_export
 from skymule.radiomaps import RadioMapFit
@@ -27,13 +27,13 @@ def width(request: pytest.FixtureRequest) -> Iterator[int | None]:
     if request.param is None:
         yield None
         return
-    saved = cli.console
+    saved = output.console
     # no file: rich writes to sys.stdout at print time, which run_cli captures
-    cli.console = Console(width=request.param, force_terminal=True, color_system=None)
+    output.console = Console(width=request.param, force_terminal=True, color_system=None)
     try:
         yield request.param
     finally:
-        cli.console = saved
+        output.console = saved
 
 
 def assert_intact(text: str, values: list[Any], width: int | None) -> None:

@@ -39,7 +39,7 @@ from skymule.scenario import Scenario
 from skymule.world import Mission, build_mission
 
 if TYPE_CHECKING:
-    from skymule.bounds.fixed import MissionBound
+    from skymule.bounds.result import MissionBound
 
 GAP_COLUMNS = ("gap_to_bound_mbit", "gap_to_bound_frac")
 """bound - downloaded [Mbit] and that gap as a fraction of the bound."""
@@ -104,7 +104,8 @@ def comparison_row(summary: dict[str, Any]) -> dict[str, Any]:
 
 def mission_bound_or_note(mission: Mission) -> tuple[MissionBound | None, str | None]:
     """(the mission's upper bound, None), or (None, why this mission has none)."""
-    from skymule.bounds.fixed import BoundError, mission_bound
+    from skymule.bounds.mission import mission_bound
+    from skymule.bounds.result import BoundError
 
     try:
         return mission_bound(mission), None
@@ -114,7 +115,7 @@ def mission_bound_or_note(mission: Mission) -> tuple[MissionBound | None, str | 
 
 def scenario_bound(scenario: Scenario) -> MissionBound:
     """The upper bound on what any policy can download in ``scenario`` (one-line error if none)."""
-    from skymule.bounds.fixed import mission_bound
+    from skymule.bounds.mission import mission_bound
 
     return mission_bound(build_mission(scenario))
 

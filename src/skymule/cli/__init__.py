@@ -13,48 +13,14 @@ Heavy modules (numpy, pandas, the engines) are imported inside the commands, so 
 from __future__ import annotations
 
 import sys
-from typing import Annotated
 
-import typer
-from rich.console import Console
-
+# the command modules register their commands on `app` when imported
+import skymule.cli.files
+import skymule.cli.missions  # noqa: F401
+from skymule.cli.app import app
 from skymule.errors import SkymuleError
 
-app: typer.Typer = typer.Typer(
-    pretty_exceptions_enable=False,
-    no_args_is_help=True,
-    rich_markup_mode=None,
-    help="UAV data-mule missions: simulate, replay, compare and plot.",
-)
-console: Console = Console()
-"""Where tables go (stdout). Tests swap it for one of a chosen width."""
-
-
-def _version(value: bool) -> None:
-    if value:
-        from importlib.metadata import PackageNotFoundError, version
-
-        try:
-            number = version("skymule")
-        except PackageNotFoundError:  # run from a source tree without installing
-            number = "unknown"
-        print(f"skymule {number}")
-        raise typer.Exit()
-
-
-@app.callback()
-def _root(
-    version: Annotated[
-        bool,
-        typer.Option("--version", callback=_version, is_eager=True, help="Print the version."),
-    ] = False,
-) -> None:
-    """UAV data-mule missions: simulate, replay, compare and plot."""
-
-
-# the commands register themselves on `app` when imported
-from skymule.cli import missions as _missions  # noqa: E402,F401,I001
-from skymule.cli import files as _files  # noqa: E402,F401
+__all__ = ["app", "main"]
 
 
 def main(argv: list[str] | None = None) -> None:

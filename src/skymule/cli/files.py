@@ -8,12 +8,13 @@ from typing import Annotated
 
 import typer
 
-import skymule.cli as cli
+import skymule.cli.output as output
+from skymule.cli.app import app
 from skymule.cli.folders import guard_analysis
 from skymule.cli.tables import print_table
 
 
-@cli.app.command()
+@app.command()
 def plot(
     run_dir: Annotated[Path, typer.Argument(help="A run folder (or compare folder).")],
 ) -> None:
@@ -33,7 +34,7 @@ def plot(
     for folder in folders:
         summary, slots = read_run(folder)
         for path in plot_run(folder, summary, slots):
-            cli.console.print(f"wrote {path}", markup=False)
+            output.console.print(f"wrote {path}", markup=False)
 
 
 def remove_stale_pdfs(folder: Path) -> list[Path]:
@@ -45,14 +46,14 @@ def remove_stale_pdfs(folder: Path) -> list[Path]:
 
 
 def _report(folder: Path, pdf: bool, baseline: str | None = None) -> Path:
-    from skymule.report.html import build_report
+    from skymule.report.build import build_report
 
     if not pdf:
         remove_stale_pdfs(folder)
     return build_report(folder, pdf=pdf, baseline=baseline)
 
 
-@cli.app.command()
+@app.command()
 def report(
     run_dir: Annotated[Path, typer.Argument(help="A run, compare or sweep folder.")],
     pdf: Annotated[bool, typer.Option("--pdf/--no-pdf", help="Also write vector PDFs.")] = True,
@@ -64,10 +65,10 @@ def report(
     """Write DIR/report.html (self-contained) and DIR/figures/*.png|pdf from its files."""
     path = _report(run_dir, pdf, baseline)
     kinds = "*.png, *.pdf" if pdf else "*.png"
-    cli.console.print(f"wrote {path} and {run_dir / 'figures'}/{kinds}", markup=False)
+    output.console.print(f"wrote {path} and {run_dir / 'figures'}/{kinds}", markup=False)
 
 
-@cli.app.command()
+@app.command()
 def export(
     run_dir: Annotated[Path, typer.Argument(help="A run folder.")],
     kml: Annotated[bool, typer.Option("--kml", help="Write flight.kml.")] = False,
@@ -81,10 +82,10 @@ def export(
 
     chosen = [name for name, on in (("kml", kml), ("geojson", geojson), ("plan", plan)) if on]
     for path in export_run(run_dir, chosen):
-        cli.console.print(f"wrote {path}", markup=False)
+        output.console.print(f"wrote {path}", markup=False)
 
 
-@cli.app.command()
+@app.command()
 def analyze(
     log: Annotated[Path, typer.Argument(help="AADM merged log or digital-twin export (CSV).")],
     out: Annotated[Path | None, typer.Option("--out", help="Compare folder to write.")] = None,
@@ -120,14 +121,14 @@ def analyze(
         download_log=download_log,
     )
     if volumes is None and buffers is None:
-        cli.console.print(
+        output.console.print(
             f"note: no --volumes or --buffers given; assumed {DEFAULT_BUFFER_MBIT:g} Mbit "
             "per tower",
             markup=False,
         )
-    print_table(cli.console, f"{log.name}: replay", rows, summary_columns())
+    print_table(output.console, f"{log.name}: replay", rows, summary_columns())
     report_path = _report(out_dir, pdf)
-    cli.console.print(
+    output.console.print(
         f"wrote {out_dir}/comparison.csv, one folder per run, {report_path}", markup=False
     )
 
@@ -137,7 +138,7 @@ OriginOption = Annotated[
 ]
 
 
-@cli.app.command("fit-radiomap")
+@app.command("fit-radiomap")
 def fit_radiomap_command(
     traces: Annotated[list[Path], typer.Argument(help="Recorded flights (AADM log / DT export).")],
     out: Annotated[Path, typer.Option("--out", help="Map file to write (JSON).")],
@@ -167,11 +168,11 @@ def fit_radiomap_command(
         print(json.dumps({"map": str(out), "sensors": fit.rows}, indent=2))
         return
     title = "radio map fit (cv: held-out trace segments; baseline: fspl)"
-    print_table(cli.console, title, fit.rows, RadioMapFit.COLUMNS)
-    cli.console.print(f"wrote {out}", markup=False)
+    print_table(output.console, title, fit.rows, RadioMapFit.COLUMNS)
+    output.console.print(f"wrote {out}", markup=False)
 
 
-@cli.app.command("score-radiomap")
+@app.command("score-radiomap")
 def score_radiomap_command(
     source: Annotated[str, typer.Argument(help="A fitted map (.json) or a scenario/preset.")],
     trace: Annotated[Path, typer.Argument(help="Recorded flight to score against.")],
@@ -188,4 +189,4 @@ def score_radiomap_command(
     names = list(next(iter(scores.values())))
     rows = [{"sensor": n, **{k: v[n] for k, v in scores.items()}} for n in names]
     title = f"{source} vs {trace} (predicted - measured)"
-    print_table(cli.console, title, rows, ("sensor", *scores))
+    print_table(output.console, title, rows, ("sensor", *scores))

@@ -9,7 +9,8 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-import skymule.cli as cli
+import skymule.cli.output as output
+from skymule.cli.app import app
 from skymule.cli.folders import guard_bound, guard_compare, guard_run, guard_sweep
 from skymule.cli.tables import fmt, print_table
 
@@ -76,7 +77,7 @@ def per_sensor_rows(summary: dict[str, Any]) -> list[dict[str, Any]]:
     return rows
 
 
-@cli.app.command()
+@app.command()
 def run(
     scenario: ScenarioArg,
     out: Annotated[Path | None, typer.Option("--out", help="Run folder to write.")] = None,
@@ -101,19 +102,19 @@ def run(
         return
     title = f"{result.summary['scenario']} - {result.summary['policy']}"
     print_table(
-        cli.console, title, per_sensor_rows(result.summary),
+        output.console, title, per_sensor_rows(result.summary),
         ("sensor", "buffer_mbit", "downloaded_mbit"),
     )  # fmt: skip
-    print_table(cli.console, "summary", [result.summary], summary_columns())
+    print_table(output.console, "summary", [result.summary], summary_columns())
     if out is not None:
-        cli.console.print(f"wrote {out}/summary.json, slots.csv, scenario.json", markup=False)
+        output.console.print(f"wrote {out}/summary.json, slots.csv, scenario.json", markup=False)
 
 
 def _names(text: str) -> list[str]:
     return [p.strip() for p in text.split(",") if p.strip()]
 
 
-@cli.app.command()
+@app.command()
 def compare(
     scenario: ScenarioArg,
     policies: Annotated[
@@ -152,17 +153,17 @@ def compare(
     columns = ("source",) if comparison.by_source else ()
     title = "signal sources" if comparison.by_source else f"{base.name}: comparison"
     print_table(
-        cli.console,
+        output.console,
         title,
         comparison.rows_with_bounds(),
         (*columns, *summary_columns(), *GAP_COLUMNS),
     )
     for source, note in comparison.notes.items():
         where = f"{source}: " if source is not None else ""
-        cli.console.print(f"{where}no upper bound: {note}", markup=False)
+        output.console.print(f"{where}no upper bound: {note}", markup=False)
     if out is not None:
         names_written = ", ".join(str(p) for p in written)
-        cli.console.print(f"wrote {names_written} and one folder per run", markup=False)
+        output.console.print(f"wrote {names_written} and one folder per run", markup=False)
 
 
 def _comparison_json(comparison: Comparison) -> dict[str, Any]:
@@ -184,7 +185,7 @@ def bound_rows(record: dict[str, Any]) -> list[dict[str, Any]]:
     return [{"quantity": k, "value": v} for k, v in record.items() if v is not None]
 
 
-@cli.app.command()
+@app.command()
 def bound(
     scenario: ScenarioArg,
     out: Annotated[Path | None, typer.Option("--out", help="Folder for bound.json.")] = None,
@@ -206,10 +207,13 @@ def bound(
         print_json(record)
         return
     print_table(
-        cli.console, f"{record['scenario']}: upper bound", bound_rows(record), ("quantity", "value")
+        output.console,
+        f"{record['scenario']}: upper bound",
+        bound_rows(record),
+        ("quantity", "value"),
     )
     if path is not None:
-        cli.console.print(f"wrote {path}", markup=False)
+        output.console.print(f"wrote {path}", markup=False)
 
 
 class _working:
@@ -231,7 +235,7 @@ class _working:
             self.status.__exit__(None, None, None)
 
 
-@cli.app.command()
+@app.command()
 def scenarios(
     show: Annotated[
         str | None, typer.Option("--show", help="Print this preset's TOML (with comments).")
@@ -257,13 +261,13 @@ def scenarios(
             }
         )
     columns = ("name", "mode", "source", "duration [s]", "sensors")
-    print_table(cli.console, "built-in scenarios", rows, columns)
+    print_table(output.console, "built-in scenarios", rows, columns)
 
 
 SWEEP_METRICS = ("total_downloaded_mbit", "completion", "handovers", "hover_time_s", "distance_m")
 
 
-@cli.app.command()
+@app.command()
 def sweep(
     sweep_file: Annotated[Path, typer.Argument(help="Sweep TOML (base scenario + axes).")],
     out: Annotated[Path, typer.Option("--out", help="Sweep folder (resumed if it exists).")],
@@ -316,8 +320,8 @@ def sweep(
         for row in outcome.summary.to_dict("records")
     ]
     title = f"{sweep_file.name}: {outcome.n_missions} missions (mean ± 95% CI)"
-    print_table(cli.console, title, rows, ("policy", "missions", *SWEEP_METRICS))
-    cli.console.print(
+    print_table(output.console, title, rows, ("policy", "missions", *SWEEP_METRICS))
+    output.console.print(
         f"ran {outcome.n_run} of {outcome.n_missions} missions in {outcome.seconds:.1f} s; "
         f"wrote {out}/results.parquet and {out}/summary.csv",
         markup=False,

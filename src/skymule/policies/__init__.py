@@ -21,7 +21,7 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import Annotated, Any, Protocol
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -31,8 +31,17 @@ from skymule.policies.greedy import Greedy
 from skymule.policies.hgad import HGAD
 from skymule.registry import Registry
 
-if TYPE_CHECKING:
-    from skymule.scenario import PolicySpec
+
+class PolicySpec(Protocol):
+    """What a factory reads of a scenario's ``[policy]`` section
+    (:class:`skymule.scenario.PolicySpec`, which validates against this registry)."""
+
+    name: str
+    params: dict[str, Any]
+
+    def policy_params(self) -> BaseModel | None: ...
+
+    def model_copy(self, *, update: dict[str, Any]) -> Any: ...
 
 
 class NoParams(BaseModel):
@@ -52,18 +61,20 @@ PolicyFactory = Callable[[Any], Policy]
 """Makes a fresh policy from its validated parameters."""
 
 
-def _planner(params: BaseModel) -> Policy:
-    # imported on use: the planners pull in scipy's LP machinery, which `skymule --help` and
-    # the Greedy/HGAD paths do not need
-    from skymule.policies.planner import Planner
+def _by_path(path: str) -> PolicyFactory:
+    """A factory that imports ``module:Class`` when a policy is first made.
 
-    return Planner()
+    The planners pull in scipy's LP machinery and the bounds, which `skymule --help`, the
+    scenario schema (it reads this registry for parameter models) and the Greedy/HGAD paths
+    do not need; registering them by import path, like plug-ins, keeps those light.
+    """
 
+    def factory(params: BaseModel) -> Policy:
+        module, _, attribute = path.partition(":")
+        made: Policy = getattr(importlib.import_module(module), attribute)()
+        return made
 
-def _optimal_fixed(params: BaseModel) -> Policy:
-    from skymule.policies.optimal_fixed import OptimalFixed
-
-    return OptimalFixed()
+    return factory
 
 
 POLICIES: Registry[PolicyFactory] = Registry(
@@ -73,8 +84,10 @@ POLICIES: Registry[PolicyFactory] = Registry(
 
 POLICIES.register("greedy", lambda p: Greedy(), params=NoParams)
 POLICIES.register("hgad", lambda p: HGAD(p.hover_threshold, p.max_hover_s), params=HGADParams)
-POLICIES.register("planner", _planner, params=NoParams)
-POLICIES.register("optimal-fixed", _optimal_fixed, params=NoParams)
+POLICIES.register("planner", _by_path("skymule.policies.planner:Planner"), params=NoParams)
+POLICIES.register(
+    "optimal-fixed", _by_path("skymule.policies.optimal_fixed:OptimalFixed"), params=NoParams
+)
 
 
 def _import_target(name: str) -> Any:

@@ -8,9 +8,11 @@ aligned text with every value in full, so ``skymule compare ... | grep`` sees ev
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from rich.console import Console
+if TYPE_CHECKING:
+    from rich.console import Console
+
 
 COLUMN_LABELS = {
     "total_downloaded_mbit": "Mbit",

@@ -13,8 +13,9 @@ import numpy as np
 
 from skymule.geo import LocalFrame
 from skymule.radio.channel import signal_source
+from skymule.radio.kriging import krige_dense
 from skymule.radio.pathloss import PATHLOSS_MODELS
-from skymule.radio.radiomap import RadioMap, SensorSamples, fit_sensor_map, krige_dense
+from skymule.radio.radiomap import RadioMap, SensorSamples, fit_sensor_map
 from skymule.scenario import load_scenario
 
 N_POSITIONS = 100_000

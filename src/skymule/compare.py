@@ -25,8 +25,8 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -79,6 +79,15 @@ class Comparison:
             row = with_gap(row, self.bounds.get(run.source))
             rows.append({"source": run.source, **row} if self.by_source else row)
         return rows
+
+    def with_summaries(self, extra: Callable[[CompareRun], dict[str, Any]]) -> Comparison:
+        """This comparison with ``extra(run)`` merged into every run's summary (e.g. the
+        AADM score parts ``analyze`` computes from the recorded flight's share slot)."""
+        runs = tuple(
+            replace(run, result=replace(run.result, summary={**run.result.summary, **extra(run)}))
+            for run in self.runs
+        )
+        return replace(self, runs=runs)
 
     def rows_with_bounds(self) -> list[dict[str, Any]]:
         """:meth:`rows` with a ``bound`` row after each source's last policy (for printing)."""

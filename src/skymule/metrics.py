@@ -254,7 +254,8 @@ def visit_order(flights: Flights) -> np.ndarray:
     first = _first_hover_slots(served, hovered, n_run, n_sensors)
     by_place = ~hovered.any(axis=1)
     if flights.target is not None:
-        by_target = n_run > 0
+        # all-NaN hover points: unknown (a log without them), so no target-based visits
+        by_target = (n_run > 0) & np.isfinite(flights.hover_points_m).any(axis=(1, 2))
         if by_target.any():
             rows = np.flatnonzero(by_target)
             first[rows] = _first_target_arrivals(flights, rows)

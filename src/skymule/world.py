@@ -15,10 +15,11 @@ from pathlib import Path
 import numpy as np
 from shapely.geometry import Point, Polygon, box
 
+from skymule.aadm.plan import is_plan, plan_waypoints_m, scenario_fence
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.flight.navigation import Navigator, hover_point
 from skymule.flight.paths import Track, path_length_m, read_waypoints_csv, sample_path
-from skymule.geo import LocalFrame, covers, load_geofence, sensor_positions_m
+from skymule.geo import LocalFrame, covers, sensor_positions_m
 from skymule.radio.channel import mission_fading_db, signal_source
 from skymule.radio.rates import RateTable, rate_bps, resolve_rate_table
 from skymule.radio.sources import SignalSource
@@ -63,6 +64,8 @@ class Mission:
         return_home: autonomous: the UAV must be home when the mission ends.
         navigator: autonomous: in-fence shortest paths (a very large square without a fence);
             None on fixed trajectories.
+        window_slots: slots after which nothing is served any more (the AADM download window,
+            ``mission.aadm_window_s``), or None: every slot may serve.
 
     A Mission is immutable: its arrays are read-only (writing raises), so policies and
     engines can share one Mission across runs.
@@ -89,6 +92,7 @@ class Mission:
     max_speed_mps: float = 10.0
     return_home: bool = True
     navigator: Navigator | None = None
+    window_slots: int | None = None
 
     def __post_init__(self) -> None:
         for item in fields(self):
@@ -205,6 +209,12 @@ def with_fence(mission: Mission, fence: Polygon | None) -> Mission:
     )
 
 
+def _window_slots(window_s: float | None, slot_s: float) -> int | None:
+    """Slots that start before the download window closes (a slot starting at or after
+    ``window_s`` serves nothing)."""
+    return None if window_s is None else math.ceil(window_s / slot_s - 1e-9)
+
+
 def _n_slots(duration_s: float, slot_s: float) -> int:
     slots = duration_s / slot_s
     if slots > MAX_SLOTS:
@@ -233,7 +243,9 @@ def _waypoints(scenario: Scenario, frame: LocalFrame) -> np.ndarray:
     spec = scenario.trajectory.waypoints
     if spec is None:
         raise ScenarioError("trajectory.waypoints is required for mode = 'fixed' with a model")
-    if isinstance(spec, str):
+    if is_plan(spec):  # a QGroundControl .plan (skymule.aadm.plan)
+        waypoints = plan_waypoints_m(scenario.resolve_path(str(spec)), frame)
+    elif isinstance(spec, str):
         waypoints = read_waypoints_csv(scenario.resolve_path(spec), frame.to_local)
     else:
         if any(len(point) != 3 for point in spec):
@@ -291,9 +303,7 @@ def build_mission(scenario: Scenario) -> Mission:
     """Resolve a scenario into a :class:`Mission` (raises ScenarioError on user mistakes)."""
     frame = LocalFrame(scenario.site.origin.lat, scenario.site.origin.lon)
     base_dir = Path(scenario.base_dir)
-    fence = (
-        load_geofence(scenario.site.geofence, frame, base_dir) if scenario.site.geofence else None
-    )
+    fence = scenario_fence(scenario, frame)  # site.geofence, or a .plan's inclusion fence
     sensor_m = sensor_positions_m(scenario.sensors, frame)
     rate_table = resolve_rate_table(scenario.radio.rate_table, base_dir)
     slot_s = scenario.mission.slot_s
@@ -356,6 +366,7 @@ def build_mission(scenario: Scenario) -> Mission:
         max_speed_mps=trajectory.max_speed_mps,
         return_home=trajectory.return_home,
         navigator=Navigator(fence_or_box(fence)) if autonomous else None,
+        window_slots=_window_slots(scenario.mission.aadm_window_s, slot_s),
     )
     if autonomous:
         check_duration(mission)

@@ -14,11 +14,22 @@ from __future__ import annotations
 
 import sys
 
-# the command modules register their commands on `app` when imported
-import skymule.cli.files
-import skymule.cli.missions  # noqa: F401
+from skymule.cli import files, missions
 from skymule.cli.app import app
 from skymule.errors import SkymuleError
+
+# the commands, in the order `skymule --help` lists them
+app.command()(missions.run)
+app.command()(missions.compare)
+app.command()(missions.bound)
+app.command()(missions.sweep)
+app.command()(missions.scenarios)
+app.command()(files.plot)
+app.command()(files.report)
+app.command()(files.export)
+app.command()(files.analyze)
+app.command("fit-radiomap")(files.fit_radiomap_command)
+app.command("score-radiomap")(files.score_radiomap_command)
 
 __all__ = ["app", "main"]
 

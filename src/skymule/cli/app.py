@@ -6,12 +6,15 @@ from typing import Annotated
 
 import typer
 
+from skymule.aadm.cli import aadm_app
+
 app: typer.Typer = typer.Typer(
     pretty_exceptions_enable=False,
     no_args_is_help=True,
     rich_markup_mode=None,
     help="UAV data-mule missions: simulate, replay, compare and plot.",
 )
+app.add_typer(aadm_app, name="aadm")
 
 
 def _version(value: bool) -> None:

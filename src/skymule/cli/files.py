@@ -9,12 +9,10 @@ from typing import Annotated
 import typer
 
 import skymule.cli.output as output
-from skymule.cli.app import app
 from skymule.cli.folders import guard_analysis
 from skymule.cli.tables import print_table
 
 
-@app.command()
 def plot(
     run_dir: Annotated[Path, typer.Argument(help="A run folder (or compare folder).")],
 ) -> None:
@@ -53,7 +51,6 @@ def _report(folder: Path, pdf: bool, baseline: str | None = None) -> Path:
     return build_report(folder, pdf=pdf, baseline=baseline)
 
 
-@app.command()
 def report(
     run_dir: Annotated[Path, typer.Argument(help="A run, compare or sweep folder.")],
     pdf: Annotated[bool, typer.Option("--pdf/--no-pdf", help="Also write vector PDFs.")] = True,
@@ -68,7 +65,6 @@ def report(
     output.console.print(f"wrote {path} and {run_dir / 'figures'}/{kinds}", markup=False)
 
 
-@app.command()
 def export(
     run_dir: Annotated[Path, typer.Argument(help="A run folder.")],
     kml: Annotated[bool, typer.Option("--kml", help="Write flight.kml.")] = False,
@@ -85,7 +81,6 @@ def export(
         output.console.print(f"wrote {path}", markup=False)
 
 
-@app.command()
 def analyze(
     log: Annotated[Path, typer.Argument(help="AADM merged log or digital-twin export (CSV).")],
     out: Annotated[Path | None, typer.Option("--out", help="Compare folder to write.")] = None,
@@ -138,7 +133,6 @@ OriginOption = Annotated[
 ]
 
 
-@app.command("fit-radiomap")
 def fit_radiomap_command(
     traces: Annotated[list[Path], typer.Argument(help="Recorded flights (AADM log / DT export).")],
     out: Annotated[Path, typer.Option("--out", help="Map file to write (JSON).")],
@@ -172,7 +166,6 @@ def fit_radiomap_command(
     output.console.print(f"wrote {out}", markup=False)
 
 
-@app.command("score-radiomap")
 def score_radiomap_command(
     source: Annotated[str, typer.Argument(help="A fitted map (.json) or a scenario/preset.")],
     trace: Annotated[Path, typer.Argument(help="Recorded flight to score against.")],

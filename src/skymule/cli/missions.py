@@ -10,7 +10,6 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 import skymule.cli.output as output
-from skymule.cli.app import app
 from skymule.cli.folders import guard_bound, guard_compare, guard_run, guard_sweep
 from skymule.cli.tables import fmt, print_table
 
@@ -77,7 +76,6 @@ def per_sensor_rows(summary: dict[str, Any]) -> list[dict[str, Any]]:
     return rows
 
 
-@app.command()
 def run(
     scenario: ScenarioArg,
     out: Annotated[Path | None, typer.Option("--out", help="Run folder to write.")] = None,
@@ -114,7 +112,6 @@ def _names(text: str) -> list[str]:
     return [p.strip() for p in text.split(",") if p.strip()]
 
 
-@app.command()
 def compare(
     scenario: ScenarioArg,
     policies: Annotated[
@@ -185,7 +182,6 @@ def bound_rows(record: dict[str, Any]) -> list[dict[str, Any]]:
     return [{"quantity": k, "value": v} for k, v in record.items() if v is not None]
 
 
-@app.command()
 def bound(
     scenario: ScenarioArg,
     out: Annotated[Path | None, typer.Option("--out", help="Folder for bound.json.")] = None,
@@ -235,7 +231,6 @@ class _working:
             self.status.__exit__(None, None, None)
 
 
-@app.command()
 def scenarios(
     show: Annotated[
         str | None, typer.Option("--show", help="Print this preset's TOML (with comments).")
@@ -267,7 +262,6 @@ def scenarios(
 SWEEP_METRICS = ("total_downloaded_mbit", "completion", "handovers", "hover_time_s", "distance_m")
 
 
-@app.command()
 def sweep(
     sweep_file: Annotated[Path, typer.Argument(help="Sweep TOML (base scenario + axes).")],
     out: Annotated[Path, typer.Option("--out", help="Sweep folder (resumed if it exists).")],

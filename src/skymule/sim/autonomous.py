@@ -123,6 +123,9 @@ class AutonomousFlight:
     def apply(self, action: Action, who: str = "policy") -> float:
         """Apply ``action`` to the slot last observed; returns the bits downloaded."""
         sensor = check_serve(action.serve, self.mission.n_sensors, who)
+        window = self.mission.window_slots
+        if window is not None and self.slot >= window:
+            sensor = NO_SENSOR  # the download window has closed
         bits = 0.0
         if sensor != NO_SENSOR:
             bits = float(

@@ -5,13 +5,28 @@ Engines write it; metrics, run folders and figures read it. It is immutable.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
 from skymule.sim.contract import NO_SENSOR
 
 __all__ = ["NO_SENSOR", "MissionLog"]
+
+_ARRAY_FIELDS = (
+    "buffers_bit",
+    "position_m",
+    "end_position_m",
+    "snr_db",
+    "rate_bps",
+    "served",
+    "downloaded_bit",
+    "remaining_bit",
+    "hovering",
+    "home_m",
+    "hover_points_m",
+    "target",
+)
 
 
 @dataclass(frozen=True)
@@ -61,7 +76,7 @@ class MissionLog:
         return int(self.served.shape[0])
 
     def __post_init__(self) -> None:
-        for item in fields(self):
-            value = getattr(self, item.name)
+        for name in _ARRAY_FIELDS:
+            value = getattr(self, name)
             if isinstance(value, np.ndarray):
                 value.flags.writeable = False

@@ -14,8 +14,8 @@ import numpy as np
 from skymule.geo import LocalFrame
 from skymule.radio.channel import signal_source
 from skymule.radio.kriging import krige_dense
+from skymule.radio.pathloss import PATHLOSS_MODELS
 from skymule.radio.radiomap import RadioMap, SensorSamples, fit_sensor_map
-from skymule.radio.sources import PATHLOSS_BUILDERS
 from skymule.scenario import load_scenario
 
 N_POSITIONS = 100_000
@@ -42,7 +42,7 @@ def main() -> None:
          np.full(N_POSITIONS, 30.0)]
     )  # fmt: skip
     print(f"SNR for {len(sensor_m)} sensors x {N_POSITIONS:,} positions [s, best of 3]")
-    for name in sorted(PATHLOSS_BUILDERS):
+    for name in PATHLOSS_MODELS.names():
         scenario = base.model_copy(update={"radio": base.radio.model_copy(update={"model": name})})
         source = signal_source(scenario, frame, sensor_m)
         print(f"  {name:<14} {best_of(lambda s=source: s.snr_db(positions)):.3f}")

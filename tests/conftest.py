@@ -83,10 +83,11 @@ def run_cli(
     from rich.console import Console
 
     from skymule import cli
+    from skymule.cli import output
 
     argv = [str(a) for a in args]
     out, err = io.StringIO(), io.StringIO()
-    console = cli.console
+    console = output.console
     code: int = 0
     with contextlib.ExitStack() as stack:
         if cwd is not None:
@@ -98,10 +99,10 @@ def run_cli(
         if console.color_system is not None:
             # imported with a terminal on stdout (pytest -s): colour and width were fixed
             # then; build the console a piped `skymule` builds, as cli.py does
-            cli.console = Console(width=None if sys.stdout.isatty() else 120)
-            stack.callback(setattr, cli, "console", console)
+            output.console = Console(width=None if sys.stdout.isatty() else 120)
+            stack.callback(setattr, output, "console", console)
         # rich resolves sys.stdout when it prints (no file= given): it writes to `out`
-        assert cli.console.file is out
+        assert output.console.file is out
         try:
             cli.main(argv)
         except SystemExit as exc:

@@ -14,7 +14,7 @@ from skymule.metrics import summarize
 from skymule.policies import make_policy
 from skymule.policies.base import Action, MissionContext, Observation
 from skymule.policies.hgad import HGAD
-from skymule.scenario import load_scenario
+from skymule.scenario import PolicySpec, load_scenario
 from skymule.sim.log import NO_SENSOR
 from skymule.sim.run import run_mission
 from skymule.world import build_mission
@@ -111,7 +111,9 @@ def test_invariants_on_random_autonomous_missions():
                         "max_speed_mps": float(rng.uniform(4, 15)),
                     }
                 ),
-                "policy": base.policy.model_copy(update={"max_hover_s": float(rng.uniform(5, 60))}),
+                "policy": PolicySpec(
+                    name=base.policy.name, params={"max_hover_s": float(rng.uniform(5, 60))}
+                ),
             }
         )
         mission = build_mission(scenario)

@@ -139,7 +139,7 @@ waypoints = [[0, 0, 30], [-100, 100, 30]]
 @pytest.mark.parametrize(
     ("edit", "needle"),
     [
-        (("[trajectory]", '[policy]\nname = "psychic"\n[trajectory]'), "policy.name = 'psychic'"),
+        (("[trajectory]", '[policy]\nname = "psychic"\n[trajectory]'), "unknown policy 'psychic'"),
         (("[trajectory]", '[radio]\nrate_table = "lte-magic"\n[trajectory]'), "rate_table"),
         (("buffer_mbit = 100", "buffer_mbit = -5"), "sensors[0].buffer_mbit = -5"),
         (("[[0, 0, 30], [-100, 100, 30]]", "[[0, 0, 30]]"), "at least 2"),

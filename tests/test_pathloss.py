@@ -8,13 +8,14 @@ import pytest
 from skymule.errors import SkymuleError
 from skymule.radio.pathloss import (
     AL_HOURANI_ENVIRONMENTS,
+    PATHLOSS_MODELS,
     Aerial3GPP,
     AlHourani,
     FreeSpace,
     LogDistance,
     TwoRay,
 )
-from skymule.radio.sources import PATHLOSS_BUILDERS
+from skymule.radio.sources import build_pathloss
 from skymule.scenario import RadioSpec
 
 F_HZ = 3.41e9  # AADM carrier; wavelength c / f = 0.087916 m
@@ -102,9 +103,9 @@ def test_3gpp_height_outside_range_names_the_model(scenario: str, height: float)
         Aerial3GPP(F_HZ, scenario).loss_db(np.array([[100.0, 0.0, height]]), ORIGIN)
 
 
-@pytest.mark.parametrize("name", sorted(PATHLOSS_BUILDERS))
+@pytest.mark.parametrize("name", PATHLOSS_MODELS.names())
 def test_every_registered_model_is_vectorised_and_grows_with_distance(name: str) -> None:
-    model = PATHLOSS_BUILDERS[name](RadioSpec(model=name))
+    model = build_pathloss(RadioSpec(model=name))
     sensors = np.array([[0.0, 0.0, 10.0], [500.0, 0.0, 5.0], [0.0, 300.0, 0.0]])
     uav = np.column_stack([np.linspace(-900, 900, 7), np.full(7, 200.0), np.full(7, 60.0)])
     loss = model.loss_db(uav, sensors)

@@ -122,7 +122,10 @@ def test_cli_runs_and_compares_a_user_policy(
 ) -> None:
     # a real process: the policy module is found through PYTHONPATH, as a user sets it
     command = [sys.executable, "-c", "from skymule.cli import main; main()"]
-    env = {**os.environ, "PYTHONPATH": str(PLUGINS)}
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(PLUGINS), os.environ.get("PYTHONPATH", "")]),
+    }
     done = subprocess.run(
         [
             *command,

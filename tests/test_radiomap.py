@@ -116,7 +116,7 @@ def test_cli_fit_score_and_compare_sources(synthetic: Path, tmp_path: Path) -> N
          "sensor LW1 has 12 valid SNR samples"),
         (["score-radiomap", "paper-sim-fixed", "tests/fixtures/dt_export_small.csv",
           "--origin", "1,2,3"], "--origin '1,2,3'"),
-        (["compare", "paper-sim-fixed", "--sources", "fspl,okumura"], "'okumura' is not allowed"),
+        (["compare", "paper-sim-fixed", "--sources", "fspl,okumura"], "unknown source 'okumura'"),
     ],
 )  # fmt: skip
 def test_cli_mistakes_are_one_line(args: list[str], needle: str) -> None:

@@ -15,8 +15,12 @@ def test_readme_python_blocks_run() -> None:
     for block in blocks:
         exec(compile(block, str(README), "exec"), namespace)
     result = namespace["result"]
-    policy = namespace["LargestBufferFirst"]()  # type: ignore[operator]
-    assert policy.name == "largest-buffer-first"
+    plugin = namespace["LargestBufferFirst"]
+    policy = plugin(plugin.Params(min_snr_db=3))  # type: ignore[attr-defined,operator]
+    assert policy.name == "largest-buffer-first" and policy.params.min_snr_db == 3
+    comparison = namespace["comparison"]
+    gaps = [round(r["gap_to_bound_mbit"], 1) for r in comparison.rows()]  # type: ignore[attr-defined]
+    assert gaps == [562.4, 243.6]
     assert result.summary["policy"] == "greedy"  # type: ignore[attr-defined]
 
 

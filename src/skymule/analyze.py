@@ -40,7 +40,7 @@ in which the recorded flight first climbed above 24 m.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -54,7 +54,7 @@ from skymule.geo import load_site
 from skymule.io.runs import slots_frame, write_run
 from skymule.io.traces import Trace, normalise_column, read_trace, read_volumes
 from skymule.metrics import summarize
-from skymule.policies import POLICIES, unknown_policies
+from skymule.policies import check_policies
 from skymule.scenario import Scenario, scenario_from_dict
 from skymule.sim.log import NO_SENSOR, MissionLog
 from skymule.world import BITS_PER_MBIT, Mission, build_mission
@@ -300,14 +300,6 @@ def flight_log(mission: Mission, downloads: DownloadLog) -> MissionLog:
     )
 
 
-def comparison_row(summary: dict[str, Any]) -> dict[str, Any]:
-    """A comparison.csv row (same columns as ``skymule compare`` writes)."""
-    row = {k: v for k, v in summary.items() if not isinstance(v, dict | list)}
-    for name, value in summary.get("per_sensor_downloaded_mbit", {}).items():
-        row[f"downloaded_mbit_{name}"] = value
-    return row
-
-
 def analyze_flight(
     log_path: Path,
     out_dir: Path,
@@ -321,29 +313,23 @@ def analyze_flight(
 
     Returns the comparison rows (one per run folder written).
     """
-    from skymule.runner import simulate
+    from skymule.compare import compare_policies, comparison_row, write_compare
 
-    unknown = unknown_policies(list(policies))
-    if not policies or unknown:
-        raise SkymuleError(
-            f"--policies: unknown {', '.join(unknown) or '(empty)'}; "
-            f"allowed: {', '.join(sorted(POLICIES))}"
-        )
+    check_policies(list(policies))
     trace = read_trace(log_path)
-    scenario = analysis_scenario(trace, log_path, resolve_buffers(trace, volumes, buffers))
+    buffers_mbit = resolve_buffers(trace, volumes, buffers)
+    scenario = analysis_scenario(trace, log_path, buffers_mbit)
     mission = build_mission(scenario)
     assert mission.track is not None
     share = share_slot_from_altitude(mission.track.position_m[: mission.n_slots, 2])
     total_bit = float(mission.buffers_bit.sum())
-    rows = []
-    for name in policies:
-        result = simulate(scenario, name, mission=mission)
-        parts = aadm_score_one(
-            result.log.downloaded_bit, total_bit, mission.slot_s, share_slot=share
+    replayed = compare_policies(scenario, policies, bound=False, mission=mission)
+    comparison = replayed.with_summaries(
+        lambda run: aadm_score_one(
+            run.result.log.downloaded_bit, total_bit, mission.slot_s, share_slot=share
         )
-        result = replace(result, summary={**result.summary, **parts})
-        result.write(out_dir / name)
-        rows.append(comparison_row(result.summary))
+    )
+    extra = []
     if download_log is not None:
         if aadm_files.is_aadm_download_log(download_log):
             scored = read_aadm_download_log(download_log, log_path, mission, share)
@@ -360,7 +346,6 @@ def analyze_flight(
         scenario_dict = scenario.to_toml_dict()
         scenario_dict["policy"] = {"name": FLIGHT_RUN, "download_log": str(download_log)}
         write_run(out_dir / FLIGHT_RUN, summary, slots_frame(log, mission.frame), scenario_dict)
-        rows.append(comparison_row(summary))
-    out_dir.mkdir(parents=True, exist_ok=True)
-    pd.DataFrame(rows).to_csv(out_dir / "comparison.csv", index=False)
-    return rows
+        extra.append(comparison_row(summary))
+    write_compare(comparison, out_dir, extra)
+    return [*comparison.rows(), *extra]

@@ -11,13 +11,19 @@ path is accepted.
 from __future__ import annotations
 
 import tomllib
+from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic_core import ErrorDetails, PydanticCustomError
 
-from skymule.errors import ScenarioError
+from skymule.errors import ScenarioError, SkymuleError
+from skymule.overrides import apply_override
+from skymule.policies import POLICIES, policy_params_model
+from skymule.radio.pathloss import PATHLOSS_MODELS
+from skymule.registry import Registry, did_you_mean, unknown_name_message
 
 PositiveFloat = Annotated[float, Field(gt=0)]
 
@@ -77,7 +83,13 @@ class SensorSpec(_Spec):
 
 class RadioSpec(_Spec):
     model: str = "fspl"
-    """Path-loss model name (see ``skymule.radio.pathloss``)."""
+    """Path-loss model name (see ``skymule.radio.pathloss.PATHLOSS_MODELS``)."""
+    params: dict[str, Any] = Field(default_factory=dict)
+    """The path-loss model's own parameters (``[radio.params]``), validated by its model.
+
+    The older flat keys (``path_loss_exponent``, ``environment``, ... directly in ``[radio]``)
+    are still read and override the same key in ``params``; parameters of *other* path-loss
+    models are kept and ignored, so ``compare --sources`` can switch models."""
     frequency_hz: PositiveFloat = 3.41e9
     tx_power_dbm: float = 10.0
     tx_gain_dbi: float = 10.0
@@ -85,16 +97,6 @@ class RadioSpec(_Spec):
     noise_dbm: float = -90.0
     bandwidth_hz: PositiveFloat = 1.4e6
     rate_table: str = "aadm-lte-cqi"
-    path_loss_exponent: PositiveFloat = 2.0
-    """log-distance: path-loss exponent n."""
-    reference_distance_m: PositiveFloat = 1.0
-    """log-distance: reference distance d0 [m]."""
-    reference_loss_db: float | None = None
-    """log-distance: loss at d0 [dB]; default free space at d0."""
-    ground_reflection: Annotated[float, Field(ge=-1, le=1)] = -1.0
-    """two-ray: ground reflection coefficient Gamma (-1: perfect reflector, grazing)."""
-    environment: Literal["suburban", "urban", "dense-urban", "high-rise-urban"] = "suburban"
-    """al-hourani: built-up environment (Al-Hourani et al. 2014, Table I)."""
     shadowing_std_db: Annotated[float, Field(ge=0, le=30)] = 0.0
     """Log-normal shadowing standard deviation [dB] (0: none); model sources only."""
     shadowing_decorrelation_m: PositiveFloat = 50.0
@@ -103,6 +105,31 @@ class RadioSpec(_Spec):
     """Small-scale fading, drawn per slot and sensor."""
     rician_k_db: Annotated[float, Field(ge=-30, le=40)] = 10.0
     """rician: K factor [dB] (power of the specular part over the scattered part)."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _flat_params(cls, data: Any) -> Any:
+        return _lift_flat_params(data, _pathloss_param_names())
+
+    @model_validator(mode="after")
+    def _check_params(self) -> RadioSpec:
+        if self.model not in PATHLOSS_MODELS:
+            raise _component_error(
+                unknown_name_message("radio.model", self.model, PATHLOSS_MODELS.names())
+            )
+        self.model_params()
+        return self
+
+    def model_params(self) -> BaseModel:
+        """The path-loss model's validated parameters (defaults filled in)."""
+        kind = PATHLOSS_MODELS.get(self.model)
+        return validate_params(
+            kind.params, self.params, _pathloss_param_names(), f"radio.model {self.model!r}"
+        )
+
+    def param(self, name: str) -> Any:
+        """One parameter of the path-loss model (its default when not given)."""
+        return _param(self.model_params(), name, f"radio.model {self.model!r}")
 
 
 class SignalSpec(_Spec):
@@ -145,10 +172,126 @@ class TrajectorySpec(_Spec):
 
 class PolicySpec(_Spec):
     name: str = "hgad"
-    hover_threshold: Annotated[float, Field(gt=0, le=1)] = 1.0
-    """HGAD: fraction of the peak rate that triggers a hover."""
-    max_hover_s: PositiveFloat = 60.0
-    """HGAD: longest hover [s]."""
+    """A registered policy (``skymule.policies.POLICIES``) or ``"package.module:Class"``."""
+    params: dict[str, Any] = Field(default_factory=dict)
+    """The policy's own parameters (``[policy.params]``), validated by its parameter model.
+
+    HGAD's ``hover_threshold`` and ``max_hover_s`` may also be written directly in
+    ``[policy]`` (older files) and then override ``params``; parameters of *other*
+    registered policies are kept and ignored, so one file can run under several policies."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _flat_params(cls, data: Any) -> Any:
+        return _lift_flat_params(data, _policy_param_names())
+
+    @model_validator(mode="after")
+    def _check_params(self) -> PolicySpec:
+        try:
+            self.policy_params()
+        except SkymuleError as exc:  # unknown name, plug-in that does not import
+            raise _component_error(str(exc)) from None
+        return self
+
+    def policy_params(self) -> BaseModel | None:
+        """The policy's validated parameters, or None for a plug-in without a ``Params`` model."""
+        from_policy = policy_params_model(self.name)
+        if from_policy is None:
+            return None
+        return validate_params(
+            from_policy, self.params, _policy_param_names(), f"policy {self.name!r}"
+        )
+
+    def param(self, name: str) -> Any:
+        """One parameter of the policy (its default when not given).
+
+        The batched engine reads HGAD's ``hover_threshold``/``max_hover_s`` through this.
+        """
+        validated = self.policy_params()
+        if validated is None:
+            if name in self.params:
+                return self.params[name]
+            raise SkymuleError(f"policy {self.name!r} has no parameter {name!r}")
+        return _param(validated, name, f"policy {self.name!r}")
+
+    @property
+    def hover_threshold(self) -> float:
+        """HGAD's trigger fraction (kept for code that read the old flat field)."""
+        return float(self.param("hover_threshold"))
+
+    @property
+    def max_hover_s(self) -> float:
+        """HGAD's longest hover [s] (kept for code that read the old flat field)."""
+        return float(self.param("max_hover_s"))
+
+
+def _lift_flat_params(data: Any, names: frozenset[str]) -> Any:
+    """Move the older flat parameter keys of a section into its ``params`` table."""
+    if not isinstance(data, dict):
+        return data
+    flat = {k: v for k, v in data.items() if k in names}
+    if not flat:
+        return data
+    params = data.get("params", {})
+    if not isinstance(params, dict):
+        return data  # the field validator reports it
+    rest = {k: v for k, v in data.items() if k not in names}
+    return {**rest, "params": {**params, **flat}}
+
+
+def validate_params(
+    model: type[BaseModel], params: dict[str, Any], shared: frozenset[str], owner: str
+) -> BaseModel:
+    """``params`` validated by a component's parameter ``model``.
+
+    Keys that belong to other components of the same kind (``shared``) and not to this one
+    are ignored; anything else wrong is a one-line ``PydanticCustomError`` naming the key.
+    """
+    fields = list(model.model_fields)
+    own = {k: v for k, v in params.items() if k in fields or k not in shared}
+    unknown = [k for k in own if k not in fields]  # also when the model allows extra keys
+    if unknown:
+        allowed = ", ".join(fields) or "none"
+        hint = did_you_mean(unknown[0], fields)
+        raise _component_error(
+            f"params.{unknown[0]}: unknown parameter of {owner}; its parameters: {allowed}{hint}"
+        )
+    try:
+        return model.model_validate(own)
+    except ValidationError as exc:
+        first = _first_error(exc)
+        key = _location(tuple(first["loc"]))
+        if first["type"] == "missing":
+            text = f"params.{key} is required by {owner}"
+        else:
+            message = first["msg"].removeprefix("Value error, ")
+            text = f"params.{key} = {first.get('input')!r}: {message}"
+        raise _component_error(text) from None
+
+
+def _component_error(text: str) -> PydanticCustomError:
+    # the text goes in the context: a template would read braces in it as placeholders
+    return PydanticCustomError("component_params", "{text}", {"text": text})
+
+
+def _param(validated: BaseModel, name: str, owner: str) -> Any:
+    if name not in type(validated).model_fields:
+        raise SkymuleError(f"{owner} has no parameter {name!r}")
+    return getattr(validated, name)
+
+
+def _pathloss_param_names() -> frozenset[str]:
+    return frozenset(
+        name for _, kind in PATHLOSS_MODELS.items() for name in kind.params.model_fields
+    )
+
+
+def _policy_param_names() -> frozenset[str]:
+    return frozenset(
+        name
+        for policy in POLICIES.names()
+        for name in (policy_params_model(policy) or BaseModel).model_fields
+    )
 
 
 class Scenario(_Spec):
@@ -178,7 +321,22 @@ class Scenario(_Spec):
         return path if path.is_absolute() else Path(self.base_dir) / path
 
     def with_policy(self, name: str) -> Scenario:
-        return self.model_copy(update={"policy": self.policy.model_copy(update={"name": name})})
+        """This scenario under another policy (its parameters carried over where they fit)."""
+        params = self.policy.params
+        if name != self.policy.name:
+            try:
+                model = policy_params_model(name)
+            except SkymuleError as exc:
+                raise ScenarioError(str(exc)) from None
+            if model is not None:  # carry over only what the other policy declares
+                params = {k: v for k, v in params.items() if k in model.model_fields}
+        try:
+            policy = PolicySpec.model_validate({"name": name, "params": params})
+        except ValidationError as exc:
+            message = _first_error(exc)["msg"]
+            where = "policy." if message.startswith("params.") else ""
+            raise ScenarioError(f"{where}{message}") from None
+        return self.model_copy(update={"policy": policy})
 
     def to_toml_dict(self) -> dict[str, Any]:
         return self.model_dump(mode="json", exclude_none=True)
@@ -194,13 +352,50 @@ def _location(loc: tuple[int | str, ...]) -> str:
     return text
 
 
+def _first_error(error: ValidationError) -> ErrorDetails:
+    """The error to report: a misspelt key first (it often causes the "required" one)."""
+    errors = error.errors()
+    for kind in ("component_params", "extra_forbidden"):
+        for item in errors:
+            if item["type"] == kind:
+                return item
+    return errors[0]
+
+
+def _fields_at(loc: tuple[int | str, ...]) -> list[str]:
+    """Field names of the scenario section at ``loc`` (for "did you mean")."""
+    model: Any = Scenario
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        field = model.model_fields.get(str(part)) if hasattr(model, "model_fields") else None
+        if field is None:
+            return []
+        annotation = field.annotation
+        for arg in (*getattr(annotation, "__args__", ()), annotation):
+            if isinstance(arg, type) and issubclass(arg, BaseModel):
+                model = arg
+                break
+        else:
+            return []
+    return list(model.model_fields) if hasattr(model, "model_fields") else []
+
+
 def format_validation_error(source: str, error: ValidationError) -> str:
     """The first validation problem as one line: ``source: field = value: what is allowed``."""
-    first = error.errors()[0]
-    where = _location(tuple(first["loc"]))
+    first = _first_error(error)
+    loc = tuple(first["loc"])
+    where = _location(loc)
     message = first["msg"].removeprefix("Value error, ")
+    if first["type"] == "component_params":
+        prefix = f"{where}." if where and message.startswith("params.") else ""
+        return f"{source}: {prefix}{message}"
     if first["type"] == "extra_forbidden":
-        return f"{source}: unknown field {where!r}; check its spelling against the schema"
+        fields = [f for f in _fields_at(loc[:-1]) if f != "base_dir"]
+        hint = did_you_mean(str(loc[-1]), fields)
+        return (
+            f"{source}: unknown field {where!r}{hint or '; check its spelling against the schema'}"
+        )
     if first["type"] == "missing":
         return f"{source}: {where} is required"
     value = first.get("input")
@@ -215,34 +410,45 @@ def scenario_from_dict(data: dict[str, Any], source: str, base_dir: Path) -> Sce
         raise ScenarioError(format_validation_error(source, exc)) from None
 
 
+def presets() -> Registry[str]:
+    """The built-in scenario presets: name -> TOML text (with its comments)."""
+    folder = resources.files("skymule").joinpath("scenarios")
+    registry: Registry[str] = Registry("scenario", extra_allowed="or a scenario TOML path")
+    for item in sorted(folder.iterdir(), key=lambda p: p.name):
+        if item.name.endswith(".toml"):
+            registry.register(item.name[:-5], item.read_text())
+    return registry
+
+
 def preset_names() -> list[str]:
     """Names of the built-in scenario presets."""
-    folder = resources.files("skymule").joinpath("scenarios")
-    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+    return presets().names()
 
 
-def load_scenario(spec: str | Path) -> Scenario:
-    """Load a scenario from a TOML path or a built-in preset name."""
+def load_scenario(spec: str | Path, overrides: Sequence[str] = ()) -> Scenario:
+    """Load a scenario from a TOML path or a built-in preset name.
+
+    ``overrides`` are ``key=value`` strings (``--set``): a dotted scenario key such as
+    ``sensors[2].buffer_mbit`` and a TOML value, applied before validation.
+    """
     path = Path(spec)
-    if not path.exists() and str(spec) in preset_names():
-        resource = resources.files("skymule").joinpath("scenarios", f"{spec}.toml")
-        text = resource.read_text()
-        return _parse(text, f"preset {spec}", Path("."))
     if not path.exists():
-        raise ScenarioError(
-            f"scenario {str(spec)!r}: no such file and not a preset "
-            f"(presets: {', '.join(preset_names())})"
-        )
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ScenarioError(f"{path}: cannot read ({exc.strerror})") from None
-    return _parse(text, str(path), path.parent)
+        text = presets().get(str(spec))  # unknown: one line with "did you mean"
+        source, base_dir = f"preset {spec}", Path(".")
+    else:
+        try:
+            text = path.read_text()
+        except OSError as exc:
+            raise ScenarioError(f"{path}: cannot read ({exc.strerror})") from None
+        source, base_dir = str(path), path.parent
+    data = _toml(text, source)
+    for override in overrides:
+        data = apply_override(data, override)
+    return scenario_from_dict(data, source, base_dir)
 
 
-def _parse(text: str, source: str, base_dir: Path) -> Scenario:
+def _toml(text: str, source: str) -> dict[str, Any]:
     try:
-        data = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{source}: not valid TOML ({exc})") from None
-    return scenario_from_dict(data, source, base_dir)

@@ -88,24 +88,29 @@ from shapely.geometry.base import BaseGeometry
 from skymule.bounds.result import BoundResult
 from skymule.errors import SkymuleError
 from skymule.flight.navigation import Navigator
+from skymule.radio.pathloss import PATHLOSS_MODELS
 from skymule.world import Mission
 
 __all__ = [
-    "MONOTONE_MODELS",
     "REACH_MODES",
     "autonomous_bound",
     "best_rate_bps",
     "closest_distances_m",
     "geodesic_closest_distances_m",
+    "monotone_models",
     "reach_radii_m",
 ]
 
 #: Reach-set constructions (see the module docstring); the first is the default.
 REACH_MODES = ("geodesic", "euclidean")
 
-#: Path-loss models whose SNR (no shadowing) is non-increasing in horizontal distance at a
-#: fixed UAV altitude: the best in-set rate is at the set's point closest to the sensor.
-MONOTONE_MODELS = frozenset({"fspl", "free-space", "log-distance", "al-hourani", "3gpp-rma-av"})
+
+def monotone_models() -> list[str]:
+    """Path-loss models whose SNR (no shadowing) is non-increasing in horizontal distance at
+    a fixed UAV altitude (their registered ``monotone`` flag): the best in-set rate is at the
+    set's point closest to the sensor."""
+    return PATHLOSS_MODELS.where(lambda entry: entry.obj.monotone)
+
 
 #: Sides of the regular polygon that circumscribes each reach disc.
 DISC_SIDES = 256
@@ -356,7 +361,7 @@ def best_rate_bps(
     radio = mission.scenario.radio
     monotone = (
         mission.scenario.signal.source == "model"
-        and radio.model in MONOTONE_MODELS
+        and PATHLOSS_MODELS.get(radio.model).monotone
         and radio.shadowing_std_db == 0
         and (radio.model != "al-hourani" or _al_hourani_monotone(mission))
     )
@@ -387,7 +392,7 @@ def best_rate_bps(
 def _al_hourani_monotone(mission: Mission) -> bool:
     from skymule.radio.pathloss import AL_HOURANI_ENVIRONMENTS
 
-    env = AL_HOURANI_ENVIRONMENTS[mission.scenario.radio.environment]
+    env = AL_HOURANI_ENVIRONMENTS[mission.scenario.radio.param("environment")]
     return env.eta_nlos_db >= env.eta_los_db
 
 

@@ -19,6 +19,7 @@ from contextlib import AbstractContextManager, contextmanager
 from typing import Any
 
 from skymule.errors import SkymuleError
+from skymule.registry import Registry
 
 
 class InProcessExecutor(Executor):
@@ -85,13 +86,15 @@ def _dask(workers: int | None, scheduler: str | None) -> Iterator[Executor]:
         yield client.get_executor()
 
 
-EXECUTORS: dict[str, Callable[[int | None, str | None], AbstractContextManager[Executor]]] = {
-    "inprocess": _inprocess,
-    "process": _process,
-    "dask-local": _dask_local,
-    "dask": _dask,
-}
+ExecutorFactory = Callable[[int | None, str | None], AbstractContextManager[Executor]]
+
+EXECUTORS: Registry[ExecutorFactory] = Registry("--executor")
 """Executor registry: name -> context manager (workers, scheduler) yielding an Executor."""
+
+EXECUTORS.register("inprocess", _inprocess)
+EXECUTORS.register("process", _process)
+EXECUTORS.register("dask-local", _dask_local)
+EXECUTORS.register("dask", _dask)
 
 
 def open_executor(
@@ -101,8 +104,6 @@ def open_executor(
     if scheduler and name in ("process", "dask"):
         name = "dask"
     factory = EXECUTORS.get(name)
-    if factory is None:
-        raise SkymuleError(f"--executor {name!r} is not allowed; allowed: {', '.join(EXECUTORS)}")
     if workers is not None and workers < 1:
         raise SkymuleError(f"--workers {workers}: allowed: an integer >= 1")
     return factory(workers, scheduler)

@@ -32,6 +32,7 @@ import numpy as np
 
 from skymule.errors import SkymuleError
 from skymule.io.runs import is_run_dir
+from skymule.registry import Registry
 from skymule.report.inputs import RunData, hover_segments, load_run
 
 KML_NS = "http://www.opengis.net/kml/2.2"
@@ -436,22 +437,25 @@ def _write_plan(run: RunData, out: Path) -> None:
     out.write_text(json.dumps(plan_document(run), indent=2))
 
 
-#: export name -> (default file name, writer)
-EXPORTERS: dict[str, tuple[str, Callable[[RunData, Path], None]]] = {
-    "kml": ("flight.kml", _write_kml),
-    "geojson": ("flight.geojson", _write_geojson),
-    "plan": ("mission.plan", _write_plan),
-}
+EXPORTERS: Registry[Callable[[RunData, Path], None]] = Registry("export")
+"""Export name -> writer(run, path); ``file`` (metadata) is the file it writes in the run folder."""
+
+EXPORTERS.register("kml", _write_kml, file="flight.kml")
+EXPORTERS.register("geojson", _write_geojson, file="flight.geojson")
+EXPORTERS.register("plan", _write_plan, file="mission.plan")
 
 
 def export_run(run_dir: Path, kinds: list[str]) -> list[Path]:
     """Write the requested exports into the run folder; returns their paths."""
     if not kinds:
         raise SkymuleError(f"choose at least one export: {', '.join('--' + k for k in EXPORTERS)}")
+    for kind in kinds:
+        EXPORTERS.entry(kind)  # every name checked before anything is written
     run = require_run(run_dir)
     written = []
     for kind in kinds:
-        file_name, writer = EXPORTERS[kind]
+        writer = EXPORTERS.get(kind)
+        file_name = EXPORTERS.meta(kind, "file")
         writer(run, run_dir / file_name)
         written.append(run_dir / file_name)
     return written

@@ -42,12 +42,14 @@ import numpy as np
 import pandas as pd
 
 from skymule.errors import SkymuleError
+from skymule.registry import Registry
 
 if TYPE_CHECKING:
     from pandas.api.typing import NaTType
 
 __all__ = [
     "DT_MISSING",
+    "TRACE_FORMATS",
     "Trace",
     "TraceError",
     "normalise_column",
@@ -438,7 +440,7 @@ def read_trace(path: str | os.PathLike[str], *, sensors: Sequence[str] | None = 
     table = _read_table(label, Path(path))
     header = table.header
     fmt = _detect(label, header)
-    required = _AADM_REQUIRED if fmt == "aadm" else _DT_REQUIRED
+    required: tuple[str, ...] = TRACE_FORMATS.meta(fmt, "required")
     where = {name: _locate(label, header, name) for name in required}
     snr_idx = _snr_columns(label, header, fmt)
     if sensors is not None:
@@ -676,3 +678,11 @@ def write_dt_export(
     data.update({k: filled[:, j] for j, k in enumerate(keys)})
     data.update({"X": pos["x_m"], "Y": pos["y_m"], "Height": pos["z_m"]})
     return _write_csv(path, pd.DataFrame(data))
+
+
+TRACE_FORMATS: Registry[Callable[..., Path]] = Registry("trace format")
+"""Recorded-flight formats: name -> writer; ``required`` (metadata) lists the columns the
+reader needs besides the SNR columns. :func:`read_trace` detects the format from the header."""
+
+TRACE_FORMATS.register("aadm", write_aadm_log, required=_AADM_REQUIRED, title="AADM merged log")
+TRACE_FORMATS.register("dt", write_dt_export, required=_DT_REQUIRED, title="digital-twin export")

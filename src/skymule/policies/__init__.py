@@ -1,92 +1,191 @@
 """Policies, resolved by name through :data:`POLICIES`, or your own by import path.
 
 ``policy.name`` (and ``--policy``/``--policies``) accepts a registry name or
-``"package.module:Attr"``, where ``Attr`` is a policy class (or any callable) that takes no
-argument or the scenario's ``[policy]`` section and returns an object with ``name``,
-``reset(context)`` and ``act(observation)``. The module must be importable (on ``PYTHONPATH``;
-sweep workers import it too).
+``"package.module:Class"``. A policy is an object with ``name``, ``reset(context)`` and
+``act(observation)``. Its parameters come from the scenario's ``[policy.params]`` table:
+
+* a registered policy declares a pydantic parameter model at registration
+  (``POLICIES.register("hgad", factory, params=HGADParams)``); ``factory(params)`` makes it;
+* a ``module:Class`` plug-in that has a ``Params`` attribute (a pydantic model) is made as
+  ``Class(params)`` with the validated table; without one, as ``Class(policy_spec)`` or
+  ``Class()`` (older plug-ins).
+
+The module is imported from ``PYTHONPATH`` or the current folder (sweep workers import it too).
 """
 
 from __future__ import annotations
 
 import importlib
 import inspect
+import sys
 from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any, Protocol
+
+from pydantic import BaseModel, ConfigDict, Field
 
 from skymule.errors import SkymuleError
 from skymule.policies.base import Action, MissionContext, Observation, Policy
 from skymule.policies.greedy import Greedy
 from skymule.policies.hgad import HGAD
-from skymule.scenario import PolicySpec
-
-PolicyFactory = Callable[[PolicySpec], Policy]
-
-POLICIES: dict[str, PolicyFactory] = {
-    "greedy": lambda spec: Greedy(),
-    "hgad": lambda spec: HGAD(spec.hover_threshold, spec.max_hover_s),
-    "planner": lambda spec: _planner(),
-    "optimal-fixed": lambda spec: _optimal_fixed(),
-}
-"""Policy registry: name -> factory taking the scenario's ``[policy]`` section."""
+from skymule.registry import Registry
 
 
-def _planner() -> Policy:
-    # imported on use: the planners pull in scipy's LP machinery, which `skymule --help` and
-    # the Greedy/HGAD paths do not need
-    from skymule.policies.planner import Planner
+class PolicySpec(Protocol):
+    """What a factory reads of a scenario's ``[policy]`` section
+    (:class:`skymule.scenario.PolicySpec`, which validates against this registry)."""
 
-    return Planner()
+    name: str
+    params: dict[str, Any]
 
+    def policy_params(self) -> BaseModel | None: ...
 
-def _optimal_fixed() -> Policy:
-    from skymule.policies.optimal_fixed import OptimalFixed
-
-    return OptimalFixed()
+    def model_copy(self, *, update: dict[str, Any]) -> Any: ...
 
 
-def _imported_factory(name: str) -> PolicyFactory:
+class NoParams(BaseModel):
+    """Parameter model of a policy without parameters (an empty ``[policy.params]``)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class HGADParams(NoParams):
+    hover_threshold: Annotated[float, Field(gt=0, le=1)] = 1.0
+    """Fraction of the peak rate that triggers a hover."""
+    max_hover_s: Annotated[float, Field(gt=0)] = 60.0
+    """Longest hover [s]."""
+
+
+PolicyFactory = Callable[[Any], Policy]
+"""Makes a fresh policy from its validated parameters."""
+
+
+def _by_path(path: str) -> PolicyFactory:
+    """A factory that imports ``module:Class`` when a policy is first made.
+
+    The planners pull in scipy's LP machinery and the bounds, which `skymule --help`, the
+    scenario schema (it reads this registry for parameter models) and the Greedy/HGAD paths
+    do not need; registering them by import path, like plug-ins, keeps those light.
+    """
+
+    def factory(params: BaseModel) -> Policy:
+        module, _, attribute = path.partition(":")
+        made: Policy = getattr(importlib.import_module(module), attribute)()
+        return made
+
+    return factory
+
+
+POLICIES: Registry[PolicyFactory] = Registry(
+    "policy", extra_allowed="or an import path 'package.module:Class'"
+)
+"""Policy registry: name -> factory(params), with ``params`` = its parameter model."""
+
+POLICIES.register("greedy", lambda p: Greedy(), params=NoParams)
+POLICIES.register("hgad", lambda p: HGAD(p.hover_threshold, p.max_hover_s), params=HGADParams)
+POLICIES.register("planner", _by_path("skymule.policies.planner:Planner"), params=NoParams)
+POLICIES.register(
+    "optimal-fixed", _by_path("skymule.policies.optimal_fixed:OptimalFixed"), params=NoParams
+)
+
+
+def _import_target(name: str) -> Any:
+    """``Attr`` of ``module`` for ``"module:Attr"``, looking in the current folder too."""
     module_name, _, attribute = name.partition(":")
+    if not module_name or not attribute:
+        raise SkymuleError(f"policy {name!r}: an import path is 'package.module:Class'")
+    cwd = str(Path.cwd())
+    if cwd not in sys.path and "" not in sys.path:
+        # `python -m skymule` has the current folder on the path, the installed script does
+        # not; a policy file next to the scenario should work either way
+        sys.path.append(cwd)
     try:
-        target = getattr(importlib.import_module(module_name), attribute)
-    except (ImportError, AttributeError, ValueError) as exc:
+        module = importlib.import_module(module_name)
+    except Exception as exc:  # any failure inside the user's module is theirs to see
+        reason = f"{type(exc).__name__}: {exc}"
         raise SkymuleError(
-            f"policy.name = {name!r}: cannot import {attribute!r} from {module_name!r} ({exc})"
+            f"policy {name!r}: could not import module {module_name}: {reason}"
+        ) from None
+    try:
+        target = getattr(module, attribute)
+    except AttributeError:
+        public = [n for n in dir(module) if not n.startswith("_")]
+        from skymule.registry import did_you_mean
+
+        raise SkymuleError(
+            f"policy {name!r}: module {module_name} has no {attribute!r}"
+            f"{did_you_mean(attribute, public)}"
         ) from None
     if not callable(target):
-        raise SkymuleError(f"policy.name = {name!r}: {attribute!r} is not a class or function")
+        raise SkymuleError(f"policy {name!r}: {attribute!r} is not a class or function")
+    return target
+
+
+def _params_of(target: Any) -> type[BaseModel] | None:
+    params = getattr(target, "Params", None)
+    return params if isinstance(params, type) and issubclass(params, BaseModel) else None
+
+
+def policy_params_model(name: str) -> type[BaseModel] | None:
+    """The parameter model of policy ``name`` (None: a plug-in without ``Params``).
+
+    Raises the one-line :class:`SkymuleError` for an unknown name or a plug-in that fails to
+    import.
+    """
+    if ":" in name:
+        return _params_of(_import_target(name))
+    params: type[BaseModel] = POLICIES.meta(name, "params", NoParams)
+    return params
+
+
+@dataclass(frozen=True)
+class _Checked:
+    """Wraps a plug-in's object: it must have name, reset and act."""
+
+    name: str
+
+    def check(self, policy: Any) -> Policy:
+        missing = [m for m in ("name", "reset", "act") if not hasattr(policy, m)]
+        if missing:
+            raise SkymuleError(
+                f"policy {self.name!r}: the object it makes has no {', '.join(missing)}; "
+                "a policy needs name, reset(context) and act(observation)"
+            )
+        return policy
+
+
+def _takes_argument(target: Any) -> bool:
     try:
-        takes_spec = any(
+        return any(
             p.default is inspect.Parameter.empty
             and p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
             for p in inspect.signature(target).parameters.values()
         )
     except (TypeError, ValueError):
-        takes_spec = False
+        return False
 
-    def factory(spec: PolicySpec) -> Policy:
-        policy = target(spec) if takes_spec else target()
-        missing = [m for m in ("name", "reset", "act") if not hasattr(policy, m)]
-        if missing:
-            raise SkymuleError(
-                f"policy.name = {name!r}: the object it makes has no {', '.join(missing)}; "
-                "a policy needs name, reset(context) and act(observation)"
-            )
-        return policy
 
-    return factory
+def make_policy(spec: PolicySpec) -> Policy:
+    """A fresh policy instance for one mission, with its parameters from ``spec``."""
+    if ":" not in spec.name:
+        return POLICIES.get(spec.name)(spec.policy_params())
+    target = _import_target(spec.name)
+    checked = _Checked(spec.name)
+    params = spec.policy_params()
+    if params is not None:
+        return checked.check(target(params))
+    return checked.check(target(spec) if _takes_argument(target) else target())
 
 
 def resolve_policy(name: str) -> PolicyFactory:
-    """The factory for a registry name or a ``"module:Attr"`` import path."""
-    factory = POLICIES.get(name)
-    if factory is not None:
-        return factory
-    if ":" in name:
-        return _imported_factory(name)
-    raise SkymuleError(
-        f"policy.name = {name!r} is not allowed; allowed: {', '.join(sorted(POLICIES))} "
-        "or an import path 'package.module:Class'"
-    )
+    """A factory ``spec -> policy`` for a registry name or ``"module:Attr"`` (checked now)."""
+    policy_params_model(name)  # raises the one-line error for unknown / unimportable names
+
+    def factory(spec: PolicySpec) -> Policy:
+        return make_policy(spec if spec.name == name else spec.model_copy(update={"name": name}))
+
+    return factory
 
 
 def unknown_policies(names: list[str]) -> list[str]:
@@ -94,15 +193,22 @@ def unknown_policies(names: list[str]) -> list[str]:
     unknown = []
     for name in names:
         try:
-            resolve_policy(name)
+            policy_params_model(name)
         except SkymuleError:
             unknown.append(name)
     return unknown
 
 
-def make_policy(spec: PolicySpec) -> Policy:
-    """A fresh policy instance for one mission."""
-    return resolve_policy(spec.name)(spec)
+def check_policies(names: list[str], option: str = "--policies") -> list[str]:
+    """``names`` if every one resolves; else the first problem as one line."""
+    if not names:
+        raise SkymuleError(f"{option} is empty; allowed: {', '.join(POLICIES)}")
+    for name in names:
+        try:
+            policy_params_model(name)
+        except SkymuleError as exc:
+            raise SkymuleError(f"{option}: {exc}") from None
+    return names
 
 
 __all__ = [
@@ -110,10 +216,14 @@ __all__ = [
     "POLICIES",
     "Action",
     "Greedy",
+    "HGADParams",
     "MissionContext",
+    "NoParams",
     "Observation",
     "Policy",
+    "check_policies",
     "make_policy",
+    "policy_params_model",
     "resolve_policy",
     "unknown_policies",
 ]

@@ -2,17 +2,23 @@
 
 Every model is a frozen dataclass with one method, ``loss_db(uav_m, sensor_m)``, taking UAV
 positions of shape (P, 3) and sensor antenna positions of shape (N, 3) in local metres and
-returning losses of shape (P, N) in dB. Models resolve by name through :data:`PATHLOSS_MODELS`.
+returning losses of shape (P, N) in dB. Models resolve by name through :data:`PATHLOSS_MODELS`,
+where each declares its own parameter model (the ``[radio.params]`` table of a scenario) and
+whether it is ``monotone`` (loss non-decreasing in horizontal distance at a fixed UAV altitude,
+which the autonomous bound relies on).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Annotated, Literal, Protocol
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
 
 from skymule.errors import SkymuleError
+from skymule.registry import Registry
 
 SPEED_OF_LIGHT_MPS = 299_792_458.0
 """Speed of light in vacuum [m/s]."""
@@ -259,3 +265,81 @@ class Aerial3GPP:
             pl_los = 28.0 + 22.0 * log_d + 20.0 * np.log10(fc_ghz)
             pl_nlos = -17.5 + (46.0 - 7.0 * log_h) * log_d + free
         return p_los * pl_los + (1.0 - p_los) * pl_nlos
+
+
+# ---------------------------------------------------------------------------
+# Registry: [radio] model name -> builder, parameter model, monotone flag
+# ---------------------------------------------------------------------------
+
+
+class ModelParams(BaseModel):
+    """Base of every path-loss model's ``[radio.params]`` model (no parameters)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class LogDistanceParams(ModelParams):
+    path_loss_exponent: Annotated[float, Field(gt=0)] = 2.0
+    """Path-loss exponent n."""
+    reference_distance_m: Annotated[float, Field(gt=0)] = 1.0
+    """Reference distance d0 [m]."""
+    reference_loss_db: float | None = None
+    """Loss at d0 [dB]; default free space at d0."""
+
+
+class TwoRayParams(ModelParams):
+    ground_reflection: Annotated[float, Field(ge=-1, le=1)] = -1.0
+    """Ground reflection coefficient Gamma (-1: perfect reflector, grazing)."""
+
+
+class AlHouraniModelParams(ModelParams):
+    environment: Literal["suburban", "urban", "dense-urban", "high-rise-urban"] = "suburban"
+    """Built-up environment (Al-Hourani et al. 2014, Table I)."""
+
+
+@dataclass(frozen=True)
+class PathLossKind:
+    """A registered path-loss model: how to build it from (frequency, params)."""
+
+    build: Callable[[float, ModelParams], PathLossModel]
+    params: type[ModelParams]
+    monotone: bool
+    """True when the loss never decreases with horizontal distance at a fixed UAV altitude
+    (no shadowing); the autonomous bound then uses exact reach sets."""
+
+
+def _log_distance(frequency_hz: float, params: ModelParams) -> PathLossModel:
+    assert isinstance(params, LogDistanceParams)
+    return LogDistance(
+        frequency_hz,
+        exponent=params.path_loss_exponent,
+        reference_distance_m=params.reference_distance_m,
+        reference_loss_db=params.reference_loss_db,
+    )
+
+
+def _two_ray(frequency_hz: float, params: ModelParams) -> PathLossModel:
+    assert isinstance(params, TwoRayParams)
+    return TwoRay(frequency_hz, reflection=params.ground_reflection)
+
+
+def _al_hourani(frequency_hz: float, params: ModelParams) -> PathLossModel:
+    assert isinstance(params, AlHouraniModelParams)
+    return AlHourani(frequency_hz, AL_HOURANI_ENVIRONMENTS[params.environment])
+
+
+PATHLOSS_MODELS: Registry[PathLossKind] = Registry("radio.model")
+"""``[radio] model`` name -> :class:`PathLossKind`."""
+
+PATHLOSS_MODELS.register("fspl", PathLossKind(lambda f, p: FreeSpace(f), ModelParams, True))
+PATHLOSS_MODELS.register("free-space", PathLossKind(lambda f, p: FreeSpace(f), ModelParams, True))
+PATHLOSS_MODELS.register("log-distance", PathLossKind(_log_distance, LogDistanceParams, True))
+PATHLOSS_MODELS.register("two-ray", PathLossKind(_two_ray, TwoRayParams, False))
+# monotone for every tabulated environment (eta_NLoS >= eta_LoS); the bound re-checks it
+PATHLOSS_MODELS.register("al-hourani", PathLossKind(_al_hourani, AlHouraniModelParams, True))
+PATHLOSS_MODELS.register(
+    "3gpp-rma-av", PathLossKind(lambda f, p: Aerial3GPP(f, "rma"), ModelParams, True)
+)
+PATHLOSS_MODELS.register(
+    "3gpp-uma-av", PathLossKind(lambda f, p: Aerial3GPP(f, "uma"), ModelParams, False)
+)

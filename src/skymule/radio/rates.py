@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from skymule.errors import SkymuleError
+from skymule.registry import Registry
 
 #: AERPAW AADM controller's LTE CQI table: (SNR threshold dB, efficiency b/s/Hz), the rate is
 #: that of the highest threshold the SNR reaches; below -6.7 dB there is no link.
@@ -68,14 +69,16 @@ class Shannon:
 
 RateTable = StepTable | Shannon
 
-BUILTIN_RATE_TABLES: dict[str, RateTable] = {
-    "aadm-lte-cqi": StepTable(
-        "aadm-lte-cqi",
-        tuple(t for t, _ in AADM_LTE_CQI),
-        tuple(e for _, e in AADM_LTE_CQI),
-    ),
-    "shannon": Shannon(),
-}
+BUILTIN_RATE_TABLES: Registry[RateTable] = Registry(
+    "radio.rate_table", extra_allowed="or a path to an existing CSV (snr_db, efficiency)"
+)
+"""Rate tables by name (``[radio] rate_table``)."""
+
+BUILTIN_RATE_TABLES.register(
+    "aadm-lte-cqi",
+    StepTable("aadm-lte-cqi", tuple(t for t, _ in AADM_LTE_CQI), tuple(e for _, e in AADM_LTE_CQI)),
+)
+BUILTIN_RATE_TABLES.register("shannon", Shannon())
 
 
 def read_rate_csv(path: Path) -> StepTable:
@@ -112,10 +115,7 @@ def resolve_rate_table(spec: str, base_dir: Path | None = None) -> RateTable:
         path = base_dir / path
     if path.suffix.lower() == ".csv" and path.exists():
         return read_rate_csv(path)
-    raise SkymuleError(
-        f"radio.rate_table: {spec!r} is not allowed; use one of "
-        f"{', '.join(BUILTIN_RATE_TABLES)} or a path to an existing CSV (snr_db, efficiency)"
-    )
+    raise BUILTIN_RATE_TABLES.error(spec)
 
 
 def rate_bps(table: RateTable, snr_db: np.ndarray, bandwidth_hz: float) -> np.ndarray:

@@ -13,16 +13,7 @@ from typing import Protocol
 
 import numpy as np
 
-from skymule.errors import ScenarioError
-from skymule.radio.pathloss import (
-    AL_HOURANI_ENVIRONMENTS,
-    Aerial3GPP,
-    AlHourani,
-    FreeSpace,
-    LogDistance,
-    PathLossModel,
-    TwoRay,
-)
+from skymule.radio.pathloss import PATHLOSS_MODELS, ModelParams, PathLossModel
 from skymule.scenario import RadioSpec
 
 
@@ -58,55 +49,12 @@ class ModelSource:
         return self.budget.snr_db(self.pathloss.loss_db(positions, self.sensor_m))
 
 
-def _fspl(radio: RadioSpec) -> PathLossModel:
-    return FreeSpace(radio.frequency_hz)
-
-
-def _log_distance(radio: RadioSpec) -> PathLossModel:
-    return LogDistance(
-        radio.frequency_hz,
-        exponent=radio.path_loss_exponent,
-        reference_distance_m=radio.reference_distance_m,
-        reference_loss_db=radio.reference_loss_db,
-    )
-
-
-def _two_ray(radio: RadioSpec) -> PathLossModel:
-    return TwoRay(radio.frequency_hz, reflection=radio.ground_reflection)
-
-
-def _al_hourani(radio: RadioSpec) -> PathLossModel:
-    return AlHourani(radio.frequency_hz, AL_HOURANI_ENVIRONMENTS[radio.environment])
-
-
-def _rma_av(radio: RadioSpec) -> PathLossModel:
-    return Aerial3GPP(radio.frequency_hz, "rma")
-
-
-def _uma_av(radio: RadioSpec) -> PathLossModel:
-    return Aerial3GPP(radio.frequency_hz, "uma")
-
-
-PATHLOSS_BUILDERS = {
-    "fspl": _fspl,
-    "free-space": _fspl,
-    "log-distance": _log_distance,
-    "two-ray": _two_ray,
-    "al-hourani": _al_hourani,
-    "3gpp-rma-av": _rma_av,
-    "3gpp-uma-av": _uma_av,
-}
-"""Path-loss model registry: ``[radio] model`` name -> builder from the radio section."""
-
-
 def build_pathloss(radio: RadioSpec) -> PathLossModel:
-    builder = PATHLOSS_BUILDERS.get(radio.model)
-    if builder is None:
-        raise ScenarioError(
-            f"radio.model = {radio.model!r} is not allowed; "
-            f"allowed: {', '.join(sorted(PATHLOSS_BUILDERS))}"
-        )
-    return builder(radio)
+    """The path-loss model ``[radio] model`` names, with its ``[radio.params]``."""
+    kind = PATHLOSS_MODELS.get(radio.model)
+    params = radio.model_params()
+    assert isinstance(params, ModelParams)
+    return kind.build(radio.frequency_hz, params)
 
 
 def model_source(radio: RadioSpec, sensor_m: np.ndarray) -> ModelSource:

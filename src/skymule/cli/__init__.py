@@ -1,0 +1,70 @@
+"""The ``skymule`` command line.
+
+The commands only parse arguments, call the library (:mod:`skymule.runner`,
+:mod:`skymule.compare`, :mod:`skymule.radiomaps`, ...) and print. User mistakes (bad
+scenario, trace, flag) print one line and exit with status 2; the library raises
+:class:`~skymule.errors.SkymuleError` for them and :func:`main` turns it into that line.
+Anything else is a bug and keeps its traceback.
+
+Heavy modules (numpy, pandas, the engines) are imported inside the commands, so that
+``skymule --help`` and shell completion start fast.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from skymule.cli import files, missions
+from skymule.cli.app import app
+from skymule.errors import SkymuleError
+
+# the commands, in the order `skymule --help` lists them
+app.command()(missions.run)
+app.command()(missions.compare)
+app.command()(missions.bound)
+app.command()(missions.sweep)
+app.command()(missions.scenarios)
+app.command()(files.plot)
+app.command()(files.report)
+app.command()(files.export)
+app.command()(files.analyze)
+app.command("fit-radiomap")(files.fit_radiomap_command)
+app.command("score-radiomap")(files.score_radiomap_command)
+
+__all__ = ["app", "main"]
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point: run the app, turning user mistakes into one line and exit status 2.
+
+    Click handles bad flags itself (usage line, exit 2); library errors that are the
+    user's doing arrive as SkymuleError.
+    """
+    from typer.exceptions import Abort, TyperException
+
+    try:
+        # standalone_mode=False: Ctrl-C reaches the handler below instead of click's
+        code = app(args=argv, standalone_mode=False)
+    except Abort:
+        print("skymule: interrupted", file=sys.stderr)
+        sys.exit(130)
+    except TyperException as exc:  # usage errors: click's usage line and message
+        show = getattr(exc, "show", None)
+        if callable(show):
+            show()
+        else:
+            print(f"skymule: error: {exc.format_message()}", file=sys.stderr)
+        sys.exit(exc.exit_code)
+    except SkymuleError as exc:
+        print(f"skymule: error: {exc}", file=sys.stderr)
+        sys.exit(2)
+    except OSError as exc:
+        # a file or folder the user named cannot be read or written (permissions, full disk)
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"skymule: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        sys.exit(2)
+    except KeyboardInterrupt:
+        print("skymule: interrupted", file=sys.stderr)
+        sys.exit(130)
+    if isinstance(code, int) and code != 0:
+        sys.exit(code)

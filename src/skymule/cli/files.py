@@ -1,0 +1,185 @@
+"""Commands that read and write files: plot, report, export, analyze, radio maps."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+import skymule.cli.output as output
+from skymule.cli.folders import guard_analysis
+from skymule.cli.tables import print_table
+
+
+def plot(
+    run_dir: Annotated[Path, typer.Argument(help="A run folder (or compare folder).")],
+) -> None:
+    """Draw a run's figures from its files (never re-simulates)."""
+    from skymule.io.runs import is_run_dir, read_run
+    from skymule.report.figures import plot_run
+
+    folders = (
+        [run_dir]
+        if is_run_dir(run_dir)
+        else sorted(p for p in run_dir.iterdir() if p.is_dir() and is_run_dir(p))
+        if run_dir.is_dir()
+        else []
+    )
+    if not folders:
+        read_run(run_dir)  # raises the clear "not a run folder" error
+    for folder in folders:
+        summary, slots = read_run(folder)
+        for path in plot_run(folder, summary, slots):
+            output.console.print(f"wrote {path}", markup=False)
+
+
+def remove_stale_pdfs(folder: Path) -> list[Path]:
+    """Delete ``folder/figures/*.pdf`` (a ``--no-pdf`` report must not keep or list old ones)."""
+    removed = sorted((folder / "figures").glob("*.pdf"))
+    for path in removed:
+        path.unlink()
+    return removed
+
+
+def _report(folder: Path, pdf: bool, baseline: str | None = None) -> Path:
+    from skymule.report.build import build_report
+
+    if not pdf:
+        remove_stale_pdfs(folder)
+    return build_report(folder, pdf=pdf, baseline=baseline)
+
+
+def report(
+    run_dir: Annotated[Path, typer.Argument(help="A run, compare or sweep folder.")],
+    pdf: Annotated[bool, typer.Option("--pdf/--no-pdf", help="Also write vector PDFs.")] = True,
+    baseline: Annotated[
+        str | None,
+        typer.Option(help="Sweep folders: policy the paired gains are over (default greedy)."),
+    ] = None,
+) -> None:
+    """Write DIR/report.html (self-contained) and DIR/figures/*.png|pdf from its files."""
+    path = _report(run_dir, pdf, baseline)
+    kinds = "*.png, *.pdf" if pdf else "*.png"
+    output.console.print(f"wrote {path} and {run_dir / 'figures'}/{kinds}", markup=False)
+
+
+def export(
+    run_dir: Annotated[Path, typer.Argument(help="A run folder.")],
+    kml: Annotated[bool, typer.Option("--kml", help="Write flight.kml.")] = False,
+    geojson: Annotated[bool, typer.Option("--geojson", help="Write flight.geojson.")] = False,
+    plan: Annotated[
+        bool, typer.Option("--plan", help="Write mission.plan (QGroundControl; autonomous runs).")
+    ] = False,
+) -> None:
+    """Export a run's path, towers, geofence and hover points (KML/GeoJSON) or its mission."""
+    from skymule.io.exports import export_run
+
+    chosen = [name for name, on in (("kml", kml), ("geojson", geojson), ("plan", plan)) if on]
+    for path in export_run(run_dir, chosen):
+        output.console.print(f"wrote {path}", markup=False)
+
+
+def analyze(
+    log: Annotated[Path, typer.Argument(help="AADM merged log or digital-twin export (CSV).")],
+    out: Annotated[Path | None, typer.Option("--out", help="Compare folder to write.")] = None,
+    volumes: Annotated[
+        Path | None, typer.Option("--volumes", help="AADM volume file (Mbit a line).")
+    ] = None,
+    buffers: Annotated[
+        str | None, typer.Option("--buffers", help="Mbit: one value for all or one per tower.")
+    ] = None,
+    download_log: Annotated[
+        Path | None, typer.Option("--download-log", help="The flight's time,tower,mbit log.")
+    ] = None,
+    policies: Annotated[
+        str, typer.Option("--policies", help="Comma-separated policy names.")
+    ] = "greedy,hgad",
+    pdf: Annotated[bool, typer.Option("--pdf/--no-pdf", help="Also write vector PDFs.")] = True,
+    force: Annotated[
+        bool, typer.Option("--force", help="Write into --out even if it holds something else.")
+    ] = False,
+) -> None:
+    """Replay a recorded flight under several policies and write a compare folder + report."""
+    from skymule.analyze import DEFAULT_BUFFER_MBIT, analyze_flight
+    from skymule.cli.missions import summary_columns
+
+    out_dir = out if out is not None else Path(f"{log.stem}-analysis")
+    guard_analysis(out_dir, force)
+    rows = analyze_flight(
+        log,
+        out_dir,
+        policies=[p.strip() for p in policies.split(",") if p.strip()],
+        volumes=volumes,
+        buffers=buffers,
+        download_log=download_log,
+    )
+    if volumes is None and buffers is None:
+        output.console.print(
+            f"note: no --volumes or --buffers given; assumed {DEFAULT_BUFFER_MBIT:g} Mbit "
+            "per tower",
+            markup=False,
+        )
+    print_table(output.console, f"{log.name}: replay", rows, summary_columns())
+    report_path = _report(out_dir, pdf)
+    output.console.print(
+        f"wrote {out_dir}/comparison.csv, one folder per run, {report_path}", markup=False
+    )
+
+
+OriginOption = Annotated[
+    str | None, typer.Option("--origin", help="LAT,LON of the local frame's origin.")
+]
+
+
+def fit_radiomap_command(
+    traces: Annotated[list[Path], typer.Argument(help="Recorded flights (AADM log / DT export).")],
+    out: Annotated[Path, typer.Option("--out", help="Map file to write (JSON).")],
+    scenario: Annotated[
+        str | None,
+        typer.Option("--scenario", help="Take sensors, positions and origin from a scenario."),
+    ] = None,
+    origin: OriginOption = None,
+    drop_below: Annotated[
+        float, typer.Option("--drop-below", help="SNR below this [dB] is a deep drop.")
+    ] = -40.0,
+    json_out: Annotated[bool, typer.Option("--json", help="Print the fit as JSON.")] = False,
+) -> None:
+    """Fit a radio map (log-distance + kriged residual) per sensor to recorded flights."""
+    from skymule.cli.missions import _working
+    from skymule.radiomaps import RadioMapFit, fit_radiomap_files, parse_origin
+
+    with _working("fitting the radio map"):
+        fit = fit_radiomap_files(
+            traces,
+            scenario=scenario,
+            origin=parse_origin(origin) if origin else None,
+            drop_below_db=drop_below,
+        )
+    fit.fitted.write(out)
+    if json_out:
+        print(json.dumps({"map": str(out), "sensors": fit.rows}, indent=2))
+        return
+    title = "radio map fit (cv: held-out trace segments; baseline: fspl)"
+    print_table(output.console, title, fit.rows, RadioMapFit.COLUMNS)
+    output.console.print(f"wrote {out}", markup=False)
+
+
+def score_radiomap_command(
+    source: Annotated[str, typer.Argument(help="A fitted map (.json) or a scenario/preset.")],
+    trace: Annotated[Path, typer.Argument(help="Recorded flight to score against.")],
+    origin: OriginOption = None,
+    json_out: Annotated[bool, typer.Option("--json", help="Print the scores as JSON.")] = False,
+) -> None:
+    """How well a radio map (or a scenario's model) predicts a recorded flight."""
+    from skymule.radiomaps import parse_origin, score_against_trace
+
+    scores = score_against_trace(source, trace, origin=parse_origin(origin) if origin else None)
+    if json_out:
+        print(json.dumps(scores, indent=2))
+        return
+    names = list(next(iter(scores.values())))
+    rows = [{"sensor": n, **{k: v[n] for k, v in scores.items()}} for n in names]
+    title = f"{source} vs {trace} (predicted - measured)"
+    print_table(output.console, title, rows, ("sensor", *scores))

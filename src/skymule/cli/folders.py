@@ -1,0 +1,143 @@
+"""Output folders: never silently overwrite or mix one kind of result with another.
+
+A non-empty ``--out`` is written to only when it already holds the same thing (a run of the
+same policy and scenario, a comparison of the same scenario and policies, a bound of the
+same scenario, a sweep of the same sweep file); anything else is one line and exit 2 unless
+``--force``. A sweep folder remembers its sweep file's SHA-256 (``sweep-source.json``).
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from skymule.errors import SkymuleError
+
+SWEEP_MARKER = "sweep-source.json"
+
+
+@dataclass(frozen=True)
+class Holds:
+    """What an output folder holds: its kind and, where known, scenario and policies."""
+
+    kind: str  # "empty", "run", "compare", "bound", "sweep" or "other"
+    scenario: str | None = None
+    policies: tuple[str, ...] = ()
+    sweep_sha256: str | None = None
+
+    def describe(self) -> str:
+        if self.kind == "run":
+            return f"a run of policy {self.policies[0]!r} on scenario {self.scenario!r}"
+        if self.kind == "compare":
+            return f"a comparison of {', '.join(self.policies)} on scenario {self.scenario!r}"
+        if self.kind == "bound":
+            return f"the bound of scenario {self.scenario!r}"
+        if self.kind == "sweep":
+            return "a sweep of another sweep file" if self.sweep_sha256 else "a sweep"
+        return "other files"
+
+
+def _read_json(path: Path) -> dict[str, Any]:
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _comparison(path: Path) -> tuple[str | None, tuple[str, ...]]:
+    try:
+        with path.open(newline="") as handle:
+            rows = list(csv.DictReader(handle))
+    except (OSError, csv.Error, UnicodeDecodeError):
+        return None, ()
+    scenarios = {r.get("scenario") for r in rows}
+    scenario = scenarios.pop() if len(scenarios) == 1 else None
+    return scenario, tuple(r.get("policy") or "" for r in rows)
+
+
+def inspect_folder(out: Path) -> Holds:
+    """What ``out`` holds (``empty`` when missing or empty)."""
+    if not out.exists() or (out.is_dir() and not any(out.iterdir())):
+        return Holds("empty")
+    if not out.is_dir():
+        return Holds("other")
+    if (out / SWEEP_MARKER).exists() or (out / "results.parquet").exists():
+        marker = _read_json(out / SWEEP_MARKER)
+        return Holds("sweep", sweep_sha256=marker.get("sha256"))
+    if (out / "comparison.csv").exists():
+        scenario, policies = _comparison(out / "comparison.csv")
+        return Holds("compare", scenario, policies)
+    if (out / "summary.json").exists():
+        summary = _read_json(out / "summary.json")
+        return Holds("run", summary.get("scenario"), (str(summary.get("policy")),))
+    if (out / "bound.json").exists():
+        return Holds("bound", _read_json(out / "bound.json").get("scenario"))
+    return Holds("other")
+
+
+def _refuse(out: Path, holds: Holds, wanted: str) -> SkymuleError:
+    return SkymuleError(
+        f"--out {out}: holds {holds.describe()}, not {wanted}; "
+        "choose another folder or add --force to write over it"
+    )
+
+
+def guard_run(out: Path, scenario: str, policy: str, force: bool) -> None:
+    holds = inspect_folder(out)
+    if force or holds.kind == "empty" or holds == Holds("run", scenario, (policy,)):
+        return
+    raise _refuse(out, holds, f"a run of policy {policy!r} on scenario {scenario!r}")
+
+
+def guard_compare(out: Path, scenario: str, policies: list[str], force: bool) -> None:
+    holds = inspect_folder(out)
+    if force or holds.kind == "empty":
+        return
+    same = holds.kind == "compare" and holds.scenario == scenario
+    if same and (set(policies) <= set(holds.policies) or not holds.policies):
+        return  # the same comparison again
+    raise _refuse(out, holds, f"a comparison of {', '.join(policies)} on scenario {scenario!r}")
+
+
+def guard_analysis(out: Path, force: bool) -> None:
+    holds = inspect_folder(out)
+    if force or holds.kind in ("empty", "compare"):
+        return
+    raise _refuse(out, holds, "a replay (compare folder)")
+
+
+def guard_bound(out: Path, scenario: str, force: bool) -> None:
+    holds = inspect_folder(out)
+    if force or holds.kind == "empty":
+        return
+    if holds.kind in ("bound", "compare") and holds.scenario == scenario:
+        return
+    raise _refuse(out, holds, f"the bound of scenario {scenario!r}")
+
+
+def sweep_fingerprint(sweep_file: Path, overrides: list[str]) -> str:
+    """SHA-256 of the sweep file's bytes and the ``--set`` overrides applied to its base."""
+    digest = hashlib.sha256(sweep_file.read_bytes())
+    for override in overrides:
+        digest.update(b"\0" + override.encode())
+    return digest.hexdigest()
+
+
+def guard_sweep(out: Path, sweep_file: Path, sha256: str, force: bool) -> None:
+    """Refuse a folder of another sweep (or anything else); remember this sweep's hash."""
+    holds = inspect_folder(out)
+    if not force and holds.kind not in ("empty", "sweep"):
+        raise _refuse(out, holds, f"a sweep of {sweep_file}")
+    if not force and holds.kind == "sweep" and holds.sweep_sha256 not in (None, sha256):
+        raise SkymuleError(
+            f"--out {out}: holds the results of a different sweep file (or --set); "
+            "resume it with the sweep it was made with, choose another folder, or add --force"
+        )
+    out.mkdir(parents=True, exist_ok=True)
+    record = {"sweep_file": str(sweep_file), "sha256": sha256}
+    (out / SWEEP_MARKER).write_text(json.dumps(record, indent=2) + "\n")

@@ -1,0 +1,353 @@
+"""Commands that simulate: run, compare, bound, sweep, scenarios."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import typer
+
+import skymule.cli.output as output
+from skymule.cli.folders import guard_bound, guard_compare, guard_run, guard_sweep
+from skymule.cli.tables import fmt, print_table
+
+if TYPE_CHECKING:
+    from skymule.compare import Comparison
+    from skymule.scenario import Scenario
+
+ScenarioArg = Annotated[str, typer.Argument(help="Scenario TOML path or preset name.")]
+SetOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--set",
+        help="Override a scenario key, e.g. --set sensors[2].buffer_mbit=900 "
+        "--set policy.params.max_hover_s=30 (TOML values; repeatable).",
+    ),
+]
+JsonOption = Annotated[
+    bool, typer.Option("--json", help="Print a machine-readable summary (JSON) instead.")
+]
+ForceOption = Annotated[
+    bool, typer.Option("--force", help="Write into --out even if it holds something else.")
+]
+GAP_COLUMNS = ("gap_to_bound_mbit", "gap_to_bound_frac")
+
+
+def summary_columns() -> tuple[str, ...]:
+    from skymule.metrics import HEADLINE_METRICS
+
+    return ("policy", *HEADLINE_METRICS)
+
+
+def load(scenario: str, overrides: list[str] | None) -> Scenario:
+    from skymule.scenario import load_scenario
+
+    return load_scenario(scenario, overrides or ())
+
+
+def print_json(data: Any) -> None:
+    print(json.dumps(data, indent=2, default=_jsonable))
+
+
+def _jsonable(value: Any) -> Any:
+    if hasattr(value, "item"):  # numpy scalars
+        return value.item()
+    return str(value)
+
+
+def per_sensor_rows(summary: dict[str, Any]) -> list[dict[str, Any]]:
+    rows: list[dict[str, Any]] = [
+        {"sensor": name, "buffer_mbit": buffer, "downloaded_mbit": down}
+        for (name, buffer), down in zip(
+            summary["per_sensor_buffer_mbit"].items(),
+            summary["per_sensor_downloaded_mbit"].values(),
+            strict=True,
+        )
+    ]
+    rows.append(
+        {
+            "sensor": "total",
+            "buffer_mbit": summary["total_buffer_mbit"],
+            "downloaded_mbit": summary["total_downloaded_mbit"],
+        }
+    )
+    return rows
+
+
+def run(
+    scenario: ScenarioArg,
+    out: Annotated[Path | None, typer.Option("--out", help="Run folder to write.")] = None,
+    policy: Annotated[str | None, typer.Option("--policy", help="Override the policy.")] = None,
+    overrides: SetOption = None,
+    json_out: JsonOption = False,
+    force: ForceOption = False,
+) -> None:
+    """Run one mission and print its summary."""
+    from skymule.runner import simulate
+
+    spec = load(scenario, overrides)
+    if policy is not None:
+        spec = spec.with_policy(policy)
+    if out is not None:
+        guard_run(out, spec.name, spec.policy.name, force)
+    result = simulate(spec)
+    if out is not None:
+        result.write(out)
+    if json_out:
+        print_json(result.summary)
+        return
+    title = f"{result.summary['scenario']} - {result.summary['policy']}"
+    print_table(
+        output.console, title, per_sensor_rows(result.summary),
+        ("sensor", "buffer_mbit", "downloaded_mbit"),
+    )  # fmt: skip
+    print_table(output.console, "summary", [result.summary], summary_columns())
+    if out is not None:
+        output.console.print(f"wrote {out}/summary.json, slots.csv, scenario.json", markup=False)
+
+
+def _names(text: str) -> list[str]:
+    return [p.strip() for p in text.split(",") if p.strip()]
+
+
+def compare(
+    scenario: ScenarioArg,
+    policies: Annotated[
+        str, typer.Option("--policies", help="Comma-separated policy names.")
+    ] = "greedy,hgad",
+    out: Annotated[Path | None, typer.Option("--out", help="Folder to write.")] = None,
+    sources: Annotated[
+        str | None,
+        typer.Option(
+            "--sources",
+            help="Compare signal sources instead: e.g. fspl,al-hourani,radiomap:map.json "
+            "(path-loss model names, radiomap:FILE, scenario); one table, SNR-CDF panels.",
+        ),
+    ] = None,
+    overrides: SetOption = None,
+    json_out: JsonOption = False,
+    force: ForceOption = False,
+) -> None:
+    """Run one scenario under several policies on identical signal draws."""
+    from skymule.compare import compare_policies, compare_sources, parse_sources, write_compare
+    from skymule.policies import check_policies
+
+    names = check_policies(_names(policies))
+    base = load(scenario, overrides)
+    source_specs = parse_sources(sources) if sources is not None else None
+    if out is not None:
+        guard_compare(out, base.name, names, force)
+    if source_specs is None:
+        comparison = compare_policies(base, names)
+    else:
+        comparison = compare_sources(base, source_specs, names)
+    written = write_compare(comparison, out) if out is not None else []
+    if json_out:
+        print_json(_comparison_json(comparison))
+        return
+    columns = ("source",) if comparison.by_source else ()
+    title = "signal sources" if comparison.by_source else f"{base.name}: comparison"
+    print_table(
+        output.console,
+        title,
+        comparison.rows_with_bounds(),
+        (*columns, *summary_columns(), *GAP_COLUMNS),
+    )
+    for source, note in comparison.notes.items():
+        where = f"{source}: " if source is not None else ""
+        output.console.print(f"{where}no upper bound: {note}", markup=False)
+    if out is not None:
+        names_written = ", ".join(str(p) for p in written)
+        output.console.print(f"wrote {names_written} and one folder per run", markup=False)
+
+
+def _comparison_json(comparison: Comparison) -> dict[str, Any]:
+    bounds = {
+        str(source) if source is not None else "scenario": (
+            None if upper is None else upper.to_json_dict()
+        )
+        for source, upper in comparison.bounds.items()
+    }
+    return {
+        "scenario": comparison.scenario.name,
+        "runs": comparison.rows(),
+        "bounds": bounds,
+        "notes": {str(k): v for k, v in comparison.notes.items()},
+    }
+
+
+def bound_rows(record: dict[str, Any]) -> list[dict[str, Any]]:
+    return [{"quantity": k, "value": v} for k, v in record.items() if v is not None]
+
+
+def bound(
+    scenario: ScenarioArg,
+    out: Annotated[Path | None, typer.Option("--out", help="Folder for bound.json.")] = None,
+    overrides: SetOption = None,
+    json_out: JsonOption = False,
+    force: ForceOption = False,
+) -> None:
+    """Upper bound on the data any policy can download in a scenario (LP/MILP, HiGHS)."""
+    from skymule.compare import scenario_bound, write_bound
+
+    spec = load(scenario, overrides)
+    if out is not None:
+        guard_bound(out, spec.name, force)
+    with _working("solving the bound"):
+        upper = scenario_bound(spec)
+    record = upper.to_json_dict()
+    path = write_bound(out, upper) if out is not None else None
+    if json_out:
+        print_json(record)
+        return
+    print_table(
+        output.console,
+        f"{record['scenario']}: upper bound",
+        bound_rows(record),
+        ("quantity", "value"),
+    )
+    if path is not None:
+        output.console.print(f"wrote {path}", markup=False)
+
+
+class _working:
+    """A spinner with elapsed time on stderr while ``what`` runs; nothing when piped."""
+
+    def __init__(self, what: str) -> None:
+        self.what = what
+        self.status: Any = None
+
+    def __enter__(self) -> None:
+        if sys.stderr.isatty():
+            from rich.console import Console
+
+            self.status = Console(stderr=True).status(f"{self.what}...")
+            self.status.__enter__()
+
+    def __exit__(self, *exc: object) -> None:
+        if self.status is not None:
+            self.status.__exit__(None, None, None)
+
+
+def scenarios(
+    show: Annotated[
+        str | None, typer.Option("--show", help="Print this preset's TOML (with comments).")
+    ] = None,
+) -> None:
+    """List the built-in scenario presets, or print one with --show NAME."""
+    from skymule.scenario import load_scenario, presets
+
+    registry = presets()
+    if show is not None:
+        print(registry.get(show), end="")
+        return
+    rows = []
+    for name in registry.names():
+        spec = load_scenario(name)
+        rows.append(
+            {
+                "name": name,
+                "mode": spec.trajectory.mode,
+                "source": spec.signal.source,
+                "duration [s]": fmt(spec.mission.duration_s),
+                "sensors": ", ".join(f"{s.name}:{s.buffer_mbit:g}" for s in spec.sensors),
+            }
+        )
+    columns = ("name", "mode", "source", "duration [s]", "sensors")
+    print_table(output.console, "built-in scenarios", rows, columns)
+
+
+SWEEP_METRICS = ("total_downloaded_mbit", "completion", "handovers", "hover_time_s", "distance_m")
+
+
+def sweep(
+    sweep_file: Annotated[Path, typer.Argument(help="Sweep TOML (base scenario + axes).")],
+    out: Annotated[Path, typer.Option("--out", help="Sweep folder (resumed if it exists).")],
+    executor: Annotated[
+        str, typer.Option("--executor", help="inprocess, process, dask-local or dask.")
+    ] = "process",
+    workers: Annotated[
+        int | None, typer.Option("--workers", help="Workers (default: all cores).")
+    ] = None,
+    scheduler: Annotated[
+        str | None, typer.Option("--scheduler", help="Dask scheduler tcp://HOST:PORT.")
+    ] = None,
+    chunk_size: Annotated[int, typer.Option("--chunk-size", help="Missions per chunk.")] = 500,
+    quiet: Annotated[bool, typer.Option("--quiet", help="No progress bar.")] = False,
+    overrides: SetOption = None,
+    force: ForceOption = False,
+) -> None:
+    """Run many missions (resumable); results.parquet and summary.csv in --out."""
+    from skymule.cli.folders import sweep_fingerprint
+    from skymule.experiments.run import run_sweep
+    from skymule.experiments.sweep import load_sweep
+
+    spec = load_sweep(sweep_file)
+    if overrides:
+        spec = _sweep_with_overrides(spec, overrides)
+    guard_sweep(out, sweep_file, sweep_fingerprint(sweep_file, overrides or []), force)
+    try:
+        outcome = run_sweep(
+            spec,
+            out,
+            executor=executor,
+            workers=workers,
+            scheduler=scheduler,
+            chunk_size=chunk_size,
+            progress=not quiet and sys.stderr.isatty(),
+        )
+    except KeyboardInterrupt:
+        again = ["skymule", "sweep", str(sweep_file), "--out", str(out), "--executor", executor]
+        again += ["--workers", str(workers)] if workers is not None else []
+        again += ["--scheduler", scheduler] if scheduler else []
+        again += ["--chunk-size", str(chunk_size)] if chunk_size != 500 else []
+        again += [f"--set={o}" for o in overrides or []]
+        _sweep_interrupted(out, spec, again)
+    rows = [
+        {
+            "policy": row["policy"],
+            "missions": row["missions"],
+            **{m: f"{fmt(row[f'{m}_mean'])} ± {fmt(row[f'{m}_ci95'])}" for m in SWEEP_METRICS},
+        }
+        for row in outcome.summary.to_dict("records")
+    ]
+    title = f"{sweep_file.name}: {outcome.n_missions} missions (mean ± 95% CI)"
+    print_table(output.console, title, rows, ("policy", "missions", *SWEEP_METRICS))
+    output.console.print(
+        f"ran {outcome.n_run} of {outcome.n_missions} missions in {outcome.seconds:.1f} s; "
+        f"wrote {out}/results.parquet and {out}/summary.csv",
+        markup=False,
+    )
+
+
+def _sweep_with_overrides(spec: Any, overrides: list[str]) -> Any:
+    """The sweep with ``--set`` applied to its base scenario (validated like a file)."""
+    from dataclasses import replace
+
+    from skymule.overrides import apply_override
+    from skymule.scenario import scenario_from_dict
+
+    data = spec.base.to_toml_dict()
+    for override in overrides:
+        data = apply_override(data, override)
+    base = scenario_from_dict(data, f"{spec.source} (--set)", Path(spec.base.base_dir))
+    return replace(spec, base=base)
+
+
+def _sweep_interrupted(out: Path, spec: Any, again: list[str]) -> None:
+    """Ctrl-C: say what was kept and the command that resumes; exit 130."""
+    import shlex
+
+    from skymule.experiments import store
+    from skymule.experiments.run import plan
+
+    try:
+        kept, total = len(store.done_ids(out)), len(plan(spec))
+        what = f"kept {kept} of {total} missions in {out / store.PARTS}"
+    except Exception:  # a half-written part must not hide the resume hint
+        what = f"finished chunks are kept in {out}"
+    command = " ".join(shlex.quote(a) for a in again)
+    print(f"skymule: interrupted; {what}. Resume with: {command}", file=sys.stderr)
+    raise SystemExit(130)

@@ -1,0 +1,19 @@
+"""Where the commands print tables and messages.
+
+``console`` (stdout) is made on first use: ``skymule --help`` and completion never import
+rich's console. Tests assign a console of a chosen width to ``skymule.cli.output.console``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+def __getattr__(name: str) -> Any:
+    if name != "console":
+        raise AttributeError(name)
+    from rich.console import Console
+
+    made = Console()
+    globals()["console"] = made  # made once per process, like sys.stdout
+    return made

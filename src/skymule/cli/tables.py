@@ -1,0 +1,120 @@
+"""Tables that never crop a value.
+
+On a terminal wide enough, a rich table; on a narrow one, one block per row (``label  value``
+lines), folded rather than cut if even that does not fit. Piped (not a terminal), plain
+aligned text with every value in full, so ``skymule compare ... | grep`` sees every digit.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from rich.console import Console
+
+
+COLUMN_LABELS = {
+    "total_downloaded_mbit": "Mbit",
+    "completion": "done",
+    "handovers": "switches",
+    "hover_time_s": "hover s",
+    "distance_m": "dist m",
+    "energy_kj": "kJ",
+    "aadm_score": "AADM",
+    "gap_to_bound_mbit": "gap Mbit",
+    "gap_to_bound_frac": "gap",
+}
+"""Short terminal headers (the files keep the full field names)."""
+
+LEFT_ALIGNED = {"policy", "quantity", "source", "sensor", "value_text"}
+_GAP = 2
+
+
+def fmt(value: object) -> str:
+    """A cell: floats with 3 decimals below 10, 1 decimal above; None as empty."""
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return f"{value:.3f}" if abs(value) < 10 else f"{value:.1f}"
+    return str(value)
+
+
+def label(column: str) -> str:
+    return COLUMN_LABELS.get(column, column)
+
+
+def cells(rows: Sequence[Mapping[str, Any]], columns: Sequence[str]) -> list[list[str]]:
+    return [[fmt(row.get(c, "")) for c in columns] for row in rows]
+
+
+def print_table(
+    console: Console, title: str, rows: Sequence[Mapping[str, Any]], columns: Sequence[str]
+) -> None:
+    """Print ``rows`` so that every value reads in full at any width."""
+    if not console.is_terminal:
+        console.print(
+            plain_table(title, rows, columns),
+            markup=False,
+            highlight=False,
+            crop=False,
+            soft_wrap=True,
+        )
+        return
+    table = _rich_table(title, rows, columns)
+    wide = console.options.update_width(100_000)  # measure unclamped, then compare
+    if console.measure(table, options=wide).maximum <= console.width:
+        console.print(table)
+    else:
+        _print_vertical(console, title, rows, columns)
+
+
+def plain_table(title: str, rows: Sequence[Mapping[str, Any]], columns: Sequence[str]) -> str:
+    """Aligned plain text (for pipes and files): header, rule, one line per row."""
+    body = cells(rows, columns)
+    widths = [max([len(label(c))] + [len(r[i]) for r in body]) for i, c in enumerate(columns)]
+
+    def line(values: Sequence[str]) -> str:
+        parts = [
+            v.ljust(w) if c in LEFT_ALIGNED else v.rjust(w)
+            for v, w, c in zip(values, widths, columns, strict=True)
+        ]
+        return (" " * _GAP).join(parts).rstrip()
+
+    header = line([label(c) for c in columns])
+    rule = (" " * _GAP).join("-" * w for w in widths)
+    return "\n".join([title, header, rule, *(line(r) for r in body)])
+
+
+def _rich_table(title: str, rows: Sequence[Mapping[str, Any]], columns: Sequence[str]) -> Any:
+    from rich import box
+    from rich.table import Table
+
+    table = Table(title=title, box=box.SIMPLE_HEAD, pad_edge=False)
+    body = cells(rows, columns)
+    for i, column in enumerate(columns):
+        table.add_column(
+            label(column),
+            justify="left" if column in LEFT_ALIGNED else "right",
+            no_wrap=True,
+            min_width=max([len(label(column))] + [len(r[i]) for r in body]),
+        )
+    for row in body:
+        table.add_row(*row)
+    return table
+
+
+def _print_vertical(
+    console: Console, title: str, rows: Sequence[Mapping[str, Any]], columns: Sequence[str]
+) -> None:
+    """One block per row: ``label  value`` lines; long values fold, never crop."""
+    from rich.text import Text
+
+    width = max(len(label(c)) for c in columns)
+    console.print(Text(title, style="bold"))
+    for values in cells(rows, columns):
+        console.rule(style="dim")
+        for column, value in zip(columns, values, strict=True):
+            if value == "":
+                continue
+            console.print(Text(f"{label(column):<{width}}  {value}"), overflow="fold")

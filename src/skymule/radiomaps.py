@@ -1,0 +1,156 @@
+"""Fit a radio map to recorded flights, and score a map (or a scenario's model) against one.
+
+The API behind ``skymule fit-radiomap`` and ``skymule score-radiomap``::
+
+    from skymule.radiomaps import fit_radiomap_files, score_against_trace
+
+    fit = fit_radiomap_files([Path("dt_flight.csv")])         # sensors from the trace header
+    fit.fitted.write(Path("map.json")); fit.rows              # one dict per sensor
+    scores = score_against_trace("map.json", Path("real_flight.csv"))
+
+Positions are in the local frame of the scenario's origin (or ``origin``, lat/lon degrees);
+the cross-validation baseline is free space with the scenario's link budget.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from skymule.errors import SkymuleError
+
+if TYPE_CHECKING:
+    from skymule.geo import LocalFrame
+    from skymule.radio.radiomap import RadioMap
+    from skymule.radio.sources import SignalSource
+
+LatLonDeg = tuple[float, float]
+
+
+def parse_origin(text: str) -> LatLonDeg:
+    """``"LAT,LON"`` in degrees -> (lat, lon), with a one-line error naming ``--origin``."""
+    try:
+        lat, lon = (float(v) for v in text.split(","))
+    except ValueError:
+        raise SkymuleError(
+            f"--origin {text!r}: expected LAT,LON in degrees, e.g. 35.7274824,-78.6962749"
+        ) from None
+    if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+        raise SkymuleError(f"--origin {text!r}: latitude must be -90..90, longitude -180..180")
+    return lat, lon
+
+
+def _frame(origin: LatLonDeg | None, default: LatLonDeg) -> LocalFrame:
+    from skymule.geo import LocalFrame
+
+    return LocalFrame(*(origin if origin is not None else default))
+
+
+@dataclass(frozen=True)
+class RadioMapFit:
+    """A fitted map and its per-sensor table (fit parameters and cross-validated RMSEs)."""
+
+    fitted: RadioMap
+    rows: list[dict[str, Any]]
+
+    COLUMNS = (
+        "sensor", "exponent", "intercept_db", "sigma_db", "range_m", "nugget_db", "n_used",
+        "n_missing", "n_deep_drops", "rmse_db", "cv_rmse_map_db", "cv_rmse_trend_db",
+        "cv_rmse_baseline_db",
+    )  # fmt: skip
+
+
+def fit_radiomap_files(
+    traces: Sequence[Path],
+    *,
+    scenario: str | None = None,
+    origin: LatLonDeg | None = None,
+    drop_below_db: float = -40.0,
+) -> RadioMapFit:
+    """Fit a radio map (log-distance + kriged residual) per sensor to recorded flights.
+
+    Sensors, positions, origin and link budget come from ``scenario`` (a path or preset) when
+    given; otherwise the sensors are the first trace's SNR columns at the Lake Wheeler towers.
+    """
+    from skymule.geo import sensor_positions_m
+    from skymule.io.traces import read_trace
+    from skymule.radio.radiomap import fit_radiomap, site_tower_positions_m
+    from skymule.radio.sources import model_source
+    from skymule.scenario import RadioSpec, SiteSpec, load_scenario
+
+    if not traces:
+        raise SkymuleError("fit-radiomap: give at least one recorded flight")
+    spec = load_scenario(scenario) if scenario else None
+    site = spec.site.origin if spec else SiteSpec().origin
+    frame = _frame(origin, (site.lat, site.lon))
+    if spec is not None:
+        names = spec.signal.sensors_from_trace or [s.name for s in spec.sensors]
+        sensor_m = sensor_positions_m(spec.sensors, frame)
+        radio = spec.radio
+    else:
+        names = list(read_trace(traces[0]).columns)
+        sensor_m = site_tower_positions_m(names, frame)
+        radio = RadioSpec()
+    baseline = model_source(radio.model_copy(update={"model": "fspl"}), sensor_m)
+    fitted = fit_radiomap(
+        list(traces), names, sensor_m, frame, drop_below_db=drop_below_db, baseline=baseline
+    )
+    rows = [
+        {
+            "sensor": m.name,
+            "exponent": m.exponent,
+            "intercept_db": m.intercept_db,
+            "sigma_db": m.variogram.sill_db2**0.5,
+            "range_m": m.variogram.range_m,
+            "nugget_db": m.variogram.nugget_db2**0.5,
+            **m.stats,
+        }
+        for m in fitted.sensors
+    ]
+    return RadioMapFit(fitted, rows)
+
+
+def score_against_trace(
+    source: str, trace: Path, *, origin: LatLonDeg | None = None
+) -> dict[str, dict[str, float]]:
+    """How well a fitted map (``*.json``) or a scenario's model predicts a recorded flight.
+
+    Returns score name -> sensor -> value (SNR and rate RMSE and bias, predicted - measured).
+    """
+    from skymule.geo import sensor_positions_m
+    from skymule.io.traces import positions_local, read_trace
+    from skymule.radio.channel import signal_source
+    from skymule.radio.radiomap import frame_offset_m, read_radiomap, score_source
+    from skymule.radio.rates import rate_bps, resolve_rate_table
+    from skymule.scenario import RadioSpec, load_scenario
+
+    model: SignalSource
+    if source.lower().endswith(".json"):
+        fitted = read_radiomap(Path(source))
+        frame = _frame(origin, fitted.origin)
+        names = list(fitted.names)
+        model = fitted.source(names, frame_offset_m(fitted.origin, frame))
+        radio = RadioSpec()
+        table = resolve_rate_table(radio.rate_table)
+    else:
+        spec = load_scenario(source)
+        if spec.signal.source == "trace":
+            raise SkymuleError(
+                f"{source}: signal.source = 'trace' replays a flight and predicts nothing; "
+                "score a scenario with a model or radiomap source"
+            )
+        frame = _frame(origin, (spec.site.origin.lat, spec.site.origin.lon))
+        names = spec.signal.sensors_from_trace or [s.name for s in spec.sensors]
+        model = signal_source(spec, frame, sensor_positions_m(spec.sensors, frame))
+        radio = spec.radio
+        table = resolve_rate_table(radio.rate_table, Path(spec.base_dir))
+    recorded = read_trace(trace, sensors=names)
+    predicted = np.asarray(model.snr_db(positions_local(recorded, frame.to_local)))
+    scores: dict[str, dict[str, float]] = score_source(
+        predicted, recorded.snr_db, names, lambda snr: rate_bps(table, snr, radio.bandwidth_hz)
+    )
+    return scores

@@ -17,13 +17,25 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from skymule.errors import ScenarioError
+from skymule.errors import ScenarioError, SkymuleError
+from skymule.io.textfiles import read_text
 
 PositiveFloat = Annotated[float, Field(gt=0)]
 
+MAX_BUFFER_MBIT = 1e12
+"""Largest sensor buffer [Mbit] (10^18 bit): sums over sensors and slots stay far from overflow."""
+MAX_DURATION_S = 1e7
+"""Longest mission [s] (about 116 days): one row a slot must still fit in memory."""
+MAX_COORDINATE_M = 1e7
+"""Largest |x|, |y| or height [m] in the local frame (the Earth's radius is 6.4e6 m)."""
+
+Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE_M, le=MAX_COORDINATE_M)]
+
 
 class _Spec(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    # strict: a number must be a TOML/JSON number (no "200" strings, no true/false as 1/0);
+    # an integer is still accepted where a float is expected
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, strict=True)
 
 
 class LatLon(_Spec):
@@ -32,7 +44,7 @@ class LatLon(_Spec):
 
 
 class MissionSpec(_Spec):
-    duration_s: PositiveFloat | None = None
+    duration_s: Annotated[float, Field(gt=0, le=MAX_DURATION_S)] | None = None
     """Mission time T*slot_s [s]; omitted for a trace source means the trace's length."""
     slot_s: PositiveFloat = 1.0
     """Slot length [s]."""
@@ -49,11 +61,11 @@ class SensorSpec(_Spec):
     name: Annotated[str, Field(min_length=1)]
     lat: Annotated[float, Field(ge=-90, le=90)] | None = None
     lon: Annotated[float, Field(ge=-180, le=180)] | None = None
-    x_m: float | None = None
-    y_m: float | None = None
-    height_m: float = 10.0
+    x_m: Coordinate | None = None
+    y_m: Coordinate | None = None
+    height_m: Coordinate = 10.0
     """Antenna height [m] relative to the take-off ground."""
-    buffer_mbit: Annotated[float, Field(ge=0)]
+    buffer_mbit: Annotated[float, Field(ge=0, le=MAX_BUFFER_MBIT)]
 
     @model_validator(mode="after")
     def _one_position(self) -> SensorSpec:
@@ -191,6 +203,15 @@ def _location(loc: tuple[int | str, ...]) -> str:
     return text
 
 
+_STRICT_TYPE_HINTS = {
+    "float_type": "must be a number (not a string, not true/false)",
+    "int_type": "must be a whole number (not a string, a fraction or true/false)",
+    "string_type": "must be a string (in quotes)",
+    "bool_type": "must be true or false",
+}
+"""One-line messages for the strict type checks (pydantic's own name no TOML types)."""
+
+
 def format_validation_error(source: str, error: ValidationError) -> str:
     """The first validation problem as one line: ``source: field = value: what is allowed``."""
     first = error.errors()[0]
@@ -200,6 +221,8 @@ def format_validation_error(source: str, error: ValidationError) -> str:
         return f"{source}: unknown field {where!r}; check its spelling against the schema"
     if first["type"] == "missing":
         return f"{source}: {where} is required"
+    if first["type"] in _STRICT_TYPE_HINTS:
+        message = _STRICT_TYPE_HINTS[first["type"]]
     value = first.get("input")
     shown = "" if isinstance(value, dict) else f" = {value!r}"
     return f"{source}: {where or 'scenario'}{shown}: {message}"
@@ -231,9 +254,9 @@ def load_scenario(spec: str | Path) -> Scenario:
             f"(presets: {', '.join(preset_names())})"
         )
     try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ScenarioError(f"{path}: cannot read ({exc.strerror})") from None
+        text = read_text(path, "scenario")
+    except SkymuleError as exc:
+        raise ScenarioError(str(exc)) from None
     return _parse(text, str(path), path.parent)
 
 

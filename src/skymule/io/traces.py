@@ -372,8 +372,10 @@ def _timestamps(label: str, table: _Table, col: int) -> np.ndarray:
         warnings.simplefilter("ignore")
         try:
             stamps = pd.to_datetime(cells, format="ISO8601", errors="coerce")
-        except (ValueError, TypeError, OverflowError):
-            stamps = pd.Series([_one_timestamp(c) for c in cells])
+        except (ValueError, TypeError, OverflowError):  # e.g. mixed UTC offsets
+            parsed = [_one_timestamp(c) for c in cells]
+            _check_offsets(label, table, col, [aware for _, aware in parsed])
+            stamps = pd.Series([stamp for stamp, _ in parsed])
     if getattr(stamps.dt, "tz", None) is not None:
         stamps = stamps.dt.tz_convert("UTC").dt.tz_localize(None)
     bad = stamps.isna().to_numpy(dtype=bool)
@@ -389,14 +391,36 @@ def _timestamps(label: str, table: _Table, col: int) -> np.ndarray:
     return (ns - ns[0]).astype(float) * 1e-9
 
 
-def _one_timestamp(text: str) -> pd.Timestamp | NaTType:
+def _one_timestamp(text: str) -> tuple[pd.Timestamp | NaTType, bool | None]:
+    """(UTC-naive timestamp, whether the text carried a UTC offset); (NaT, None) if unparsable."""
     try:
         stamp = pd.Timestamp(text)
     except (ValueError, TypeError, OverflowError):
-        return pd.NaT
+        return pd.NaT, None
+    if stamp is pd.NaT:
+        return pd.NaT, None
     if stamp.tzinfo is not None:
-        stamp = stamp.tz_convert("UTC").tz_localize(None)
-    return stamp
+        return stamp.tz_convert("UTC").tz_localize(None), True
+    return stamp, False
+
+
+def _check_offsets(label: str, table: _Table, col: int, aware: Sequence[bool | None]) -> None:
+    """Timestamps with a UTC offset (``+02:00``) and without one cannot be put on one clock.
+
+    Reading the naive ones as UTC would shift them by the offset (a 60-row log became a
+    7,260-slot mission), so a mix is an error naming the first row that differs.
+    """
+    kinds = [a for a in aware if a is not None]
+    if not kinds or all(kinds) or not any(kinds):
+        return  # all with an offset (converted to UTC) or all without (local clock)
+    first = next(r for r, a in enumerate(aware) if a is not None)
+    r = next(r for r, a in enumerate(aware) if a is not None and a != aware[first])
+    which = "carries a UTC offset" if aware[r] else "has no UTC offset"
+    raise TraceError(
+        f"{label}: row {table.lines[r]}, column {_q(table.header[col])}: "
+        f"{_q(table.cells[r, col])} {which}, unlike row {table.lines[first]}'s "
+        f"{_q(table.cells[first, col])}; give every timestamp an offset (e.g. +02:00) or none"
+    )
 
 
 def _time_column(label: str, table: _Table, col: int, fmt: TraceFormat) -> np.ndarray:

@@ -18,6 +18,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from skymule.errors import ScenarioError, SkymuleError
+from skymule.faults.specs import SINGLE_KINDS, fault_params
 from skymule.io.textfiles import read_text
 
 PositiveFloat = Annotated[float, Field(gt=0)]
@@ -160,6 +161,18 @@ class PolicySpec(_Spec):
     """HGAD: longest hover [s]."""
 
 
+class FaultSpec(_Spec):
+    """One ``[[faults]]`` entry: a fault ``kind`` and its ``params`` (see docs/faults.md)."""
+
+    kind: str
+    params: dict[str, Any] = {}
+
+    @model_validator(mode="after")
+    def _valid_params(self) -> FaultSpec:
+        fault_params(self.kind, self.params)  # one-line ValueError naming the parameter
+        return self
+
+
 class Scenario(_Spec):
     name: str = "scenario"
     seed: Annotated[int, Field(ge=0, lt=2**63)] = 0
@@ -171,6 +184,8 @@ class Scenario(_Spec):
     signal: SignalSpec = SignalSpec()
     trajectory: TrajectorySpec = TrajectorySpec()
     policy: PolicySpec = PolicySpec()
+    faults: list[FaultSpec] | None = None
+    """Faults injected into the mission (none by default); see docs/faults.md."""
     base_dir: str = Field(default=".", exclude=True)
     """Folder that relative paths in the scenario are resolved against (not serialised)."""
 
@@ -180,6 +195,33 @@ class Scenario(_Spec):
         duplicates = sorted({n for n in names if names.count(n) > 1})
         if duplicates:
             raise ValueError(f"sensor names must be unique; repeated: {', '.join(duplicates)}")
+        return self
+
+    @model_validator(mode="after")
+    def _faults_fit(self) -> Scenario:
+        names = [s.name for s in self.sensors]
+        for index, fault in enumerate(self.faults or ()):
+            unknown = [n for n in fault.params.get("sensors") or () if n not in names]
+            if unknown:
+                raise ValueError(
+                    f"faults[{index}] ({fault.kind}): sensor {unknown[0]!r} is not in the "
+                    f"scenario; allowed: {', '.join(names)}"
+                )
+            if fault.kind == "wind":
+                uav = (
+                    self.trajectory.max_speed_mps
+                    if self.trajectory.mode == "autonomous"
+                    else self.trajectory.speed_mps
+                )
+                if fault.params["speed_mps"] >= uav:
+                    raise ValueError(
+                        f"faults[{index}] (wind): speed_mps = {fault.params['speed_mps']!r} "
+                        f"must be below the UAV's speed ({uav} m/s) or it cannot hold position"
+                    )
+        kinds = [f.kind for f in self.faults or ()]
+        repeated = sorted({k for k in SINGLE_KINDS if kinds.count(k) > 1})
+        if repeated:
+            raise ValueError(f"faults: at most one {repeated[0]!r} entry (there is one UAV)")
         return self
 
     def resolve_path(self, value: str) -> Path:

@@ -394,11 +394,12 @@ def _timestamps(label: str, table: _Table, col: int) -> np.ndarray:
 def _one_timestamp(text: str) -> tuple[pd.Timestamp | NaTType, bool | None]:
     """(UTC-naive timestamp, whether the text carried a UTC offset); (NaT, None) if unparsable."""
     try:
-        stamp = pd.Timestamp(text)
+        parsed: pd.Timestamp | NaTType = pd.Timestamp(text)
     except (ValueError, TypeError, OverflowError):
         return pd.NaT, None
-    if stamp is pd.NaT:
+    if not isinstance(parsed, pd.Timestamp):  # "NaT" parses to NaT
         return pd.NaT, None
+    stamp = parsed
     if stamp.tzinfo is not None:
         return stamp.tz_convert("UTC").tz_localize(None), True
     return stamp, False

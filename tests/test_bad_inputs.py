@@ -133,3 +133,9 @@ def test_trace_with_consistent_offsets_is_read_on_one_clock(tmp_path: Path) -> N
     stamps[2] = "2025-05-24 15:19:02.186+01:00"  # same instant as 16:19:02+02:00
     mixed_zones = read_trace(_aadm(tmp_path, stamps))
     assert mixed_zones.time_s.tolist() == pytest.approx([0.0, 1.0, 2.0])
+
+
+def test_scenario_saved_with_a_byte_order_mark_loads(tmp_path: Path) -> None:
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + (SENSOR.format(name="bom") + "buffer_mbit = 1\n").encode())
+    assert load_scenario(path).name == "bom"

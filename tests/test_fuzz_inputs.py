@@ -10,6 +10,7 @@ machine must not fail a test for being slow.
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import os
@@ -23,7 +24,7 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from skymule.errors import SkymuleError
-from skymule.experiments.sweep import load_sweep, parse_sweep
+from skymule.experiments.sweep import iter_missions, load_sweep, parse_sweep, validate_mission
 from skymule.faults import draw_faults, fault_rng
 from skymule.io.runs import read_run
 from skymule.io.traces import read_trace, read_volumes
@@ -337,10 +338,11 @@ def sweep_tables(draw: st.DrawFn) -> dict[str, Any]:
 def test_sweep_parser_on_random_tables(scratch: Path, table: dict[str, Any]) -> None:
     try:
         spec = parse_sweep(table, "fuzz-sweep.toml", scratch)
+        assert len(spec) >= 1
+        for mission in itertools.islice(iter_missions(spec), 3):
+            assert isinstance(validate_mission(spec, mission), Scenario)
     except SkymuleError as exc:
         _one_line_error(exc)
-        return
-    assert len(spec) >= 1
 
 
 VALID_SWEEP = b'base = "paper-sim-fixed"\nseed = 1\n[axes]\nseed = [1, 2]\n'

@@ -165,3 +165,10 @@ def test_cli_readers_exit_2_with_one_line(run_dir: Path, command: tuple[str, ...
     lines = done.stderr.strip().splitlines()
     assert done.returncode == 2 and len(lines) == 1, done.stderr
     assert "slots.csv: data row 12, column 'x_m': 'abc'" in lines[0]
+
+
+def test_slots_that_are_not_text(run_dir: Path) -> None:
+    (run_dir / "slots.csv").write_bytes(b"t_s,x_m\n\xff\xfe,1\n")
+    assert "slots.csv: not a UTF-8 text file" in _error(run_dir)
+    (run_dir / "slots.csv").write_bytes(b"")
+    assert "slots.csv: empty file" in _error(run_dir)

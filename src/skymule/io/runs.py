@@ -106,9 +106,12 @@ def read_run(run_dir: Path) -> tuple[dict[str, Any], pd.DataFrame]:
     summary_path = run_dir / SUMMARY_FILE
     summary = validate_summary(_read_json(summary_path), str(summary_path))
     slots_path = run_dir / SLOTS_FILE
-    read_text(slots_path, "run file")  # one line for a file that is not UTF-8 text
     try:
-        slots = pd.read_csv(slots_path, keep_default_na=False, na_values=[""])
+        slots = pd.read_csv(slots_path, keep_default_na=False, na_values=[""], encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise SkymuleError(
+            f"{slots_path}: not a UTF-8 text file (bad byte at offset {exc.start})"
+        ) from None
     except pd.errors.EmptyDataError:
         raise SkymuleError(
             f"{slots_path}: empty file; expected a header and one row a slot"

@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from skymule.bounds.fixed import fixed_path_bound, mission_bound
+from skymule.bounds.fixed import fixed_path_bound
+from skymule.bounds.mission import mission_bound
 from skymule.runner import simulate
 from skymule.scenario import load_scenario
 from skymule.world import build_mission

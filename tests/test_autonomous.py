@@ -15,7 +15,8 @@ from skymule.policies import make_policy
 from skymule.policies.base import Action, MissionContext, Observation
 from skymule.policies.hgad import HGAD
 from skymule.scenario import load_scenario
-from skymule.sim.engine import NO_SENSOR, run_mission
+from skymule.sim.log import NO_SENSOR
+from skymule.sim.run import run_mission
 from skymule.world import build_mission
 
 PRESET = "paper-sim-autonomous"

@@ -13,7 +13,8 @@ import pandas as pd
 import pytest
 
 from conftest import CliResult, run_cli
-from skymule.report.html import PER_RUN_PANELS, build_report
+from skymule.report.build import build_report
+from skymule.report.html import PER_RUN_PANELS
 from skymule.report.inputs import hover_segments, load_run, score_breakdown
 
 SHORT = """

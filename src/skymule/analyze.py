@@ -45,7 +45,7 @@ from skymule.io.traces import Trace, normalise_column, read_trace, read_volumes
 from skymule.metrics import summarize
 from skymule.policies import POLICIES, unknown_policies
 from skymule.scenario import Scenario, scenario_from_dict
-from skymule.sim.engine import NO_SENSOR, MissionLog
+from skymule.sim.log import NO_SENSOR, MissionLog
 from skymule.world import BITS_PER_MBIT, Mission, build_mission
 
 #: Buffer per tower when neither a volume file nor --buffers is given [Mbit].

@@ -17,7 +17,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, wait
 from dataclasses import dataclass, replace
 from pathlib import Path
 from types import TracebackType
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -25,9 +25,6 @@ import pandas as pd
 from skymule.experiments import store
 from skymule.experiments.executors import default_workers, open_executor
 from skymule.experiments.sweep import SweepMission, SweepSpec, iter_missions, validate_mission
-
-if TYPE_CHECKING:
-    from skymule.sim.autonomous import FixedGeometry
 
 Task = tuple[int, str, dict[str, Any], dict[str, Any]]
 """(mission index, mission id, axis values, resolved scenario dict)."""
@@ -72,13 +69,11 @@ def run_chunk(tasks: Sequence[Task], base_dir: str) -> pd.DataFrame:
     from skymule.metrics import summarize
     from skymule.policies import make_policy
     from skymule.scenario import scenario_from_dict
-    from skymule.sim.autonomous import fixed_geometry_fields
     from skymule.sim.batch import batchable, summarize_fixed_batch
-    from skymule.sim.engine import run_mission
+    from skymule.sim.run import run_mission
     from skymule.world import BITS_PER_MBIT, build_mission
 
     built: dict[str, Any] = {}
-    geometry: dict[str, FixedGeometry] = {}
     summaries: list[dict[str, Any] | None] = [None] * len(tasks)
     batched: list[tuple[int, Any, Any, str]] = []
     for position, (_, mission_id, _, data) in enumerate(tasks):
@@ -94,14 +89,10 @@ def run_chunk(tasks: Sequence[Task], base_dir: str) -> pd.DataFrame:
             log = run_mission(mission, make_policy(scenario.policy))
             summaries[position] = summarize(log, scenario.name)
     if batched:
-        for _, mission, _, key in batched:
-            if key not in geometry:
-                geometry[key] = fixed_geometry_fields(mission)
         rows_batched = summarize_fixed_batch(
             [m for _, m, _, _ in batched],
             [s for _, _, s, _ in batched],
             [m.scenario.name for _, m, _, _ in batched],
-            [geometry[key] for _, _, _, key in batched],
         )
         for (position, _, _, _), batch_summary in zip(batched, rows_batched, strict=True):
             summaries[position] = batch_summary

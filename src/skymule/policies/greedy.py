@@ -6,14 +6,16 @@ import numpy as np
 
 from skymule.policies.autonomous import GreedyTour
 from skymule.policies.base import Action, MissionContext, Observation
+from skymule.sim import contract
 
 
 def greedy_choice(snr_db: np.ndarray, remaining_bit: np.ndarray) -> int | None:
-    """argmax SNR over sensors with Q_i > 0; ties go to the lowest index; None if all empty."""
-    candidates = np.where(remaining_bit > 0, snr_db, -np.inf)
-    if not np.any(remaining_bit > 0):
-        return None
-    return int(np.argmax(candidates))
+    """argmax SNR over sensors with Q_i > 0; ties go to the lowest index; None if all empty.
+
+    One mission of :func:`skymule.sim.contract.greedy_choice`.
+    """
+    choice = int(contract.greedy_choice(snr_db[:, None], remaining_bit[:, None] > 0)[0])
+    return None if choice == contract.NO_SENSOR else choice
 
 
 class Greedy:

@@ -20,7 +20,6 @@ from typing import Any
 import matplotlib.pyplot as plt
 from matplotlib.axes import Axes
 
-from skymule.io.runs import is_run_dir
 from skymule.report.figures import draw_cumulative_download, draw_snr_cdf
 from skymule.report.inputs import (
     ReportInput,
@@ -273,17 +272,10 @@ def _scenario_block(report: ReportInput) -> str:
     return intro + f"<pre>{html.escape(text)}</pre>"
 
 
-def build_report(folder: Path, pdf: bool = True, baseline: str | None = None) -> Path:
-    """Write ``folder/report.html`` (and ``folder/figures/*.png|pdf``); returns the HTML path.
-
-    ``pdf=False`` skips the vector PDFs (faster; the HTML only embeds the PNGs). A sweep
-    folder (``results.parquet``) gets the sweep report (:mod:`skymule.report.sweep`), with
-    ``baseline`` as the policy the paired gains are taken over.
-    """
-    from skymule.report.sweep import build_sweep_report, is_sweep_dir
-
-    if is_sweep_dir(folder) and not is_run_dir(folder):
-        return build_sweep_report(folder, pdf=pdf, baseline=baseline)
+def build_run_report(folder: Path, pdf: bool = True) -> Path:
+    """Write ``folder/report.html`` (and ``folder/figures/*.png|pdf``) for a run or compare
+    folder; returns the HTML path. ``pdf=False`` skips the vector PDFs (the HTML only embeds
+    the PNGs)."""
     report = load_input(folder)
     runs = report.runs
     figures = folder / FIGURES_DIR

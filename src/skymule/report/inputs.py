@@ -16,15 +16,12 @@ import pandas as pd
 
 from skymule.errors import SkymuleError
 from skymule.io.runs import is_run_dir, read_run, read_run_scenario, sensor_names_of
+from skymule.metrics import aadm_parts
 from skymule.report.site import SiteGeometry, site_geometry
 
 COMPARISON_FILE = "comparison.csv"
 
 #: AADM challenge scoring (see ``shared/data/README.md``): mission horizon [s], landing
-#: tolerance [m] and penalty per metre beyond it.
-AADM_HORIZON_S = 600.0
-AADM_LANDING_TOLERANCE_M = 3.0
-AADM_LANDING_PENALTY_PER_M = 20.0
 
 
 @dataclass(frozen=True)
@@ -181,7 +178,7 @@ def score_breakdown(run: RunData) -> ScoreBreakdown:
     completed_at = None
     if remaining_cols and all(c in slots for c in remaining_cols):
         left = slots[remaining_cols].to_numpy(float).sum(axis=1)
-        done = np.flatnonzero(left <= 1e-9)
+        done = np.flatnonzero(left <= 0)
         if done.size:
             completed_at = float(slots["t_s"].iloc[done[0]]) + run.slot_s
     if "distance_to_home_m" in summary:
@@ -191,8 +188,14 @@ def score_breakdown(run: RunData) -> ScoreBreakdown:
     else:
         last = slots[["x_m", "y_m"]].to_numpy(float)[-1]
         end_distance = float(np.hypot(*(last - run.site.home_xy_m)))
-    bonus = max(0.0, AADM_HORIZON_S - completed_at) if completed_at is not None else 0.0
-    penalty = AADM_LANDING_PENALTY_PER_M * max(0.0, end_distance - AADM_LANDING_TOLERANCE_M)
+    bonus, penalty = (
+        float(part[0])
+        for part in aadm_parts(
+            np.array([100.0 * completion]),
+            np.array([np.nan if completed_at is None else completed_at]),
+            np.array([end_distance]),
+        )
+    )
     reported = summary.get("aadm_score")
     return ScoreBreakdown(
         download_points=100.0 * completion,

@@ -8,6 +8,7 @@ than drawing a figure from part of the mission or raising a traceback.
 from __future__ import annotations
 
 import json
+import math
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -172,3 +173,11 @@ def test_slots_that_are_not_text(run_dir: Path) -> None:
     assert "slots.csv: not a UTF-8 text file" in _error(run_dir)
     (run_dir / "slots.csv").write_bytes(b"")
     assert "slots.csv: empty file" in _error(run_dir)
+
+
+def test_statistics_that_do_not_apply_may_be_nan(run_dir: Path) -> None:
+    _edit_json(run_dir / "summary.json", distance_to_home_m=float("nan"), energy_kj=float("nan"))
+    summary, _ = read_run(run_dir)
+    assert math.isnan(summary["distance_to_home_m"])
+    _edit_json(run_dir / "summary.json", energy_kj=-1.0)
+    assert "energy_kj = -1.0: must be >= 0" in _error(run_dir)

@@ -22,13 +22,20 @@ from typing import Annotated, Any
 
 import numpy as np
 import pandas as pd
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError
 
 from skymule.errors import SkymuleError
 from skymule.scenario import format_validation_error, scenario_from_dict
 
+
+def _not_negative(value: float) -> float:
+    if value < 0:  # NaN passes: a statistic that does not apply (e.g. no home point)
+        raise ValueError("must be >= 0 (or NaN where it does not apply)")
+    return value
+
+
 Mbit = Annotated[float, Field(ge=0, allow_inf_nan=False)]
-Stat = Annotated[float, Field(ge=0)]
+Stat = Annotated[float, AfterValidator(_not_negative)]
 
 
 class RunSummary(BaseModel):

@@ -251,7 +251,7 @@ _STRICT_TYPE_HINTS = {
     "string_type": "must be a string (in quotes)",
     "bool_type": "must be true or false",
 }
-"""One-line messages for the strict type checks (pydantic's own name no TOML types)."""
+"""One-line messages for the strict type checks (pydantic's own name Python types, not TOML's)."""
 
 
 def format_validation_error(source: str, error: ValidationError) -> str:

@@ -23,6 +23,7 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
+from conftest import run_cli
 from skymule.errors import SkymuleError
 from skymule.experiments.sweep import iter_missions, load_sweep, parse_sweep, validate_mission
 from skymule.faults import draw_faults, fault_rng
@@ -425,3 +426,87 @@ def test_the_fuzzed_bases_are_valid() -> None:
     assert scenario_from_dict(BASE_SCENARIO, "fuzz.toml", Path(".")).faults is not None
     assert tomllib.loads(VALID_TOML.decode())["name"] == "x"
     assert len(parse_sweep(tomllib.loads(VALID_SWEEP.decode()), "s", Path("."))) == 2
+
+
+# --- the whole command: any scenario file ends in results or one line, exit 2 ---------------
+
+coordinates = st.one_of(
+    st.sampled_from([0.0, 1e-9, 0.5, 10.0, 150.0, -300.0, 2000.0, 1e5]),
+    st.floats(-1500, 1500),
+)
+
+
+@st.composite
+def mission_tables(draw: st.DrawFn) -> dict[str, Any]:
+    """Scenarios that pass most checks, so the mission is built and flown."""
+    sensors = [
+        {
+            "name": f"S{i}",
+            "x_m": draw(coordinates),
+            "y_m": draw(coordinates),
+            "height_m": draw(st.sampled_from([0.0, 10.0, 60.0])),
+            "buffer_mbit": draw(st.sampled_from([0.0, 1e-6, 5.0, 300.0, 1e12])),
+        }
+        for i in range(draw(st.integers(1, 4)))
+    ]
+    mode = draw(st.sampled_from(["fixed", "autonomous"]))
+    trajectory: dict[str, Any] = {"mode": mode}
+    if mode == "fixed":
+        trajectory["waypoints"] = [
+            [draw(coordinates), draw(coordinates), draw(st.sampled_from([5.0, 30.0, 120.0]))]
+            for _ in range(draw(st.integers(1, 3)))
+        ]
+        trajectory["speed_mps"] = draw(st.sampled_from([1.0, 10.0, 40.0]))
+    else:
+        trajectory["max_speed_mps"] = draw(st.sampled_from([1.0, 10.0, 40.0]))
+        trajectory["home"] = [draw(coordinates), draw(coordinates)]
+    policies = ["greedy", "hgad", "optimal-fixed", "planner"]
+    return {
+        "name": "fuzz",
+        "seed": draw(st.integers(0, 3)),
+        "mission": {
+            "duration_s": draw(st.sampled_from([1, 3, 40, 600])),
+            "slot_s": draw(st.sampled_from([0.5, 1.0, 3.0])),
+        },
+        "sensors": sensors,
+        "radio": {
+            "model": draw(st.sampled_from(["fspl", "two-ray", "al-hourani", "3gpp-rma-av"])),
+            "shadowing_std_db": draw(st.sampled_from([0.0, 6.0])),
+            "fading": draw(st.sampled_from(["none", "rayleigh"])),
+            "rate_table": draw(st.sampled_from(["aadm-lte-cqi", "shannon"])),
+        },
+        "trajectory": trajectory,
+        "policy": {
+            "name": draw(st.sampled_from(policies)),
+            "hover_threshold": draw(st.sampled_from([0.05, 1.0])),
+        },
+    }
+
+
+def _toml(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + "}"
+    return repr(float(value)) if isinstance(value, float) else str(value)
+
+
+@settings(FUZZ, max_examples=DEEP or 12)
+@given(mission_tables())
+def test_run_command_on_random_missions(scratch: Path, table: dict[str, Any]) -> None:
+    path = scratch / "mission.toml"
+    path.write_text("\n".join(f"{key} = {_toml(value)}" for key, value in table.items()))
+    done = run_cli("run", str(path), "--out", str(scratch / "out"))
+    if done.returncode == 2:
+        assert done.stderr.count("\n") == 1, done.stderr
+        event("refused")
+        return
+    assert done.returncode == 0, done.stderr
+    summary, slots = read_run(scratch / "out")  # what the run wrote reads back valid
+    assert len(slots) == summary["slots"]
+    total_buffer = sum(summary["per_sensor_buffer_mbit"].values())
+    assert summary["total_downloaded_mbit"] <= total_buffer * (1 + 1e-9)

@@ -181,3 +181,34 @@ def test_statistics_that_do_not_apply_may_be_nan(run_dir: Path) -> None:
     assert math.isnan(summary["distance_to_home_m"])
     _edit_json(run_dir / "summary.json", energy_kj=-1.0)
     assert "energy_kj = -1.0: must be >= 0" in _error(run_dir)
+
+
+def test_served_column_all_empty_or_numeric_names(run_dir: Path) -> None:
+    """A run that served nothing (every cell empty), and sensors named by numbers."""
+    slots = (run_dir / "slots.csv").read_text().splitlines()
+    header = slots[0].split(",")
+    column = header.index("served")
+    rows = []
+    for line in slots[1:]:
+        cells = line.split(",")
+        cells[column] = "" if len(rows) % 2 else "1"
+        rows.append(",".join(cells))
+    (run_dir / "slots.csv").write_text("\n".join([slots[0].replace("LW1", "1"), *rows]) + "\n")
+    summary = json.loads((run_dir / "summary.json").read_text())
+    for key in ("per_sensor_downloaded_mbit", "per_sensor_buffer_mbit"):
+        summary[key] = {("1" if k == "LW1" else k): v for k, v in summary[key].items()}
+    (run_dir / "summary.json").write_text(json.dumps(summary))
+    _, table = read_run(run_dir)
+    assert table["served"].tolist()[:4] == ["1", "", "1", ""]
+    _edit_lines(
+        run_dir / "slots.csv",
+        lambda lines: (
+            [lines[0]]
+            + [
+                ",".join("" if i == column else c for i, c in enumerate(line.split(",")))
+                for line in lines[1:]
+            ]
+        ),
+    )
+    _, table = read_run(run_dir)
+    assert set(table["served"]) == {""}

@@ -107,7 +107,13 @@ def read_run(run_dir: Path) -> tuple[dict[str, Any], pd.DataFrame]:
     summary = validate_summary(_read_json(summary_path), str(summary_path))
     slots_path = run_dir / SLOTS_FILE
     try:
-        slots = pd.read_csv(slots_path, keep_default_na=False, na_values=[""], encoding="utf-8")
+        slots = pd.read_csv(
+            slots_path,
+            keep_default_na=False,
+            na_values=[""],
+            encoding="utf-8",
+            dtype={"served": str},  # sensor names stay text, even "1" or an all-empty column
+        )
     except UnicodeDecodeError as exc:
         raise SkymuleError(
             f"{slots_path}: not a UTF-8 text file (bad byte at offset {exc.start})"

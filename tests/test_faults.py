@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from skymule.energy import propulsion_power_w
 from skymule.errors import ScenarioError
@@ -308,3 +310,67 @@ def test_one_battery_only(tmp_path: Path) -> None:
     battery = '[[faults]]\nkind = "battery"\nparams = { capacity_wh = 10 }\n'
     with pytest.raises(ScenarioError, match="at most one 'battery' entry"):
         load_scenario(_scenario(tmp_path, battery * 2))
+
+
+# --- any valid parameters draw, quickly, arrays of the documented shapes ---------------------
+
+probabilities = st.one_of(st.sampled_from([0.0, 5e-324, 1e-300, 1e-6, 0.5, 1.0]), st.floats(0, 1))
+seconds = st.one_of(st.sampled_from([0.0, 1e-9, 0.5, 3.0, 1e7]), st.floats(0, 1e7))
+fault_entries = st.one_of(
+    st.builds(
+        lambda start, length, mean, windows: Entry(
+            "outage",
+            {"windows": windows}
+            | ({"duration_s": length} if mean is None else {"mean_duration_s": mean})
+            | ({} if start is None or windows != 1 else {"start_s": start}),
+        ),
+        st.none() | seconds,
+        seconds.filter(lambda s: s > 0),
+        st.none() | seconds.filter(lambda s: s > 0),
+        st.integers(1, 4),
+    ),
+    st.builds(
+        lambda p, r, g, b: Entry(
+            "gilbert-elliott",
+            {"p_good_to_bad": p, "p_bad_to_good": r, "loss_good": g, "loss_bad": b},
+        ),
+        probabilities,
+        probabilities,
+        probabilities,
+        probabilities,
+    ).filter(lambda e: e.params["p_good_to_bad"] + e.params["p_bad_to_good"] > 0),
+    st.builds(
+        lambda bias, std, corr: Entry(
+            "snr-error", {"bias_db": bias, "std_db": std, "correlation_s": corr}
+        ),
+        st.floats(-100, 100),
+        st.floats(0, 100),
+        seconds,
+    ),
+    st.builds(lambda p: Entry("missed-polls", {"probability": p}), probabilities),
+    st.builds(
+        lambda p, r: Entry("missed-polls", {"p_good_to_bad": p, "p_bad_to_good": r}),
+        probabilities,
+        probabilities,
+    ).filter(lambda e: e.params["p_good_to_bad"] + e.params["p_bad_to_good"] > 0),
+    st.builds(
+        lambda std, corr: Entry("gps-error", {"std_m": std, "correlation_s": corr}),
+        st.floats(0, 1e4),
+        seconds,
+    ),
+)
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+@given(
+    st.lists(fault_entries, max_size=4),
+    st.integers(0, 300),
+    st.sampled_from([0.01, 1.0, 7.5]),
+)
+def test_any_valid_faults_draw_arrays_of_the_documented_shapes(
+    entries: list[Entry], n_slots: int, slot_s: float
+) -> None:
+    draws = _draw(*entries, n_slots=n_slots, slot_s=slot_s)
+    assert draws.link_up.shape == draws.snr_error_db.shape == (n_slots, 4)
+    assert draws.poll_missed.shape == (n_slots,) and draws.gps_error_m.shape == (n_slots, 2)
+    assert np.isfinite(draws.snr_error_db).all() and np.isfinite(draws.gps_error_m).all()

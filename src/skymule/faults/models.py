@@ -24,7 +24,8 @@ def _run_lengths(rng: np.random.Generator, p_leave: float, count: int, n_slots: 
     """``count`` sojourn lengths [slots] in a state left with probability ``p_leave`` a slot."""
     if p_leave == 0.0:
         return np.full(count, n_slots, dtype=np.int64)  # never left within the mission
-    return rng.geometric(p_leave, count)
+    # a sojourn past the mission's end is cut there (p ~ 1e-300 draws ~2^63: sums overflow)
+    return np.minimum(rng.geometric(p_leave, count), n_slots)
 
 
 def _one_chain(rng: np.random.Generator, p: float, r: float, n_slots: int) -> np.ndarray:

@@ -365,7 +365,7 @@ fault_entries = st.one_of(
 @given(
     st.lists(fault_entries, max_size=4),
     st.integers(0, 300),
-    st.sampled_from([0.01, 1.0, 7.5]),
+    st.sampled_from([1e-12, 0.01, 1.0, 7.5]),
 )
 def test_any_valid_faults_draw_arrays_of_the_documented_shapes(
     entries: list[Entry], n_slots: int, slot_s: float

@@ -122,6 +122,8 @@ def ar1_normal(rng: np.random.Generator, shape: tuple[int, ...], correlation: fl
     noise = rng.standard_normal(shape)
     if correlation == 0.0:
         return noise
+    if correlation >= 1.0:  # exp(-dt/tau) rounds to 1 for dt << tau: one draw held throughout
+        return np.repeat(noise[:, :1], noise.shape[1], axis=1)
     from scipy.signal import lfilter  # ~0.2 s to import: only for correlated errors
 
     scale = math.sqrt(1.0 - correlation * correlation)

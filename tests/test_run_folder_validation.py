@@ -126,6 +126,7 @@ def test_decreasing_time_is_refused(run_dir: Path) -> None:
         ({"total_downloaded_mbit": "12"}, "total_downloaded_mbit = '12': must be a number"),
         ({"slots": True}, "slots = True: must be a whole number"),
         ({"per_sensor_buffer_mbit__LW1": -5}, "per_sensor_buffer_mbit.LW1 = -5"),
+        ({"aadm_complete": "yes"}, "aadm_complete = 'yes': must be true or false"),
     ],
 )
 def test_wrong_types_in_summary(run_dir: Path, change: dict[str, object], expected: str) -> None:

@@ -60,8 +60,14 @@ class RunSummary(BaseModel):
     energy_kj: Stat | None = None
     visit_order: list[str] | None = None
     landed_at_home: bool | None = None
+    """Older runs; newer ones write landed_within_5m."""
+    landed_within_5m: bool | None = None
     distance_to_home_m: Stat | None = None
     aadm_score: float | None = None
+    aadm_t1_s: Stat | None = None
+    aadm_s1: Stat | None = None
+    aadm_s2: Annotated[float, Field(ge=0, le=100)] | None = None
+    aadm_complete: bool | None = None
 
 
 def validate_summary(data: Any, source: str) -> dict[str, Any]:

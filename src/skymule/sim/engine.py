@@ -98,6 +98,9 @@ class FixedFlight:
     def apply(self, action: Action, who: str = "policy") -> float:
         """Apply ``action`` to the slot last observed; returns the bits downloaded."""
         sensor = check_serve(action.serve, self.mission.n_sensors, who)
+        window = self.mission.window_slots
+        if window is not None and self.slot >= window:
+            sensor = NO_SENSOR  # the download window has closed
         bits = 0.0
         if sensor != NO_SENSOR:
             bits = float(
@@ -144,6 +147,7 @@ class FixedFlight:
             home_m=mission.home_m,
             hover_points_m=mission.hover_points_m,
             visit_radius_m=mission.visit_radius_m,
+            aadm_window_s=mission.score_window_s,
         )
 
 

@@ -242,7 +242,7 @@ def test_cli_fly_prints_the_comparison(small: Path) -> None:
     ("args", "problem"),
     [
         (["aadm", "fly", "no-such-preset"], "no-such-preset"),
-        (["aadm", "fly", "{small}", "--policy", "nope"], "policy.name = 'nope' is not allowed"),
+        (["aadm", "fly", "{small}", "--policy", "nope"], "unknown policy 'nope'"),
         (["aadm", "controller", "{small}", "--volumes", "{vol}"], "3 volume line(s) for 2 towers"),
         (["aadm", "agent", "{small}", "--policy", "hgad", "--port", "{port}"], "no controller"),
         (["aadm", "agent", "{small}", "--policy", "hgad", "--vehicle", "mavsdk"], "skymule[fly]"),

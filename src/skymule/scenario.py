@@ -20,6 +20,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from pydantic_core import ErrorDetails, PydanticCustomError
 
 from skymule.errors import ScenarioError, SkymuleError
+from skymule.faults.specs import SINGLE_KINDS, fault_params
+from skymule.io.textfiles import read_text
 from skymule.overrides import apply_override
 from skymule.policies import POLICIES, policy_params_model
 from skymule.radio.pathloss import PATHLOSS_MODELS
@@ -27,9 +29,20 @@ from skymule.registry import Registry, did_you_mean, unknown_name_message
 
 PositiveFloat = Annotated[float, Field(gt=0)]
 
+MAX_BUFFER_MBIT = 1e12
+"""Largest sensor buffer [Mbit] (10^18 bit): sums over sensors and slots stay far from overflow."""
+MAX_DURATION_S = 1e7
+"""Longest mission [s] (about 116 days): one row a slot must still fit in memory."""
+MAX_COORDINATE_M = 1e7
+"""Largest |x|, |y| or height [m] in the local frame (the Earth's radius is 6.4e6 m)."""
+
+Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE_M, le=MAX_COORDINATE_M)]
+
 
 class _Spec(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    # strict: a number must be a TOML/JSON number (no "200" strings, no true/false as 1/0);
+    # an integer is still accepted where a float is expected
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, strict=True)
 
 
 class LatLon(_Spec):
@@ -38,7 +51,7 @@ class LatLon(_Spec):
 
 
 class MissionSpec(_Spec):
-    duration_s: PositiveFloat | None = None
+    duration_s: Annotated[float, Field(gt=0, le=MAX_DURATION_S)] | None = None
     """Mission time T*slot_s [s]; omitted for a trace source means the trace's length."""
     slot_s: PositiveFloat = 1.0
     """Slot length [s]."""
@@ -58,11 +71,11 @@ class SensorSpec(_Spec):
     name: Annotated[str, Field(min_length=1)]
     lat: Annotated[float, Field(ge=-90, le=90)] | None = None
     lon: Annotated[float, Field(ge=-180, le=180)] | None = None
-    x_m: float | None = None
-    y_m: float | None = None
-    height_m: float = 10.0
+    x_m: Coordinate | None = None
+    y_m: Coordinate | None = None
+    height_m: Coordinate = 10.0
     """Antenna height [m] relative to the take-off ground."""
-    buffer_mbit: Annotated[float, Field(ge=0)]
+    buffer_mbit: Annotated[float, Field(ge=0, le=MAX_BUFFER_MBIT)]
 
     @model_validator(mode="after")
     def _one_position(self) -> SensorSpec:
@@ -264,7 +277,9 @@ def validate_params(
         if first["type"] == "missing":
             text = f"params.{key} is required by {owner}"
         else:
-            message = first["msg"].removeprefix("Value error, ")
+            message = _STRICT_TYPE_HINTS.get(
+                first["type"], first["msg"].removeprefix("Value error, ")
+            )
             text = f"params.{key} = {first.get('input')!r}: {message}"
         raise _component_error(text) from None
 
@@ -294,6 +309,18 @@ def _policy_param_names() -> frozenset[str]:
     )
 
 
+class FaultSpec(_Spec):
+    """One ``[[faults]]`` entry: a fault ``kind`` and its ``params`` (see docs/faults.md)."""
+
+    kind: str
+    params: dict[str, Any] = {}
+
+    @model_validator(mode="after")
+    def _valid_params(self) -> FaultSpec:
+        fault_params(self.kind, self.params)  # one-line ValueError naming the parameter
+        return self
+
+
 class Scenario(_Spec):
     name: str = "scenario"
     seed: Annotated[int, Field(ge=0, lt=2**63)] = 0
@@ -305,6 +332,8 @@ class Scenario(_Spec):
     signal: SignalSpec = SignalSpec()
     trajectory: TrajectorySpec = TrajectorySpec()
     policy: PolicySpec = PolicySpec()
+    faults: list[FaultSpec] | None = None
+    """Faults injected into the mission (none by default); see docs/faults.md."""
     base_dir: str = Field(default=".", exclude=True)
     """Folder that relative paths in the scenario are resolved against (not serialised)."""
 
@@ -314,6 +343,33 @@ class Scenario(_Spec):
         duplicates = sorted({n for n in names if names.count(n) > 1})
         if duplicates:
             raise ValueError(f"sensor names must be unique; repeated: {', '.join(duplicates)}")
+        return self
+
+    @model_validator(mode="after")
+    def _faults_fit(self) -> Scenario:
+        names = [s.name for s in self.sensors]
+        for index, fault in enumerate(self.faults or ()):
+            unknown = [n for n in fault.params.get("sensors") or () if n not in names]
+            if unknown:
+                raise ValueError(
+                    f"faults[{index}] ({fault.kind}): sensor {unknown[0]!r} is not in the "
+                    f"scenario; allowed: {', '.join(names)}"
+                )
+            if fault.kind == "wind":
+                uav = (
+                    self.trajectory.max_speed_mps
+                    if self.trajectory.mode == "autonomous"
+                    else self.trajectory.speed_mps
+                )
+                if fault.params["speed_mps"] >= uav:
+                    raise ValueError(
+                        f"faults[{index}] (wind): speed_mps = {fault.params['speed_mps']!r} "
+                        f"must be below the UAV's speed ({uav} m/s) or it cannot hold position"
+                    )
+        kinds = [f.kind for f in self.faults or ()]
+        repeated = sorted({k for k in SINGLE_KINDS if kinds.count(k) > 1})
+        if repeated:
+            raise ValueError(f"faults: at most one {repeated[0]!r} entry (there is one UAV)")
         return self
 
     def resolve_path(self, value: str) -> Path:
@@ -381,6 +437,15 @@ def _fields_at(loc: tuple[int | str, ...]) -> list[str]:
     return list(model.model_fields) if hasattr(model, "model_fields") else []
 
 
+_STRICT_TYPE_HINTS = {
+    "float_type": "must be a number (not a string, not true/false)",
+    "int_type": "must be a whole number (not a string, a fraction or true/false)",
+    "string_type": "must be a string (in quotes)",
+    "bool_type": "must be true or false",
+}
+"""One-line messages for the strict type checks (pydantic's own name Python types, not TOML's)."""
+
+
 def format_validation_error(source: str, error: ValidationError) -> str:
     """The first validation problem as one line: ``source: field = value: what is allowed``."""
     first = _first_error(error)
@@ -398,6 +463,8 @@ def format_validation_error(source: str, error: ValidationError) -> str:
         )
     if first["type"] == "missing":
         return f"{source}: {where} is required"
+    if first["type"] in _STRICT_TYPE_HINTS:
+        message = _STRICT_TYPE_HINTS[first["type"]]
     value = first.get("input")
     shown = "" if isinstance(value, dict) else f" = {value!r}"
     return f"{source}: {where or 'scenario'}{shown}: {message}"
@@ -437,9 +504,9 @@ def load_scenario(spec: str | Path, overrides: Sequence[str] = ()) -> Scenario:
         source, base_dir = f"preset {spec}", Path(".")
     else:
         try:
-            text = path.read_text()
-        except OSError as exc:
-            raise ScenarioError(f"{path}: cannot read ({exc.strerror})") from None
+            text = read_text(path, "scenario")
+        except SkymuleError as exc:
+            raise ScenarioError(str(exc)) from None
         source, base_dir = str(path), path.parent
     data = _toml(text, source)
     for override in overrides:

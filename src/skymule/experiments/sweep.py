@@ -43,6 +43,7 @@ import numpy as np
 
 from skymule.errors import SkymuleError
 from skymule.geo import LocalFrame
+from skymule.io.textfiles import read_text
 from skymule.scenario import Scenario, load_scenario, scenario_from_dict
 
 TOP_LEVEL_KEYS = ("base", "seed", "mode", "axes")
@@ -339,9 +340,7 @@ def load_sweep(path: str | Path) -> SweepSpec:
     """Read and validate a sweep file."""
     file = Path(path)
     try:
-        data = tomllib.loads(file.read_text())
-    except OSError as exc:
-        raise SkymuleError(f"sweep file {str(path)!r}: cannot read ({exc.strerror})") from None
+        data = tomllib.loads(read_text(file, "sweep file"))
     except tomllib.TOMLDecodeError as exc:
         raise SkymuleError(f"{file}: not valid TOML ({exc})") from None
     return parse_sweep(data, str(file), file.parent)

@@ -2,6 +2,11 @@
 
 A run folder holds ``summary.json``, ``slots.csv`` (one row a slot) and ``scenario.json``
 (the validated scenario, so a result always travels with what produced it).
+
+Reading validates all three against one schema (:mod:`skymule.io.runschema`: pydantic for the
+JSON files, column/type/length checks for the slot table), so a damaged or hand-edited folder
+is one line naming the file, the row/column and what is allowed, never a traceback and never
+a figure drawn from part of the slots.
 """
 
 from __future__ import annotations
@@ -16,6 +21,8 @@ import pandas as pd
 
 from skymule.errors import SkymuleError
 from skymule.geo import LocalFrame
+from skymule.io.runschema import check_slots, validate_scenario_json, validate_summary
+from skymule.io.textfiles import read_text
 from skymule.metrics import BITS_PER_MBIT, power_w, speed_mps, step_lengths_m
 from skymule.sim.log import NO_SENSOR, MissionLog
 
@@ -72,63 +79,64 @@ def write_run(
     _atomic_write(out_dir / SUMMARY_FILE, json.dumps(summary, indent=2))
 
 
-REQUIRED_SLOT_COLUMNS = (
-    "t_s",
-    "x_m",
-    "y_m",
-    "z_m",
-    "served",
-    "rate_mbps",
-    "downloaded_mbit",
-    "hovering",
-    "distance_m",
-)
-"""slots.csv columns every reader of a run folder relies on (plus snr_db_<name> per sensor)."""
-
-REQUIRED_SUMMARY_KEYS = (
-    "scenario",
-    "policy",
-    "slots",
-    "total_downloaded_mbit",
-    "per_sensor_downloaded_mbit",
-    "per_sensor_buffer_mbit",
-)
-"""summary.json keys every reader of a run folder relies on."""
-
-
 def is_run_dir(path: Path) -> bool:
     return (path / SUMMARY_FILE).is_file() and (path / SLOTS_FILE).is_file()
 
 
+def _read_json(path: Path) -> Any:
+    text = read_text(path, "run file")
+    try:
+        return json.loads(text)
+    except ValueError as exc:
+        raise SkymuleError(
+            f"{path}: not valid JSON ({exc}); rewrite the run with `skymule run`"
+        ) from None
+
+
 def read_run(run_dir: Path) -> tuple[dict[str, Any], pd.DataFrame]:
-    """Summary and slot table of a run folder; a clear error if it is not one."""
+    """Summary and slot table of a run folder, validated; a clear one-line error if damaged.
+
+    ``scenario.json`` is validated too when present (figures draw the site from it).
+    """
     if not is_run_dir(run_dir):
         raise SkymuleError(
             f"{run_dir}: not a run folder (expected {SUMMARY_FILE} and {SLOTS_FILE}; "
             "make one with `skymule run SCENARIO --out DIR`)"
         )
+    summary_path = run_dir / SUMMARY_FILE
+    summary = validate_summary(_read_json(summary_path), str(summary_path))
+    slots_path = run_dir / SLOTS_FILE
     try:
-        summary = json.loads((run_dir / SUMMARY_FILE).read_text())
-        slots = pd.read_csv(run_dir / SLOTS_FILE, keep_default_na=False, na_values=[""])
+        slots = pd.read_csv(
+            slots_path,
+            keep_default_na=False,
+            na_values=[""],
+            encoding="utf-8",
+            dtype={"served": str},  # sensor names stay text, even "1" or an all-empty column
+        )
+    except UnicodeDecodeError as exc:
+        raise SkymuleError(
+            f"{slots_path}: not a UTF-8 text file (bad byte at offset {exc.start})"
+        ) from None
+    except pd.errors.EmptyDataError:
+        raise SkymuleError(
+            f"{slots_path}: empty file; expected a header and one row a slot"
+        ) from None
     except (OSError, ValueError) as exc:
-        raise SkymuleError(f"{run_dir}: cannot read run files ({exc})") from None
-    missing_keys = [
-        k for k in REQUIRED_SUMMARY_KEYS if not isinstance(summary, dict) or k not in summary
-    ]
-    if missing_keys:
         raise SkymuleError(
-            f"{run_dir / SUMMARY_FILE}: missing {', '.join(missing_keys)}; "
-            "not written by `skymule run` (or damaged)"
-        )
-    missing_columns = [c for c in REQUIRED_SLOT_COLUMNS if c not in slots.columns]
-    if missing_columns or not sensor_names_of(slots):
-        missing = missing_columns or ["snr_db_<sensor>"]
-        raise SkymuleError(
-            f"{run_dir / SLOTS_FILE}: missing column(s) {', '.join(missing)}; "
-            "not written by `skymule run` (or damaged)"
-        )
-    slots["served"] = slots["served"].fillna("").astype(str)
+            f"{slots_path}: cannot read ({str(exc).strip().splitlines()[0]})"
+        ) from None
+    slots = check_slots(slots, summary, str(slots_path))
+    read_run_scenario(run_dir)
     return summary, slots
+
+
+def read_run_scenario(run_dir: Path) -> dict[str, Any]:
+    """The run's ``scenario.json`` (validated as a scenario), or ``{}`` when it has none."""
+    path = run_dir / SCENARIO_FILE
+    if not path.is_file():
+        return {}
+    return validate_scenario_json(_read_json(path), str(path), run_dir)
 
 
 def sensor_names_of(slots: pd.DataFrame) -> list[str]:

@@ -47,7 +47,7 @@ class PolicySpec(Protocol):
 class NoParams(BaseModel):
     """Parameter model of a policy without parameters (an empty ``[policy.params]``)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, strict=True)
 
 
 class HGADParams(NoParams):

@@ -275,7 +275,7 @@ class Aerial3GPP:
 class ModelParams(BaseModel):
     """Base of every path-loss model's ``[radio.params]`` model (no parameters)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, strict=True)
 
 
 class LogDistanceParams(ModelParams):

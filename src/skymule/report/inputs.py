@@ -7,7 +7,6 @@ never recomputed by simulating.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -17,7 +16,7 @@ import pandas as pd
 
 from skymule.aadm.score import aadm_score_one
 from skymule.errors import SkymuleError
-from skymule.io.runs import SCENARIO_FILE, is_run_dir, read_run, sensor_names_of
+from skymule.io.runs import is_run_dir, read_run, read_run_scenario, sensor_names_of
 from skymule.report.site import SiteGeometry, site_geometry
 
 COMPARISON_FILE = "comparison.csv"
@@ -56,28 +55,14 @@ class ReportInput:
 
 
 def read_scenario(run_dir: Path) -> dict[str, Any]:
-    path = run_dir / SCENARIO_FILE
-    if not path.is_file():
-        return {}
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise SkymuleError(f"{path}: cannot read scenario ({exc})") from None
-    if not isinstance(data, dict):
-        raise SkymuleError(f"{path}: expected a JSON object, got {type(data).__name__}")
-    return data
+    """The run's ``scenario.json`` (validated as a scenario), or ``{}`` when it has none."""
+    return read_run_scenario(run_dir)
 
 
 def load_run(run_dir: Path, label: str | None = None) -> RunData:
-    """Read a run folder (clear one-line error if it is not one)."""
+    """Read a run folder, validated (one clear line if it is not one or is damaged)."""
     summary, slots = read_run(run_dir)
-    missing = [c for c in ("t_s", "x_m", "y_m", "served", "downloaded_mbit") if c not in slots]
-    if missing:
-        raise SkymuleError(
-            f"{run_dir / 'slots.csv'}: missing column(s) {', '.join(missing)}; "
-            "expected a slots.csv written by `skymule run`"
-        )
-    scenario = read_scenario(run_dir)
+    scenario = read_run_scenario(run_dir)
     return RunData(
         path=run_dir,
         label=label or str(summary.get("policy", run_dir.name)),

@@ -58,7 +58,9 @@ class PolicyParams:
 
 BATCH_POLICIES: dict[str, Callable[[PolicySpec], PolicyParams]] = {
     "greedy": lambda spec: PolicyParams(hgad=False),
-    "hgad": lambda spec: PolicyParams(True, spec.hover_threshold, spec.max_hover_s),
+    "hgad": lambda spec: PolicyParams(
+        True, spec.param("hover_threshold"), spec.param("max_hover_s")
+    ),
 }
 """Policies with a batched implementation: name -> parameters from the ``[policy]`` section."""
 

@@ -1,0 +1,136 @@
+"""The CSV layer shared by both trace formats: cells, line numbers and one-line errors.
+
+Row numbers in messages are file line numbers (the header is row 1), as shown by editors
+and spreadsheets.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import re
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from skymule.io.traces.trace import TraceError, listing, quote
+
+NUMBER_RE = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
+_NAN_TOKENS = frozenset({"nan", "na", "n/a", "null", "none"})
+_UNNAMED_RE = re.compile(r"unnamed: \d+", re.IGNORECASE)
+
+
+@dataclass(frozen=True)
+class Table:
+    """Raw CSV content: header names, (R, K) stripped cells and their file line numbers."""
+
+    header: tuple[str, ...]
+    cells: np.ndarray
+    lines: np.ndarray
+
+
+@contextlib.contextmanager
+def file_errors(label: str, expected: str) -> Iterator[None]:
+    """Turn the ways reading a user's file fails into one-line TraceErrors."""
+    try:
+        yield
+    except FileNotFoundError:
+        raise TraceError(f"{label}: file not found") from None
+    except IsADirectoryError:
+        raise TraceError(f"{label}: is a directory, expected {expected}") from None
+    except UnicodeDecodeError as exc:
+        raise TraceError(
+            f"{label}: not a UTF-8 text file (bad byte at offset {exc.start})"
+        ) from None
+    except csv.Error as exc:
+        raise TraceError(f"{label}: malformed CSV ({exc})") from None
+    except OSError as exc:
+        raise TraceError(f"{label}: cannot read file ({exc.strerror or exc})") from None
+
+
+def read_table(label: str, path: Path) -> Table:
+    with file_errors(label, "a CSV file"), path.open(newline="", encoding="utf-8-sig") as fh:
+        reader = csv.reader(fh)
+        header: list[str] | None = None
+        rows: list[list[str]] = []
+        lines: list[int] = []
+        for record in reader:
+            stripped = [cell.strip() for cell in record]
+            if not any(stripped):
+                continue
+            if header is None:
+                header = stripped
+                continue
+            if len(stripped) != len(header):
+                raise TraceError(
+                    f"{label}: row {reader.line_num} has {len(stripped)} fields but the "
+                    f"header has {len(header)} (truncated or malformed row)"
+                )
+            rows.append(stripped)
+            lines.append(reader.line_num)
+    if header is None:
+        raise TraceError(f"{label}: empty file (expected a CSV header line)")
+    cells = np.array(rows, dtype=object).reshape(len(rows), len(header))
+    return Table(tuple(header), cells, np.array(lines, dtype=int))
+
+
+def _find(header: Sequence[str], name: str) -> list[int]:
+    return [i for i, h in enumerate(header) if h.lower() == name.lower()]
+
+
+def locate(label: str, header: Sequence[str], name: str) -> int:
+    hits = _find(header, name)
+    if not hits:
+        raise TraceError(
+            f"{label}: column {quote(name)} is missing (columns present: {listing(header)})"
+        )
+    if len(hits) > 1:
+        names = " and ".join(quote(header[i]) for i in hits)
+        raise TraceError(
+            f"{label}: columns {names} are the same column (names are case-insensitive)"
+        )
+    return hits[0]
+
+
+def is_ignored(name: str) -> bool:
+    return name == "" or _UNNAMED_RE.fullmatch(name) is not None
+
+
+def numbers(
+    label: str, table: Table, col: int, *, missing_ok: bool, what: str = "a number"
+) -> np.ndarray:
+    """(R,) float values of one column; empty/NaN cells -> NaN when ``missing_ok``."""
+    cells = pd.Series(table.cells[:, col], dtype=object).astype(str)
+    is_number = cells.str.fullmatch(NUMBER_RE).to_numpy(dtype=bool)
+    is_missing = (cells.eq("") | cells.str.lower().isin(_NAN_TOKENS)).to_numpy(dtype=bool)
+    values = np.full(len(cells), np.nan)
+    values[is_number] = cells[is_number].astype(float).to_numpy()
+    finite = is_number & np.isfinite(values)
+    bad = ~(finite | (is_missing & missing_ok))
+    if bad.any():
+        r = int(np.argmax(bad))
+        raw = table.cells[r, col]
+        if raw == "":
+            problem = "is empty; a value is required"
+        elif is_number[r]:
+            problem = f"{quote(raw)} is out of range"
+        else:
+            problem = f"{quote(raw)} is not {what}"
+        raise TraceError(
+            f"{label}: row {table.lines[r]}, column {quote(table.header[col])}: {problem}"
+        )
+    return values
+
+
+def check_range(label: str, table: Table, col: int, values: np.ndarray, limit: float) -> None:
+    bad = np.abs(values) > limit
+    if bad.any():
+        r = int(np.argmax(bad))
+        raise TraceError(
+            f"{label}: row {table.lines[r]}, column {quote(table.header[col])}: "
+            f"{quote(table.cells[r, col])} is out of range "
+            f"(allowed: -{limit:g} to {limit:g} degrees)"
+        )

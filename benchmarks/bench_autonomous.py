@@ -1,11 +1,13 @@
 """Autonomous missions: Greedy vs HGAD on paper-sim-autonomous, the Table II orders, speed.
 
-Run: /work/venv/bin/python benchmarks/bench_autonomous.py
+Run: python benchmarks/bench_autonomous.py (SKYMULE_BENCH_TINY=1: first Table II case only)
 """
 
 from __future__ import annotations
 
 import time
+
+from _sizes import size
 
 from skymule.metrics import summarize
 from skymule.policies.hgad import HGAD
@@ -37,7 +39,7 @@ def main() -> None:
             f"{s['aadm_score']:7.1f} {took:.3f}  order {','.join(s['visit_order'])}"
         )
     print("Table II (HGAD navigation order): buffers, paper, planned tour, by remaining data")
-    for buffers, paper in TABLE_II:
+    for buffers, paper in size(TABLE_II, TABLE_II[:1]):
         sensors = [
             sensor.model_copy(update={"buffer_mbit": float(b)})
             for sensor, b in zip(scenario.sensors, buffers, strict=True)

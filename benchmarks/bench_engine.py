@@ -1,6 +1,7 @@
 """Batched vs single-mission engine on 1,000 missions of paper-sim-fixed (random buffers).
 
-Run: /work/venv/bin/python benchmarks/bench_engine.py [n_missions] [n_single] [repeats]
+Run: python benchmarks/bench_engine.py [n_missions] [n_single] [repeats]
+(SKYMULE_BENCH_TINY=1: 20 missions, 2 single, 1 repeat)
 
 Prints mission-slots per second (same machine, same run) of:
 
@@ -22,6 +23,7 @@ from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
+from _sizes import size
 
 from skymule.policies import make_policy
 from skymule.scenario import PolicySpec, load_scenario
@@ -85,4 +87,6 @@ def main(n_missions: int = 1000, n_single: int = 100, repeats: int = 3) -> None:
 
 
 if __name__ == "__main__":
-    main(*(int(a) for a in sys.argv[1:]))
+    defaults = size((1000, 100, 3), (20, 2, 1))
+    given = [int(a) for a in sys.argv[1:]]
+    main(*given, *defaults[len(given) :])

@@ -40,7 +40,7 @@ from skymule.world import BITS_PER_MBIT, build_mission
 
 SEED = 2025
 DT_MODEL = "two-ray"
-DT_SECONDS = 500
+DT_SECONDS = 360
 FLIGHT_SECONDS = 360
 DT_MISSING_SHARE = 0.01
 SHADOWING_STD_DB = 4.0

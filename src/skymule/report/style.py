@@ -111,8 +111,6 @@ PAPER_RC: dict[RcKeyType, Any] = {
     "legend.frameon": False,
     "legend.handlelength": 1.6,
     "legend.columnspacing": 1.0,
-    "savefig.bbox": "tight",
-    "savefig.pad_inches": 0.02,
     "pdf.fonttype": 42,  # TrueType in the PDF: editable text, accepted by publishers
     "ps.fonttype": 42,
     "svg.fonttype": "none",

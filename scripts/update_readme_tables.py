@@ -65,7 +65,8 @@ class Context:
         done = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True)
         seconds = time.perf_counter() - start
         if done.returncode:
-            raise SystemExit(f"{' '.join(command)} failed ({done.returncode}):\n{done.stderr}")
+            output = (done.stdout + done.stderr)[-4000:]
+            raise SystemExit(f"{' '.join(command)} failed ({done.returncode}):\n{output}")
         return done.stdout, seconds
 
     def skymule(self, *args: str) -> tuple[str, float]:
@@ -215,7 +216,7 @@ def speed_rows(ctx: Context) -> dict[str, str]:
         f"fspl alone {_f(fspl):.2f} s"
     )
     bound = {
-        slots: _f(s)
+        int(slots): _f(s)
         for slots, s in _numbers(
             r"bound (\d+) slots x \d+ sensors \(hover\): ([\d.]+) s", ctx.bench("bench_bound.py")
         )

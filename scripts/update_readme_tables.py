@@ -244,18 +244,33 @@ def speed_table(ctx: Context, old: list[str]) -> list[str]:
 
 
 def suite_table(ctx: Context, old: list[str]) -> list[str]:
+    """The whole suite's counts and wall time (only with --all; failures are reported, not
+    hidden: the row says how many failed)."""
     if not ctx.slow or ctx.tiny:
         return old
-    text, seconds = ctx.run(sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider")
-    counts = dict((kind, int(n)) for n, kind in re.findall(r"(\d+) (passed|skipped|failed)", text))
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    start = time.perf_counter()
+    done = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+    seconds = time.perf_counter() - start
+    tail = done.stdout.strip().splitlines()[-1] if done.stdout.strip() else ""
+    counts = {kind: int(n) for n, kind in re.findall(r"(\d+) (passed|skipped|failed)", tail)}
+    if not counts:
+        raise SystemExit(f"pytest printed no summary line:\n{done.stdout[-3000:]}")
     return markdown(
-        ["tests", "passed", "skipped", "wall time [s]", "command"],
-        list("rrrrl"),
+        ["tests", "passed", "skipped", "failed", "wall time [s]", "command"],
+        list("rrrrrl"),
         [
             [
                 str(sum(counts.values())),
                 str(counts.get("passed", 0)),
                 str(counts.get("skipped", 0)),
+                str(counts.get("failed", 0)),
                 f"{seconds:.0f}",
                 "`python -m pytest -q`",
             ]

@@ -1,6 +1,6 @@
 """Autonomous missions: Greedy vs HGAD on paper-sim-autonomous, the Table II orders, speed.
 
-Run: /work/venv/bin/python benchmarks/bench_autonomous.py [n_random]
+Run: python benchmarks/bench_autonomous.py (SKYMULE_BENCH_TINY=1: first Table II case only)
 
 Last, the reference engine's speed (sim/autonomous.py + the tours): missions and mission-slots
 per CPU-second of Greedy and HGAD on the preset plus ``n_random`` random layouts
@@ -13,6 +13,7 @@ import sys
 import time
 
 import numpy as np
+from _sizes import size
 
 from skymule.experiments.layouts import random_autonomous_scenario
 from skymule.metrics import summarize
@@ -51,7 +52,7 @@ def reference_speed(n_random: int) -> None:
         )
 
 
-def main(n_random: int = 10) -> None:
+def main(n_random: int = size(10, 1)) -> None:
     scenario = load_scenario(PRESET)
     mission = build_mission(scenario)
     print(f"{PRESET}: policy, Mbit, completion, hover s, distance m, energy kJ, AADM score, s/run")
@@ -65,7 +66,7 @@ def main(n_random: int = 10) -> None:
             f"{s['aadm_score']:7.1f} {took:.3f}  order {','.join(s['visit_order'])}"
         )
     print("Table II (HGAD navigation order): buffers, paper, planned tour, by remaining data")
-    for buffers, paper in TABLE_II:
+    for buffers, paper in size(TABLE_II, TABLE_II[:1]):
         sensors = [
             sensor.model_copy(update={"buffer_mbit": float(b)})
             for sensor, b in zip(scenario.sensors, buffers, strict=True)

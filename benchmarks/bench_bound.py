@@ -8,12 +8,14 @@ The path has as many samples as the mission has slots (K = T).
 Then, for the fixed presets ``paper-sim-fixed`` and ``aadm-default``: the bound (with and
 without hovering), each policy's download and its gap to the bound (Mbit and fraction).
 
-Run: ``python benchmarks/bench_bound.py``
+Run: ``python benchmarks/bench_bound.py`` (``SKYMULE_BENCH_TINY=1``: one preset, 50/120-slot
+paths)
 """
 
 from __future__ import annotations
 
 import numpy as np
+from _sizes import size
 
 from skymule.bounds.fixed import fixed_path_bound
 from skymule.bounds.mission import mission_bound
@@ -71,9 +73,9 @@ def preset_gaps(preset: str) -> None:
 
 
 def main() -> None:
-    for preset in PRESETS:
+    for preset in size(PRESETS, PRESETS[:1]):
         preset_gaps(preset)
-    for n_slots in (500, 3600):
+    for n_slots in size((500, 3600), (50, 120)):
         rate = rates_bps(lawnmower_xy(n_slots))
         for hover in (True, False):
             res = fixed_path_bound(rate, BUFFERS_BIT, SLOT_S, n_slots, hover_allowed=hover)

@@ -2,7 +2,7 @@
 shadowing, and radio-map queries (fast path and dense reference). Prints wall-clock
 seconds (best of 3).
 
-    /work/venv/bin/python benchmarks/bench_channel.py
+    python benchmarks/bench_channel.py     (SKYMULE_BENCH_TINY=1: 2,000 positions, 1 run)
 """
 
 from __future__ import annotations
@@ -10,18 +10,21 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from _sizes import size
 
-from skymule.geo import LocalFrame
+from skymule.geo import LocalFrame, sensor_positions_m
 from skymule.radio.channel import signal_source
 from skymule.radio.kriging import krige_dense
 from skymule.radio.pathloss import PATHLOSS_MODELS
 from skymule.radio.radiomap import RadioMap, SensorSamples, fit_sensor_map
 from skymule.scenario import load_scenario
 
-N_POSITIONS = 100_000
+N_POSITIONS = size(100_000, 2_000)
+REPEATS = size(3, 1)
+N_TRAIN = size(1000, 200)
 
 
-def best_of(fn, repeats: int = 3) -> float:
+def best_of(fn, repeats: int = REPEATS) -> float:
     times = []
     for _ in range(repeats):
         start = time.perf_counter()
@@ -33,15 +36,13 @@ def best_of(fn, repeats: int = 3) -> float:
 def main() -> None:
     base = load_scenario("aadm-default")
     frame = LocalFrame(base.site.origin.lat, base.site.origin.lon)
-    from skymule.radio.radiomap import sensor_positions_m
-
     sensor_m = sensor_positions_m(base.sensors, frame)
     rng = np.random.default_rng(0)
     positions = np.column_stack(
         [rng.uniform(-400, 400, N_POSITIONS), rng.uniform(-550, 300, N_POSITIONS),
          np.full(N_POSITIONS, 30.0)]
     )  # fmt: skip
-    print(f"SNR for {len(sensor_m)} sensors x {N_POSITIONS:,} positions [s, best of 3]")
+    print(f"SNR for {len(sensor_m)} sensors x {N_POSITIONS:,} positions [s, best of {REPEATS}]")
     for name in PATHLOSS_MODELS.names():
         scenario = base.model_copy(update={"radio": base.radio.model_copy(update={"model": name})})
         source = signal_source(scenario, frame, sensor_m)
@@ -56,13 +57,13 @@ def main() -> None:
         f"  fspl + shadowing: field draw {build:.3f}, query {query:.3f}, total {build + query:.3f}"
     )
     # radio map: 1000 training samples per sensor (the kriging cap)
-    train = positions[:1000]
+    train = positions[:N_TRAIN]
     snr = source.snr_db(train)
-    segment = np.arange(1000) * 5 // 1000
+    segment = np.arange(N_TRAIN) * 5 // N_TRAIN
     fit = best_of(
         lambda: fit_sensor_map("LW1", sensor_m[0], SensorSamples(train, snr[:, 0], segment)), 1
     )
-    print(f"  radio map: fit 1 sensor x 1000 samples (+5-fold CV) {fit:.3f}")
+    print(f"  radio map: fit 1 sensor x {N_TRAIN} samples (+5-fold CV) {fit:.3f}")
     names = [s.name for s in base.sensors]
     fitted = RadioMap(
         (frame.origin_lat_deg, frame.origin_lon_deg),

@@ -1,6 +1,7 @@
 """Batched fixed-path Greedy/HGAD: the compiled core vs the numpy core vs one mission at a time.
 
-Run: /work/venv/bin/python benchmarks/bench_engine.py [n_missions] [n_single] [repeats]
+Run: python benchmarks/bench_engine.py [n_missions] [n_single] [repeats]
+(SKYMULE_BENCH_TINY=1: 20 missions, 2 single, 1 repeat)
 
 Missions: paper-sim-fixed (4 sensors, 500 slots) with random buffers. For each policy it prints
 mission-slots per CPU-second (the machine is shared, so CPU time of this process is the fair
@@ -25,6 +26,7 @@ from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
+from _sizes import size
 
 from skymule.policies import make_policy
 from skymule.scenario import PolicySpec, load_scenario
@@ -108,4 +110,6 @@ def main(n_missions: int = 2000, n_single: int = 50, repeats: int = 3) -> None:
 
 
 if __name__ == "__main__":
-    main(*(int(a) for a in sys.argv[1:]))
+    defaults = size((1000, 100, 3), (20, 2, 1))
+    given = [int(a) for a in sys.argv[1:]]
+    main(*given, *defaults[len(given) :])

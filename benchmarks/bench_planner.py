@@ -7,7 +7,8 @@ over HGAD, how many missions it loses by more than 1 %, the mean gap to the boun
 reach, the default, and the straight-line reach it tightens), the bound's run time, and the
 preset's time-to-complete / AADM score.
 
-Run: /work/venv/bin/python benchmarks/bench_planner.py [--missions 200] [--workers 2]
+Run: python benchmarks/bench_planner.py [--missions 200] [--workers 2]
+(SKYMULE_BENCH_TINY=1: 3 missions in this process, no variants of the preset)
 
 Speed only: /work/venv/bin/python benchmarks/bench_planner.py --speed 20 [--before main]
 prints planner missions per CPU-second of the planner at git revision ``--before`` (its
@@ -27,6 +28,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
+from _sizes import size
 
 from skymule.bounds.autonomous import autonomous_bound
 from skymule.experiments.layouts import random_autonomous_scenario
@@ -118,8 +120,8 @@ def speed(n_missions: int, revision: str) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser()
-    parser.add_argument("--missions", type=int, default=200)
-    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--missions", type=int, default=size(200, 3))
+    parser.add_argument("--workers", type=int, default=size(2, 1))
     parser.add_argument("--speed", type=int, default=0, help="only the speed comparison")
     parser.add_argument("--before", default="main", help="git revision to compare with")
     args = parser.parse_args()
@@ -136,13 +138,14 @@ def main() -> None:
             f"  {policy.name:8s} {log.downloaded_bit.sum() / 1e6:7.1f} "
             f"{completion_time_s(log)!s:>6} {aadm_score(log):7.1f}"
         )
-    for label, changes in (
+    variants = (
         ("300 s", {"mission": base.mission.model_copy(update={"duration_s": 300.0})}),
         (
             "1500 Mbit each",
             {"sensors": [s.model_copy(update={"buffer_mbit": 1500.0}) for s in base.sensors]},
         ),
-    ):
+    )
+    for label, changes in variants[: size(2, 0)]:
         variant = build_mission(base.model_copy(update=changes))
         bound = autonomous_bound(variant).upper_bound_bit / 1e6
         euclidean = autonomous_bound(variant, reach="euclidean").upper_bound_bit / 1e6
@@ -155,8 +158,11 @@ def main() -> None:
     rng = np.random.default_rng(SEED)
     scenarios = [random_autonomous_scenario(rng, base) for _ in range(args.missions)]
     start = time.perf_counter()
-    with ProcessPoolExecutor(args.workers) as pool:
-        rows = np.array(list(pool.map(evaluate, scenarios, chunksize=4)))
+    if args.workers == 1:  # no pool to start (tiny-size mode, or a machine with one core)
+        rows = np.array([evaluate(s) for s in scenarios])
+    else:
+        with ProcessPoolExecutor(args.workers) as pool:
+            rows = np.array(list(pool.map(evaluate, scenarios, chunksize=4)))
     wall = time.perf_counter() - start
     total, hgad, planner, bound, euclidean, took, bound_took = rows.T
     gain = (planner - hgad) / hgad

@@ -1,12 +1,14 @@
 """Slots simulated per second by the reference single-mission engine on the presets.
 
-Run: python benchmarks/bench_single.py [--repeat N]
+Run: python benchmarks/bench_single.py [--repeat N] (SKYMULE_BENCH_TINY=1: --repeat 1)
 """
 
 from __future__ import annotations
 
 import argparse
 import time
+
+from _sizes import size
 
 from skymule.policies import make_policy
 from skymule.scenario import load_scenario
@@ -16,7 +18,7 @@ from skymule.world import build_mission
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--repeat", type=int, default=50)
+    parser.add_argument("--repeat", type=int, default=size(50, 1))
     args = parser.parse_args()
     for preset in ("paper-sim-fixed", "aadm-default"):
         scenario = load_scenario(preset)

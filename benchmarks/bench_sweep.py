@@ -1,6 +1,7 @@
 """Sweep wall time and peak memory.
 
-Run: /work/venv/bin/python benchmarks/bench_sweep.py [n_layouts] [executor] [chunk_size]
+Run: python benchmarks/bench_sweep.py [n_layouts] [executor] [chunk_size]
+(SKYMULE_BENCH_TINY=1: 5 layouts, in process, chunks of 4)
 Sweeps paper-sim-fixed x {greedy, hgad} over n_layouts random buffer draws (2 x n_layouts
 missions) into a temporary folder; prints wall time and peak RSS of this process plus its
 workers (sampled every 0.2 s).
@@ -16,6 +17,7 @@ import time
 from pathlib import Path
 
 import psutil
+from _sizes import size
 
 from skymule.experiments.run import run_sweep
 from skymule.experiments.sweep import parse_sweep
@@ -70,5 +72,10 @@ def main(n_layouts: int = 5000, executor: str = "process", chunk_size: int = 500
 
 
 if __name__ == "__main__":
+    n_layouts, executor, chunk_size = size((5000, "process", 500), (5, "inprocess", 4))
     args = sys.argv[1:]
-    main(int(args[0]) if args else 5000, *(args[1:2] or []), *(int(a) for a in args[2:3]))
+    main(
+        int(args[0]) if args else n_layouts,
+        args[1] if len(args) > 1 else executor,
+        int(args[2]) if len(args) > 2 else chunk_size,
+    )

@@ -1,7 +1,9 @@
 """report.html in a real headless Chromium (Debian's package, driven by Playwright).
 
 Skipped, with the reason, when /usr/bin/chromium or the playwright package is missing.
-Keeps a screenshot of the first screen in ``test-artifacts/report-first-screen.png``.
+Keeps a screenshot of the first screen in ``test-artifacts/report-first-screen.png`` and one of
+every figure as the page shows it, at its print size (3.5 in a panel, 96 CSS px an inch), in
+``test-artifacts/figures/<key>.png``: the pictures to look at when a figure changes.
 """
 
 from __future__ import annotations
@@ -13,7 +15,8 @@ from pathlib import Path
 import pytest
 
 from skymule.report.build import build_report
-from skymule.report.html import PER_RUN_PANELS
+from skymule.report.html import CSS_PX_PER_IN, PER_RUN_PANELS
+from skymule.report.style import PANEL_WIDTH_IN
 from skymule.runner import simulate
 from skymule.scenario import scenario_from_dict
 from skymule.world import build_mission
@@ -101,6 +104,14 @@ def test_report_renders_in_chromium(report_html: Path, tmp_path: Path) -> None:
             assert all(done and width > 100 for done, width in sizes), sizes
             for key in ("trajectory", "download", "remaining", "snr", "snr-cdf", "score"):
                 assert page.locator(f'figure[data-fig="{key}"] img').is_visible(), key
+            # every figure shown at print size: 3.5 in a panel (two runs: two panels)
+            (ARTIFACTS / "figures").mkdir(exist_ok=True)
+            for key in ["score", "policies", *(p.key for p in PER_RUN_PANELS)]:
+                image = page.locator(f'figure[data-fig="{key}"] img')
+                panels = 1 if key in ("score", "policies") else 2
+                width = image.evaluate("i => i.getBoundingClientRect().width")
+                assert width == pytest.approx(panels * PANEL_WIDTH_IN * CSS_PX_PER_IN, abs=1), key
+                image.screenshot(path=str(ARTIFACTS / "figures" / f"{key}.png"))
 
             # interactive view: hovering the path shows that slot's details
             svg = page.locator("svg.traj").first

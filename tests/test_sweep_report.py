@@ -69,8 +69,10 @@ def test_every_section_and_figure_embedded_offline(sweep_dir: Path) -> None:
         assert base64.b64decode(block.group(1))[:8] == b"\x89PNG\r\n\x1a\n"
         assert (sweep_dir / "figures" / f"{key}.png").is_file()
         assert (sweep_dir / "figures" / f"{key}.pdf").read_bytes()[:5] == b"%PDF-"
-    # mission.duration_s is the one discrete axis; the buffers sum is the drawn one
-    assert "vs mission.duration_s" in text and "sum of sensors[*].buffer_mbit" in text
+    # mission.duration_s is the one discrete axis; the buffers sum is the drawn one; both are
+    # named in words with units (issue 13), not by their scenario keys
+    assert "vs mission duration [s]" in text and "vs total buffer [Mbit]" in text
+    assert "sensors[*]" not in text.split('id="parameter-table"')[0]
     assert not re.search(r"https?://", text)
     assert not re.search(r'(src|href)="(?!data:|#)', text)
 

@@ -59,17 +59,42 @@ def _distributed() -> Any:
     return distributed
 
 
+DASK_START_TIMEOUT_S = 120
+"""Seconds a local Dask cluster may take to connect its workers (Dask's default is 30 s)."""
+
+
+def _start_local_cluster(distributed: Any, workers: int) -> Any:
+    """A ``LocalCluster`` that opens no well-known port and survives a slow start.
+
+    The scheduler's HTTP server (dashboard, health and metrics routes) binds port 8787 unless
+    told otherwise, even with the dashboard off, and warns when 8787 is taken, so the port is
+    ``127.0.0.1:0`` (any free one) and the dashboard stays off. On a loaded machine a worker
+    can miss Dask's default 30-s connect timeout and the cluster fails with "Cluster closed
+    without starting up" (seen in CI, issue 15): the connect timeout is raised to
+    ``DASK_START_TIMEOUT_S`` and a failed start is retried once.
+    """
+    import dask
+
+    options: dict[str, Any] = {
+        "n_workers": workers,
+        "threads_per_worker": 1,
+        "host": "127.0.0.1",
+        "dashboard_address": "127.0.0.1:0",
+        "scheduler_kwargs": {"dashboard": False},
+    }
+    timeout = f"{DASK_START_TIMEOUT_S}s"
+    with dask.config.set({"distributed.comm.timeouts.connect": timeout}):
+        try:
+            return distributed.LocalCluster(**options)
+        except (RuntimeError, OSError, TimeoutError):
+            return distributed.LocalCluster(**options)  # once more: a busy machine, not a bug
+
+
 @contextmanager
 def _dask_local(workers: int | None, scheduler: str | None) -> Iterator[Executor]:
     distributed = _distributed()
-    with (
-        distributed.LocalCluster(
-            n_workers=workers or default_workers(),
-            threads_per_worker=1,
-            dashboard_address=None,
-        ) as cluster,
-        distributed.Client(cluster) as client,
-    ):
+    cluster = _start_local_cluster(distributed, workers or default_workers())
+    with cluster, distributed.Client(cluster, timeout=f"{DASK_START_TIMEOUT_S}s") as client:
         yield client.get_executor()
 
 

@@ -4,28 +4,28 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-
-import matplotlib.pyplot as plt
 import pandas as pd
 
 from skymule.report.figures import draw_snr_cdf
+from skymule.report.style import DEFAULT_DPI, finish_figure, panel_figure, paper_style, save_figure
 
 
 def plot_snr_cdf_by_source(
-    panels: list[tuple[str, pd.DataFrame]], out_path: Path, title: str = ""
+    panels: list[tuple[str, pd.DataFrame]],
+    out_path: Path,
+    title: str = "",
+    *,
+    formats: tuple[str, ...] | None = None,
+    dpi: int = DEFAULT_DPI,
 ) -> Path:
-    """One panel per source (title, slots frame), one CDF curve per sensor; PNG at out_path."""
-    fig, axes = plt.subplots(
-        1, len(panels), figsize=(4.2 * len(panels), 3.6), sharey=True, squeeze=False
-    )
-    for ax, (label, slots) in zip(axes[0], panels, strict=True):
-        draw_snr_cdf(ax, slots, title=label)
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(out_path, dpi=150)
-    plt.close(fig)
-    return out_path
+    """One print-sized panel per source (title, slots frame), one CDF curve per sensor, all
+    panels on the same SNR range; writes ``out_path`` (and the other ``formats`` next to it).
+    """
+    with paper_style():
+        fig, axes = panel_figure(len(panels), 2.6, sharex=True, sharey=True)
+        for ax, (label, slots) in zip(axes, panels, strict=True):
+            draw_snr_cdf(ax, slots, title=label)
+        finish_figure(fig, title)
+        fmt = out_path.suffix.lstrip(".") or "png"
+        written = save_figure(fig, out_path.parent, out_path.stem, formats or (fmt,), dpi)
+    return written[fmt] if fmt in written else next(iter(written.values()))

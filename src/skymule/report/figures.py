@@ -1,8 +1,9 @@
-"""Figures drawn from run folders (never from a simulation).
+"""Figures drawn from run folders (never from a simulation): ``skymule plot``.
 
-Every function takes what :func:`skymule.io.runs.read_run` returns and a matplotlib Axes or
-output path; nothing here imports the engine. Colours come from the Okabe-Ito palette, which
-stays distinguishable for colour-blind readers.
+The draw functions take what :func:`skymule.io.runs.read_run` returns and a matplotlib Axes;
+nothing here imports the engine. ``plot`` draws with the report's own panels, sizes and style
+(:mod:`skymule.report.style`, :data:`skymule.report.html.PER_RUN_PANELS`), so a figure looks
+the same from either command.
 """
 
 from __future__ import annotations
@@ -10,24 +11,27 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-
-import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 from matplotlib.axes import Axes
-from matplotlib.figure import Figure
 
 from skymule.io.runs import sensor_names_of
+from skymule.report.style import (
+    DEFAULT_DPI,
+    DISTANCE_STYLE,
+    OKABE_ITO,
+    TOTAL_STYLE,
+    sensor_colours,
+)
 
-#: Okabe & Ito (2008) colour-blind-safe palette.
-OKABE_ITO = ("#0072B2", "#E69F00", "#009E73", "#D55E00", "#CC79A7", "#56B4E9", "#F0E442", "#000000")
-
-
-def sensor_colours(names: list[str]) -> dict[str, str]:
-    return {name: OKABE_ITO[i % len(OKABE_ITO)] for i, name in enumerate(names)}
+__all__ = [
+    "OKABE_ITO",
+    "cumulative_download_mbit",
+    "draw_cumulative_download",
+    "draw_snr_cdf",
+    "plot_run",
+    "sensor_colours",
+]
 
 
 def cumulative_download_mbit(slots: pd.DataFrame, name: str) -> np.ndarray:
@@ -36,23 +40,22 @@ def cumulative_download_mbit(slots: pd.DataFrame, name: str) -> np.ndarray:
 
 
 def draw_cumulative_download(ax: Axes, slots: pd.DataFrame, title: str = "") -> Axes:
-    """Cumulative download per sensor over time, distance flown on a second axis."""
+    """Cumulative download per sensor and in total over time; distance flown (black dotted)
+    on a second axis. Artists carry legend labels; the figure draws one legend for all."""
     names = sensor_names_of(slots)
     colours = sensor_colours(names)
     end_t = slots["t_s"] + float(slots["t_s"].diff().median() if len(slots) > 1 else 1.0)
     for name in names:
         ax.plot(end_t, cumulative_download_mbit(slots, name), color=colours[name], label=name)
-    ax.plot(end_t, np.cumsum(slots["downloaded_mbit"]), color="0.3", ls="--", label="total")
+    ax.plot(end_t, np.cumsum(slots["downloaded_mbit"]), label="total", **TOTAL_STYLE)
     ax.set_xlabel("time [s]")
     ax.set_ylabel("downloaded [Mbit]")
     twin = ax.twinx()
-    # black and dotted: distinct from every sensor colour of the palette
-    twin.plot(end_t, slots["distance_m"], color="black", ls=":", lw=1.4, label="distance")
-    twin.set_ylabel("distance flown [m] (dotted)")
-    lines = ax.get_lines() + twin.get_lines()
-    ax.legend(lines, [str(ln.get_label()) for ln in lines], loc="upper left", fontsize=8)
+    twin.plot(end_t, slots["distance_m"], label="distance flown", **DISTANCE_STYLE)
+    twin.set_ylabel("distance flown [m]")
+    twin.set_ylim(bottom=0)
+    twin.grid(False)
     ax.set_title(title)
-    ax.grid(alpha=0.3)
     return ax
 
 
@@ -72,128 +75,49 @@ def draw_snr_cdf(ax: Axes, slots: pd.DataFrame, title: str = "") -> Axes:
                 label=name,
             )
     ax.set_xlabel("SNR [dB]")
-    ax.set_ylabel("CDF")
+    ax.set_ylabel("empirical CDF")
     ax.set_ylim(0, 1)
-    ax.legend(fontsize=8)
     ax.set_title(title)
-    ax.grid(alpha=0.3)
     return ax
 
 
-def _site_geometry(scenario: dict[str, Any]) -> dict[str, Any]:
-    """Geofence ring, sensor and home positions [m] from a run's scenario.json (via geo)."""
-    from skymule.errors import SkymuleError
-    from skymule.geo import LocalFrame, load_geofence
-
-    site = scenario.get("site", {})
-    origin = site.get("origin", {"lat": 35.7274824, "lon": -78.6962749})
-    frame = LocalFrame(float(origin["lat"]), float(origin["lon"]))
-    fence = None
-    if site.get("geofence"):
-        try:
-            polygon = load_geofence(site["geofence"], frame, Path(scenario.get("base_dir", ".")))
-            fence = np.asarray(polygon.exterior.coords)[:, :2]
-        except SkymuleError:
-            fence = None  # a relative fence file that did not travel with the run folder
-    sensors: dict[str, tuple[float, float]] = {}
-    for sensor in scenario.get("sensors", []):
-        if sensor.get("lat") is not None and sensor.get("lon") is not None:
-            x_m, y_m = frame.to_local(sensor["lat"], sensor["lon"])
-            sensors[sensor["name"]] = (float(x_m), float(y_m))
-        elif sensor.get("x_m") is not None and sensor.get("y_m") is not None:
-            sensors[sensor["name"]] = (float(sensor["x_m"]), float(sensor["y_m"]))
-    home = scenario.get("trajectory", {}).get("home")
-    if isinstance(home, dict):
-        x_m, y_m = frame.to_local(home["lat"], home["lon"])
-        home_m = (float(x_m), float(y_m))
-    elif isinstance(home, list) and len(home) == 2:
-        home_m = (float(home[0]), float(home[1]))
-    else:
-        home_m = (0.0, 0.0)
-    return {"fence": fence, "sensors": sensors, "home": home_m}
+#: ``skymule plot``'s files: report panel key -> file stem next to the run's files.
+PLOT_FILES = {"download": "download", "snr-cdf": "snr_cdf", "trajectory": "trajectory"}
 
 
-def draw_trajectory(
-    ax: Axes, slots: pd.DataFrame, summary: dict[str, Any], scenario_json: dict[str, Any]
-) -> Axes:
-    """Flown path coloured by served sensor, geofence, towers, hover points, home [m].
+def plot_run(
+    run_dir: Path,
+    summary: dict[str, Any],
+    slots: pd.DataFrame,
+    *,
+    formats: tuple[str, ...] = ("png",),
+    dpi: int = DEFAULT_DPI,
+) -> list[Path]:
+    """Write the run's figures next to its files, in each of ``formats``; returns the paths.
 
-    Like the paper's Fig. 2(b) and Fig. 7: x east / y north in metres from the site origin;
-    grey where no sensor was served; diamonds where the UAV hovered while serving.
+    ``download`` and ``snr_cdf`` always, ``trajectory`` when the run has its scenario.json
+    (the map needs the site). Same panels, size and style as ``skymule report``.
     """
-    from matplotlib.collections import LineCollection
+    from skymule.io.runs import SCENARIO_FILE
+    from skymule.report.html import PER_RUN_PANELS, render_panel
+    from skymule.report.inputs import RunData, read_scenario
+    from skymule.report.site import site_geometry
 
-    geometry = _site_geometry(scenario_json)
-    names = sensor_names_of(slots)
-    colours = sensor_colours(names)
-    if geometry["fence"] is not None:
-        fence = geometry["fence"]
-        ax.fill(fence[:, 0], fence[:, 1], color="#F0E442", alpha=0.15, lw=0)
-        ax.plot(fence[:, 0], fence[:, 1], color="#B8A800", lw=1.2, label="geofence")
-    xy = slots[["x_m", "y_m"]].to_numpy(float)
-    if len(xy) > 1:
-        segments = np.stack([xy[:-1], xy[1:]], axis=1)
-        served = slots["served"].to_numpy(str)[:-1]
-        seg_colours = [colours.get(name, "0.6") for name in served]
-        ax.add_collection(LineCollection(list(segments), colors=seg_colours, linewidths=2.0))
-    hovered = slots[(slots["hovering"] == 1) & (slots["served"] != "")]
-    for name in names:
-        colour = colours[name]
-        ax.plot([], [], color=colour, lw=2.0, label=f"serving {name}")
-        if name in geometry["sensors"]:
-            x_m, y_m = geometry["sensors"][name]
-            ax.scatter([x_m], [y_m], marker="^", s=90, color=colour, edgecolor="black", zorder=4)
-            ax.annotate(name, (x_m, y_m), textcoords="offset points", xytext=(5, 5), fontsize=8)
-        points = hovered[hovered["served"] == name][["x_m", "y_m"]].drop_duplicates()
-        if len(points):
-            ax.scatter(
-                points["x_m"],
-                points["y_m"],
-                marker="D",
-                s=40,
-                color=colour,
-                edgecolor="black",
-                zorder=5,
-            )
-    home = geometry["home"]
-    ax.scatter([home[0]], [home[1]], marker="*", s=200, color="black", zorder=6, label="home")
-    ax.scatter([], [], marker="^", color="0.5", edgecolor="black", label="tower")
-    ax.scatter([], [], marker="D", color="0.5", edgecolor="black", label="hover point")
-    order = summary.get("visit_order") or []
-    title = f"{summary.get('scenario', '')} - {summary.get('policy', '')}"
-    ax.set_title(title + (f"\nvisit order: {' > '.join(order)}" if order else ""), fontsize=9)
-    ax.set_xlabel("x east [m]")
-    ax.set_ylabel("y north [m]")
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.autoscale_view()
-    ax.legend(fontsize=7, loc="best")
-    ax.grid(alpha=0.3)
-    return ax
-
-
-def _save(fig: Figure, path: Path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=150)
-    plt.close(fig)
-    return path
-
-
-def plot_run(run_dir: Path, summary: dict[str, Any], slots: pd.DataFrame) -> list[Path]:
-    """Write the run's standard figures as PNG next to its files; returns the paths."""
-    title = f"{summary.get('scenario', '')} - {summary.get('policy', '')}"
-    fig, ax = plt.subplots(figsize=(7, 4))
-    draw_cumulative_download(ax, slots, title)
-    download = _save(fig, run_dir / "download.png")
-    fig, ax = plt.subplots(figsize=(6, 4))
-    draw_snr_cdf(ax, slots, title)
-    cdf = _save(fig, run_dir / "snr_cdf.png")
-    scenario_file = run_dir / "scenario.json"
-    if scenario_file.is_file():
-        import json
-
-        fig, ax = plt.subplots(figsize=(6.5, 6.5))
-        draw_trajectory(ax, slots, summary, json.loads(scenario_file.read_text()))
-        extra = [_save(fig, run_dir / "trajectory.png")]
-    else:
-        extra = []
-    return [download, cdf, *extra]
+    scenario = read_scenario(run_dir)
+    run = RunData(
+        path=run_dir,
+        label=str(summary.get("policy", run_dir.name)),
+        summary=summary,
+        slots=slots,
+        scenario=scenario,
+        site=site_geometry(scenario, run_dir),
+    )
+    has_site = (run_dir / SCENARIO_FILE).is_file()
+    written: list[Path] = []
+    for spec in PER_RUN_PANELS:
+        stem = PLOT_FILES.get(spec.key)
+        if stem is None or (spec.key == "trajectory" and not has_site):
+            continue
+        paths = render_panel(spec, (run,), run_dir, formats=formats, dpi=dpi, stem=stem)
+        written += list(paths.values())
+    return written

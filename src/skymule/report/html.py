@@ -17,7 +17,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import matplotlib.pyplot as plt
 from matplotlib.axes import Axes
 
 from skymule.report.figures import draw_cumulative_download, draw_snr_cdf
@@ -36,10 +35,21 @@ from skymule.report.panels import (
     draw_score,
     draw_snr_time,
 )
-from skymule.report.style import paper_style, save_figure
+from skymule.report.style import (
+    PANEL_WIDTH_IN,
+    finish_figure,
+    panel_figure,
+    paper_style,
+    save_figure,
+    scenario_description,
+)
 
 REPORT_FILE = "report.html"
 FIGURES_DIR = "figures"
+#: Resolution of the report's PNGs (embedded in the page; the PDFs are vector).
+REPORT_DPI = 200
+#: CSS pixels per inch: the page shows each figure at its print size.
+CSS_PX_PER_IN = 96
 
 
 @dataclass(frozen=True)
@@ -50,7 +60,9 @@ class PanelSpec:
     title: str
     caption: str
     draw: Callable[[Axes, RunData], object]
-    size_in: tuple[float, float]
+    height_in: float
+    #: panels of a compare figure share their axes ranges (same scale side by side)
+    shared: bool = True
 
 
 PER_RUN_PANELS: tuple[PanelSpec, ...] = (
@@ -60,36 +72,37 @@ PER_RUN_PANELS: tuple[PanelSpec, ...] = (
         "Flown path over the geofence (dashed) and towers (triangles), coloured by the sensor "
         "served; circles are hover points (larger: longer), the star is home.",
         lambda ax, run: draw_flight_map(ax, run, run.label),
-        (5.5, 5.0),
+        4.2,
+        shared=False,  # equal aspect per map (the site sets the extent of each anyway)
     ),
     PanelSpec(
         "download",
         "Cumulative download",
-        "Data downloaded from each sensor by the end of every slot; distance flown on the "
-        "right axis.",
+        "Data downloaded from each sensor by the end of every slot; distance flown (black, "
+        "dotted) on the right axis.",
         lambda ax, run: draw_cumulative_download(ax, run.slots, run.label),
-        (6.0, 3.8),
+        2.9,
     ),
     PanelSpec(
         "remaining",
         "Remaining data",
         "Data left in each sensor's buffer at the end of every slot.",
         lambda ax, run: draw_remaining(ax, run, run.label),
-        (6.0, 3.5),
+        2.6,
     ),
     PanelSpec(
         "snr",
         "SNR over time",
         "SNR to each sensor at the start of every slot; thick where that sensor is served.",
         lambda ax, run: draw_snr_time(ax, run, run.label),
-        (6.0, 3.5),
+        2.6,
     ),
     PanelSpec(
         "snr-cdf",
         "SNR distribution",
         "Empirical CDF of the SNR to each sensor over the mission.",
         lambda ax, run: draw_snr_cdf(ax, run.slots, run.label),
-        (5.0, 3.5),
+        2.6,
     ),
 )
 
@@ -197,50 +210,71 @@ def score_table(runs: tuple[RunData, ...], scores: list[ScoreBreakdown]) -> str:
     return table_html(["AADM score", *(r.label for r in runs)], rows, "score-table")
 
 
-def _img(png: Path, alt: str) -> str:
+def _img(png: Path, alt: str, width_in: float | None) -> str:
     data = base64.b64encode(png.read_bytes()).decode("ascii")
-    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
+    size = f' style="width:{width_in * CSS_PX_PER_IN:.0f}px"' if width_in else ""
+    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}"{size}>'
 
 
-def figure_html(key: str, png: Path, caption: str) -> str:
+def figure_html(key: str, png: Path, caption: str, width_in: float | None = None) -> str:
+    """A figure block; ``width_in`` shows it at its print width (CSS inches)."""
     written = [p for p in (png, png.with_suffix(".pdf")) if p.is_file()]
     files = ", ".join(f"{FIGURES_DIR}/{p.name}" for p in written)
     return (
-        f'<figure class="fig" data-fig="{key}">{_img(png, caption)}'
+        f'<figure class="fig" data-fig="{key}">{_img(png, caption, width_in)}'
         f"<figcaption>{html.escape(caption)} (files: {html.escape(files)})</figcaption></figure>"
     )
 
 
+def _formats(pdf: bool) -> tuple[str, ...]:
+    return ("png", "pdf") if pdf else ("png",)
+
+
+def figure_title(runs: tuple[RunData, ...]) -> str:
+    """A figure's title: the scenario in words (the runs of a compare share it)."""
+    return scenario_description(runs[0].scenario, runs[0].summary)
+
+
 def render_panel(
-    spec: PanelSpec, runs: tuple[RunData, ...], folder: Path, pdf: bool = True
-) -> Path:
-    """Draw ``spec`` for every run side by side; returns the PNG path (PDF next to it)."""
-    width, height = spec.size_in
+    spec: PanelSpec,
+    runs: tuple[RunData, ...],
+    folder: Path,
+    pdf: bool = True,
+    *,
+    formats: tuple[str, ...] | None = None,
+    dpi: int = REPORT_DPI,
+    stem: str | None = None,
+) -> dict[str, Path]:
+    """Draw ``spec`` for every run side by side, one print-sized panel each, one legend and
+    the scenario as title; returns the written files by format (``formats`` overrides
+    ``pdf``)."""
     with paper_style():
-        fig, axes = plt.subplots(1, len(runs), figsize=(width * len(runs), height), squeeze=False)
-        for ax, run in zip(axes[0], runs, strict=True):
+        fig, axes = panel_figure(len(runs), spec.height_in, sharex=spec.shared, sharey=spec.shared)
+        for ax, run in zip(axes, runs, strict=True):
             spec.draw(ax, run)
-        fig.tight_layout()
-        png, _ = save_figure(fig, folder, spec.key, pdf=pdf)
-    return png
+        if spec.shared:
+            for ax in axes[1:]:  # one y label for a row of panels on the same scale
+                ax.set_ylabel("")
+        finish_figure(fig, figure_title(runs))
+        return save_figure(fig, folder, stem or spec.key, formats or _formats(pdf), dpi)
 
 
 def render_bars(runs: tuple[RunData, ...], folder: Path, pdf: bool = True) -> Path:
     with paper_style():
-        fig, ax = plt.subplots(figsize=(max(4.0, 1.4 * len(runs) + 2), 3.8))
-        draw_policy_bars(ax, runs, "Downloaded data per policy")
-        png, _ = save_figure(fig, folder, "policies", pdf=pdf)
-    return png
+        fig, (ax,) = panel_figure(1, 2.9)
+        draw_policy_bars(ax, runs)
+        finish_figure(fig, figure_title(runs))
+        return save_figure(fig, folder, "policies", _formats(pdf), REPORT_DPI)["png"]
 
 
 def render_score(
     runs: tuple[RunData, ...], scores: list[ScoreBreakdown], folder: Path, pdf: bool = True
 ) -> Path:
     with paper_style():
-        fig, ax = plt.subplots(figsize=(max(4.0, 1.4 * len(runs) + 2), 3.5))
+        fig, (ax,) = panel_figure(1, 2.9)
         draw_score(ax, [r.label for r in runs], scores)
-        png, _ = save_figure(fig, folder, "score", pdf=pdf)
-    return png
+        finish_figure(fig, "AADM score breakdown", columns=3)
+        return save_figure(fig, folder, "score", _formats(pdf), REPORT_DPI)["png"]
 
 
 def page_html(
@@ -291,7 +325,12 @@ def build_run_report(folder: Path, pdf: bool = True) -> Path:
         (
             "score",
             "AADM score",
-            figure_html("score", render_score(runs, scores, figures, pdf), "AADM score breakdown")
+            figure_html(
+                "score",
+                render_score(runs, scores, figures, pdf),
+                "AADM score breakdown",
+                PANEL_WIDTH_IN,
+            )
             + score_table(runs, scores),
         ),
     ]
@@ -303,7 +342,8 @@ def build_run_report(folder: Path, pdf: bool = True) -> Path:
                 figure_html(
                     "policies",
                     render_bars(runs, figures, pdf),
-                    "Data downloaded per policy, stacked by sensor; dotted: total buffer.",
+                    "Data downloaded per policy, stacked by sensor; dashed: total buffer.",
+                    PANEL_WIDTH_IN,
                 ),
             )
         )
@@ -312,7 +352,12 @@ def build_run_report(folder: Path, pdf: bool = True) -> Path:
             (
                 spec.key,
                 spec.title,
-                figure_html(spec.key, render_panel(spec, runs, figures, pdf), spec.caption),
+                figure_html(
+                    spec.key,
+                    render_panel(spec, runs, figures, pdf)["png"],
+                    spec.caption,
+                    PANEL_WIDTH_IN * len(runs),
+                ),
             )
         )
     views = "".join(

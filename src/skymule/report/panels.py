@@ -12,12 +12,18 @@ from collections.abc import Sequence
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.collections import LineCollection
-from matplotlib.lines import Line2D
 from matplotlib.patches import Polygon as PolygonPatch
 
-from skymule.report.figures import sensor_colours
 from skymule.report.inputs import RunData, ScoreBreakdown, hover_segments
-from skymule.report.style import NEUTRAL
+from skymule.report.style import (
+    FENCE_STYLE,
+    HOME_MARKER,
+    HOVER_MARKER,
+    NEUTRAL,
+    TOTAL_STYLE,
+    TOWER_MARKER,
+    sensor_colours,
+)
 
 
 def served_colours(run: RunData) -> list[str]:
@@ -26,47 +32,59 @@ def served_colours(run: RunData) -> list[str]:
     return [colours.get(name, NEUTRAL) for name in run.slots["served"]]
 
 
+def flight_map_title(run: RunData, title: str) -> str:
+    """The panel title; autonomous runs add their visit order (a fixed path has none)."""
+    order = run.summary.get("visit_order") or []
+    if run.site.mode == "autonomous" and order:
+        return f"{title}\nvisit order: {' > '.join(map(str, order))}"
+    return title
+
+
 def draw_flight_map(ax: Axes, run: RunData, title: str = "") -> Axes:
     """Flown path over the geofence and towers; segments coloured by served sensor.
 
-    Hover points are circles (area grows with hover time), the home point a star.
+    Hover points are circles (area grows with hover time), the home point a star. Only what
+    is drawn gets a legend entry (no "hover point" without hover points).
     """
     site, slots = run.site, run.slots
     colours = sensor_colours(run.sensor_names)
     if site.fence_xy_m is not None:
-        ax.add_patch(
-            PolygonPatch(site.fence_xy_m, closed=True, fc="#f2f2f2", ec="0.35", lw=1, ls="--")
-        )
+        ax.add_patch(PolygonPatch(site.fence_xy_m, closed=True, label="geofence", **FENCE_STYLE))
     xy = slots[["x_m", "y_m"]].to_numpy(float)
+    segment_colours = served_colours(run)[:-1]
     if len(xy) > 1:
         segments = np.stack([xy[:-1], xy[1:]], axis=1)
-        ax.add_collection(LineCollection(list(segments), colors=served_colours(run)[:-1], lw=1.8))
-    for hover in hover_segments(slots, run.slot_s):
+        ax.add_collection(LineCollection(list(segments), colors=segment_colours, lw=1.5))
+    for name in run.sensor_names:  # legend proxies for the path colours actually drawn
+        if colours[name] in segment_colours:
+            ax.plot([], [], color=colours[name], lw=1.5, label=f"serving {name}")
+    if NEUTRAL in segment_colours:
+        ax.plot([], [], color=NEUTRAL, lw=1.5, label="no download")
+    hovers = hover_segments(slots, run.slot_s)
+    for hover in hovers:
         ax.scatter(
             hover.x_m,
             hover.y_m,
-            s=20 + 2.0 * hover.duration_s,
+            s=12 + 1.0 * hover.duration_s,
+            marker=HOVER_MARKER,
             facecolors="none",
             edgecolors=colours.get(hover.sensor, NEUTRAL),
-            linewidths=1.5,
+            linewidths=1.2,
             zorder=4,
         )
+    if hovers:
+        ax.plot([], [], marker=HOVER_MARKER, ls="", mfc="none", mec="k", label="hover point")
     for index in site.known_sensors:
         name = site.sensor_names[index]
         x_m, y_m = site.sensor_xyz_m[index, :2]
-        ax.scatter(x_m, y_m, marker="^", s=80, color=colours.get(name, NEUTRAL), ec="k", zorder=5)
-        ax.annotate(name, (x_m, y_m), xytext=(4, 4), textcoords="offset points", fontsize=8)
+        colour = colours.get(name, NEUTRAL)
+        ax.scatter(x_m, y_m, marker=TOWER_MARKER, s=45, color=colour, ec="k", lw=0.6, zorder=5)
+        ax.annotate(name, (x_m, y_m), xytext=(3, 3), textcoords="offset points", fontsize=7)
+    if site.known_sensors:
+        ax.plot([], [], marker=TOWER_MARKER, ls="", color="0.6", mec="k", label="tower")
     home_x, home_y = site.home_xy_m
-    ax.scatter(home_x, home_y, marker="*", s=120, color="k", zorder=6)
-    handles = [Line2D([], [], color=colours[n], lw=2, label=f"serving {n}") for n in colours]
-    handles += [
-        Line2D([], [], color=NEUTRAL, lw=2, label="no download"),
-        Line2D([], [], marker="o", ls="", mfc="none", mec="k", label="hover point"),
-        Line2D([], [], marker="^", ls="", color="k", label="tower"),
-        Line2D([], [], marker="*", ls="", color="k", ms=10, label="home"),
-    ]
-    ax.legend(handles=handles, fontsize=7, loc="best", framealpha=0.8)
-    ax.autoscale_view()
+    ax.scatter(home_x, home_y, marker=HOME_MARKER, s=70, color="k", zorder=6)
+    ax.plot([], [], marker=HOME_MARKER, ls="", color="k", ms=8, label="home")
     ax.update_datalim(xy if len(xy) else np.zeros((1, 2)))
     if site.fence_xy_m is not None:
         ax.update_datalim(site.fence_xy_m)
@@ -76,7 +94,7 @@ def draw_flight_map(ax: Axes, run: RunData, title: str = "") -> Axes:
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("east [m]")
     ax.set_ylabel("north [m]")
-    ax.set_title(title)
+    ax.set_title(flight_map_title(run, title))
     return ax
 
 
@@ -91,8 +109,6 @@ def draw_remaining(ax: Axes, run: RunData, title: str = "") -> Axes:
             ax.step(end_t, slots[column], where="post", color=colours[name], label=name)
     ax.set_xlabel("time [s]")
     ax.set_ylabel("remaining [Mbit]")
-    ax.set_ylim(bottom=0)
-    ax.legend(fontsize=8)
     ax.set_title(title)
     return ax
 
@@ -103,16 +119,16 @@ def draw_snr_time(ax: Axes, run: RunData, title: str = "") -> Axes:
     colours = sensor_colours(run.sensor_names)
     for name in run.sensor_names:
         snr = slots[f"snr_db_{name}"].to_numpy(float)
-        ax.plot(slots["t_s"], snr, color=colours[name], lw=0.8, alpha=0.6, label=name)
+        ax.plot(slots["t_s"], snr, color=colours[name], lw=0.6, alpha=0.6)
         ax.plot(
             slots["t_s"],
             np.where(slots["served"] == name, snr, np.nan),
             color=colours[name],
-            lw=2.2,
+            lw=2.0,
+            label=name,
         )
     ax.set_xlabel("time [s]")
     ax.set_ylabel("SNR [dB]")
-    ax.legend(fontsize=8, title="thick: served", title_fontsize=7)
     ax.set_title(title)
     return ax
 
@@ -130,30 +146,48 @@ def draw_policy_bars(ax: Axes, runs: Sequence[RunData], title: str = "") -> Axes
         ax.bar(positions, values, bottom=bottom, color=colours[name], label=name, width=0.6)
         bottom += values
     for x_pos, run, height in zip(positions, runs, bottom, strict=True):
-        ax.annotate(f"{height:.0f}", (x_pos, height), ha="center", va="bottom", fontsize=8)
+        ax.annotate(
+            f"{height:.0f}", (x_pos, height), xytext=(0, 2), textcoords="offset points",
+            ha="center", va="bottom", fontsize=7,
+        )  # fmt: skip
         buffer = float(run.summary.get("total_buffer_mbit", np.nan))
-        ax.hlines(buffer, x_pos - 0.35, x_pos + 0.35, colors="k", linestyles=":")
+        ax.hlines(buffer, x_pos - 0.35, x_pos + 0.35, label="total buffer", **TOTAL_STYLE)
+    buffers = [float(r.summary.get("total_buffer_mbit", 0.0)) for r in runs]
+    top = max([float(bottom.max(initial=0.0)), *buffers])
+    ax.set_ylim(0, 1.12 * top if top > 0 else 1.0)  # room for the value labels
     ax.set_xticks(positions, [r.label for r in runs])
-    ax.set_ylabel("downloaded [Mbit]  (dotted: total buffer)")
-    ax.legend(fontsize=8, loc="lower right")
+    ax.set_ylabel("downloaded [Mbit]")
+    ax.grid(axis="x", visible=False)
     ax.set_title(title)
     return ax
 
 
 def draw_score(ax: Axes, labels: Sequence[str], scores: Sequence[ScoreBreakdown]) -> Axes:
-    """AADM score parts per run: download points + time bonus - landing penalty."""
+    """AADM score parts per run: download points + time bonus - landing penalty.
+
+    The total is written inside the axes next to each bar's end, with head room above and
+    below, so it never meets the title or the (figure) legend.
+    """
     positions = np.arange(len(scores))
     download = np.array([s.download_points for s in scores])
     bonus = np.array([s.time_bonus for s in scores])
     penalty = np.array([s.landing_penalty for s in scores])
     ax.bar(positions, download, width=0.6, color="#0072B2", label="100 x completion")
-    ax.bar(positions, bonus, bottom=download, width=0.6, color="#009E73", label="time bonus")
-    ax.bar(positions, -penalty, width=0.6, color="#D55E00", label="landing penalty")
-    for x_pos, score in zip(positions, scores, strict=True):
-        ax.annotate(f"{score.total:.1f}", (x_pos, max(score.total, 0.0)), ha="center", va="bottom")
+    if (bonus > 0).any():
+        ax.bar(positions, bonus, bottom=download, width=0.6, color="#009E73", label="time bonus")
+    if (penalty > 0).any():
+        ax.bar(positions, -penalty, width=0.6, color="#D55E00", label="landing penalty")
+    high = float(max((download + bonus).max(initial=0.0), 1.0))
+    low = float(min((-penalty).min(initial=0.0), 0.0))
+    span = high - low
+    ax.set_ylim(low - (0.12 * span if low < 0 else 0.0), high + 0.12 * span)
+    for x_pos, score, up in zip(positions, scores, download + bonus, strict=True):
+        ax.annotate(
+            f"{score.total:.1f}", (x_pos, up), xytext=(0, 2), textcoords="offset points",
+            ha="center", va="bottom", fontsize=7, fontweight="bold",
+        )  # fmt: skip
     ax.axhline(0, color="k", lw=0.8)
     ax.set_xticks(positions, list(labels))
-    ax.set_ylabel("AADM score")
-    ax.legend(fontsize=8)
-    ax.set_title("AADM score breakdown")
+    ax.set_ylabel("AADM score (bold: total)")
+    ax.grid(axis="x", visible=False)
     return ax

@@ -21,7 +21,6 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 from matplotlib.axes import Axes
@@ -29,9 +28,23 @@ from matplotlib.axes import Axes
 from skymule.errors import SkymuleError
 from skymule.experiments.store import RESULTS, SUMMARY, SUMMARY_METRICS, ci95_half_width
 from skymule.experiments.store import summary_table as compute_summary
-from skymule.report.figures import OKABE_ITO
-from skymule.report.html import FIGURES_DIR, REPORT_FILE, figure_html, page_html, table_html
-from skymule.report.style import paper_style, save_figure
+from skymule.report.html import (
+    FIGURES_DIR,
+    REPORT_DPI,
+    REPORT_FILE,
+    figure_html,
+    page_html,
+    table_html,
+)
+from skymule.report.style import (
+    PANEL_WIDTH_IN,
+    finish_figure,
+    panel_figure,
+    paper_style,
+    parameter_label,
+    save_figure,
+    sensor_colours,
+)
 
 POLICY_COLUMN = "policy"
 POLICY_PREFIX = "policy."
@@ -228,12 +241,16 @@ def swept_parameters(results: pd.DataFrame, params: list[str]) -> list[SweptPara
     found: list[SweptParameter] = []
     for key, cols in groups.items():
         values = results[cols].to_numpy(float)
+        words = parameter_label(key)
         if len(cols) == 1:
-            x, label = values[:, 0], key
+            x, label = values[:, 0], words
+            match = re.fullmatch(r"sensors\[(\d+)\]\..*", key)
+            if match:
+                label = f"sensor {int(match.group(1)) + 1} {words}"
         elif key.endswith("buffer_mbit"):
-            x, label = values.sum(axis=1), f"sum of {key}"
+            x, label = values.sum(axis=1), f"total {words}"
         else:
-            x, label = values.mean(axis=1), f"mean of {key}"
+            x, label = values.mean(axis=1), f"mean sensor {words}"
         distinct = np.unique(x[np.isfinite(x)])
         if distinct.size > 1:
             found.append(SweptParameter(label, x, bool(distinct.size <= MAX_DISCRETE)))
@@ -242,7 +259,8 @@ def swept_parameters(results: pd.DataFrame, params: list[str]) -> list[SweptPara
 
 
 def policy_colours(policies: list[str]) -> dict[str, str]:
-    return {p: OKABE_ITO[i % len(OKABE_ITO)] for i, p in enumerate(policies)}
+    """Policies take the sensors' palette (distinct, colour-blind safe, never black)."""
+    return sensor_colours(policies)
 
 
 def _ecdf(ax: Axes, values: np.ndarray, **kwargs: object) -> None:
@@ -262,29 +280,32 @@ def draw_distribution(
     data = [d[np.isfinite(d)] for d in data]
     rng = np.random.default_rng(0)
     with paper_style():
-        fig, (box, cdf) = plt.subplots(1, 2, figsize=(max(7.0, 1.2 * len(policies) + 4.5), 3.4))
+        fig, (box, cdf) = panel_figure(2, 2.6)
         box.boxplot(data, widths=0.5, showfliers=False, medianprops={"color": "#000000"})
         for i, (policy, values) in enumerate(zip(policies, data, strict=True), start=1):
             jitter = rng.uniform(-0.18, 0.18, values.size)
-            box.scatter(i + jitter, values, s=6, alpha=0.45, color=colours[policy], lw=0)
-            box.plot(i, values.mean() if values.size else np.nan, "D", color="#000000", ms=4)
+            box.scatter(i + jitter, values, s=4, alpha=0.45, color=colours[policy], lw=0)
+            box.plot(i, values.mean() if values.size else np.nan, "D", color="#000000", ms=3)
             _ecdf(cdf, values, color=colours[policy], label=policy)
+        box.plot([], [], "D", color="#000000", ms=3, ls="", label="mean")
         box.set_xticks(range(1, len(policies) + 1), policies)
         box.set_ylabel(label)
-        box.set_title(f"{label} per mission (diamond: mean)")
+        box.set_title("per mission")
         cdf.set_xlabel(label)
         cdf.set_ylabel("fraction of missions")
-        cdf.set_title("Empirical CDF")
-        cdf.legend(loc="best")
-        fig.tight_layout()
-        png, _ = save_figure(fig, folder, stem, pdf=pdf)
-    return png
+        cdf.set_title("empirical CDF")
+        finish_figure(fig, f"{len(results)} missions")
+        return save_figure(fig, folder, stem, _formats(pdf), REPORT_DPI)["png"]
+
+
+def _formats(pdf: bool) -> tuple[str, ...]:
+    return ("png", "pdf") if pdf else ("png",)
 
 
 def draw_gains(paired: Paired, policies: list[str], folder: Path, pdf: bool) -> Path:
     colours = policy_colours(policies)
     with paper_style():
-        fig, ax = plt.subplots(figsize=(6.0, 3.6))
+        fig, (ax,) = panel_figure(1, 2.9)
         for gain in paired.gains:
             label = (
                 f"{gain.policy}: mean {gain.mean:+.1f} ± {gain.ci95:.1f} Mbit, "
@@ -298,11 +319,8 @@ def draw_gains(paired: Paired, policies: list[str], folder: Path, pdf: bool) -> 
         ax.axvline(0.0, color="#000000", lw=0.8)
         ax.set_xlabel(f"gain over {paired.baseline} per mission [Mbit]")
         ax.set_ylabel("fraction of missions")
-        ax.set_title(f"Paired gain in downloaded data over {paired.baseline}")
-        ax.legend(loc="best")
-        fig.tight_layout()
-        png, _ = save_figure(fig, folder, "sweep-gain", pdf=pdf)
-    return png
+        finish_figure(fig, f"Paired gain over {paired.baseline}", columns=1)
+        return save_figure(fig, folder, "sweep-gain", _formats(pdf), REPORT_DPI)["png"]
 
 
 def _binned(x: np.ndarray, discrete: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -327,8 +345,8 @@ def draw_parameter(
     index, centres = _binned(parameter.x, parameter.discrete)
     metrics = [m for m in (GAIN_METRIC, "completion") if m in results.columns]
     with paper_style():
-        fig, axes = plt.subplots(1, len(metrics), figsize=(4.2 * len(metrics), 3.4), squeeze=False)
-        for ax, metric in zip(axes[0], metrics, strict=True):
+        fig, axes = panel_figure(len(metrics), 2.6)
+        for ax, metric in zip(axes, metrics, strict=True):
             values = results[metric].to_numpy(float)
             for policy in policies:
                 mine = results[POLICY_COLUMN].to_numpy() == policy
@@ -341,10 +359,10 @@ def draw_parameter(
                 )
             ax.set_xlabel(parameter.label + ("" if parameter.discrete else " (binned)"))
             ax.set_ylabel(f"mean {METRIC_LABELS[metric][0]}")
-        axes[0][0].legend(loc="best")
-        fig.tight_layout()
-        png, _ = save_figure(fig, folder, f"sweep-parameter-{number}", pdf=pdf)
-    return png
+        finish_figure(fig, f"Mean per policy vs {parameter.label} (bands: 95% CI)")
+        return save_figure(fig, folder, f"sweep-parameter-{number}", _formats(pdf), REPORT_DPI)[
+            "png"
+        ]
 
 
 def _num(value: float, template: str) -> str:
@@ -454,6 +472,7 @@ def build_sweep_report(folder: Path, pdf: bool = True, baseline: str | None = No
         ),
         "Total data downloaded per mission, per policy: box (quartiles, whiskers 1.5 IQR) with "
         "every mission as a dot, and the empirical CDF.",
+        2 * PANEL_WIDTH_IN,
     )
     if "completion" in results.columns:
         dist += figure_html(
@@ -462,6 +481,7 @@ def build_sweep_report(folder: Path, pdf: bool = True, baseline: str | None = No
                 results, "completion", "completion", figures, "sweep-completion", pdf
             ),
             "Completion (downloaded / buffered) per mission, per policy.",
+            2 * PANEL_WIDTH_IN,
         )
     sections.append(("distributions", "Distributions", dist))
     paired = paired_gains(results, params, baseline)
@@ -478,6 +498,7 @@ def build_sweep_report(folder: Path, pdf: bool = True, baseline: str | None = No
             draw_gains(paired, policies, figures, pdf),
             f"Empirical CDF of the per-mission gain in total downloaded data over "
             f"{paired.baseline} on paired missions; dashed: mean gain, shaded: its 95% CI.",
+            PANEL_WIDTH_IN,
         ) + gain_html(paired)
     sections.append(("paired", "Paired comparison", content))
     swept = swept_parameters(results, params)
@@ -488,6 +509,7 @@ def build_sweep_report(folder: Path, pdf: bool = True, baseline: str | None = No
                 draw_parameter(results, p, i, figures, pdf),
                 f"Mean downloaded data and completion vs {p.label} per policy; bands: 95% CI of "
                 "the mean" + ("." if p.discrete else f" ({BINS} quantile bins, x: bin median)."),
+                2 * PANEL_WIDTH_IN,
             )
             for i, p in enumerate(swept, start=1)
         )

@@ -1,0 +1,48 @@
+"""Every benchmark in benchmarks/ still runs: each at its tiny size, in this process.
+
+The benchmarks are scripts a user runs by hand (the README's Speed table quotes them), so
+nothing else imports them; this test runs each one as ``python benchmarks/bench_X.py`` would
+(``__main__``), with ``SKYMULE_BENCH_TINY=1``, and checks that it printed its figures. No
+timing is asserted: the numbers of a tiny run are not measurements.
+"""
+
+from __future__ import annotations
+
+import re
+import runpy
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+# what each benchmark must print (a label of each figure it reports)
+EXPECTED = {
+    "bench_autonomous.py": ["greedy", "hgad", "Table II", "(True)"],
+    "bench_bound.py": ["paper-sim-fixed: bound", "optimal-fixed", "bound 120 slots x 4 sensors"],
+    "bench_channel.py": ["fspl", "fspl + shadowing", "radio map: query", "dense reference"],
+    "bench_engine.py": ["single (2 missions)", "batched, logs", "batched, summaries"],
+    "bench_planner.py": ["planner gain over hgad", "mean gap to bound", "above the bound: 0"],
+    "bench_single.py": ["paper-sim-fixed", "aadm-default", "slots/s"],
+    "bench_sweep.py": ["10 missions (inprocess", "missions/s", "peak RSS", "hgad"],
+}
+
+
+def test_every_benchmark_is_smoke_tested() -> None:
+    assert sorted(p.name for p in BENCHMARKS.glob("bench_*.py")) == sorted(EXPECTED)
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_benchmark_runs_at_tiny_size(
+    name: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setenv("SKYMULE_BENCH_TINY", "1")
+    monkeypatch.syspath_prepend(str(BENCHMARKS))  # as `python benchmarks/X.py` has it
+    monkeypatch.setattr(sys, "argv", [str(BENCHMARKS / name)])
+    runpy.run_path(str(BENCHMARKS / name), run_name="__main__")
+    out = capsys.readouterr().out
+    for label in EXPECTED[name]:
+        assert label in out, f"{name} no longer prints {label!r}:\n{out}"
+    assert re.search(r"\d+\.\d+", out), f"{name} printed no figures:\n{out}"
+    assert not re.search(r"\bnan\b", out, flags=re.I), f"{name} printed NaN:\n{out}"

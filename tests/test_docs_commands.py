@@ -6,7 +6,7 @@ copied), so a block uses what an earlier one wrote, as a
 reader following the page would. ``skymule ...`` runs in this process (``run_cli``); ``cp`` is
 done here; ``python benchmarks/...`` and ``python scripts/...`` run as subprocesses with
 ``SKYMULE_BENCH_TINY=1`` (their tiny size). The README's policy module (the Python block that
-starts ``# my_policies.py``) is written to the folder and put on the import path, as the README
+starts ``# <file name>``) is written to the folder and put on the import path, as the README
 says. Two things keep the test fast without changing a command: the sweep file in the copied
 ``examples/`` has 3 seeds instead of 500, and ``tcp://HOST:8786`` is replaced by a local
 in-process Dask scheduler's address.
@@ -37,9 +37,17 @@ SAMPLES_README = ROOT / "examples" / "samples" / "README.md"
 
 NOT_RUN = {
     "pip install -e '.[test,dask,browser]'": "installs the package",
+    "pip install -e .": "installs the package",
     "python -m pytest -q": "runs this suite",
 }
 """Commands the docs show that this test does not run, and why."""
+
+NOT_RUN_PREFIXES = {
+    "skymule aadm controller": "a server that runs until stopped (tests/test_aadm_controller.py)",
+    "skymule aadm comm": "the comm stand-in serves its peer until stopped (test_aadm_agent.py)",
+    "skymule aadm agent": "needs the controller of the line above running (test_aadm_agent.py)",
+}
+"""Commands shown as terminals side by side: tested by the AADM tests instead."""
 
 SMALL_SWEEP_SEEDS = "seed = { range = [0, 3] }"
 
@@ -66,11 +74,12 @@ def bash_blocks(path: Path) -> list[tuple[int, str]]:
 
 
 def commands(path: Path) -> list[Command]:
-    """The commands of ``path``'s bash blocks, in order (``&&`` chains split, comments cut)."""
+    """The commands of ``path``'s bash blocks, in order (``&&`` and ``;`` chains split,
+    comments cut)."""
     found = []
     for first_line, body in bash_blocks(path):
         for offset, line in enumerate(body.replace("\\\n", " ").splitlines()):
-            words = shlex.split(line, comments=True)
+            words = shlex.split(line.replace("; ", " && "), comments=True)
             where = f"{path.name}:{first_line + offset}"
             while words:
                 end = words.index("&&") if "&&" in words else len(words)
@@ -116,23 +125,34 @@ def clone_layout(folder: Path) -> None:
     sweep.write_text(text.replace("seed = { range = [0, 500] }", SMALL_SWEEP_SEEDS))
 
 
-def write_policy_module(folder: Path) -> None:
-    """The README's ``my_policies.py`` block, saved where the README says (import path)."""
+def write_named_files(folder: Path) -> None:
+    """The README's file blocks (a python or toml block whose first line is ``# <name>``,
+    e.g. the own-policy module and its scenario), saved where the README says."""
     blocks = re.findall(
-        r"```python\n(# my_policies\.py.*?)```", (ROOT / "README.md").read_text(), re.S
+        r"```(?:python|toml)\n# ([\w.-]+\.(?:py|toml))\b[^\n]*\n(.*?)```",
+        (ROOT / "README.md").read_text(),
+        re.S,
     )
-    assert len(blocks) == 1, "README.md should show my_policies.py once"
-    (folder / "my_policies.py").write_text(blocks[0])
+    assert blocks, "README.md should show the own-policy module and its scenario file"
+    for name, body in blocks:
+        (folder / name).write_text(body)
 
 
 def run(command: Command, folder: Path, scheduler: str) -> None:
     """Run one command in ``folder``; fail with the command, its place and its output."""
     words = [w.replace("tcp://HOST:8786", scheduler) for w in command.words]
-    if command.text in NOT_RUN:
+    if command.text in NOT_RUN or command.text.startswith(tuple(NOT_RUN_PREFIXES)):
         return
+    redirect = None
+    if ">" in words:  # `command > file`: the command's standard output saved in the folder
+        redirect, words = folder / words[words.index(">") + 1], words[: words.index(">")]
+    if words[:3] == ["python", "-m", "skymule"]:  # the module is the same program
+        words = ["skymule", *words[3:]]
     if words[0] == "skymule":
         result = run_cli(*words[1:], cwd=folder)
         code, output = result.returncode, result.stdout + result.stderr
+        if redirect is not None:
+            redirect.write_text(result.stdout)
     elif words[0] == "cp" and len(words) == 3:
         target = folder / words[2]
         shutil.copy(folder / words[1], target / Path(words[1]).name if target.is_dir() else target)
@@ -155,8 +175,8 @@ def test_documented_commands_run_as_written(
     """All documents in one folder, in order; a command already run there is not run again
     (same command, same folder: same result), which keeps the test fast."""
     clone_layout(tmp_path)
-    write_policy_module(tmp_path)
-    monkeypatch.syspath_prepend(str(tmp_path))  # "my_policies.py, somewhere on PYTHONPATH"
+    write_named_files(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))  # "in the folder you run skymule from"
     done: set[str] = set()
     for document in [*DOCUMENTS, SAMPLES_README]:
         for command in commands(document):
@@ -165,7 +185,7 @@ def test_documented_commands_run_as_written(
                 done.add(command.text)
 
 
-PENDING = {"docs/contract.md"}
+PENDING: set[str] = set()
 """Files the docs already point to that another change adds (the lead moves the slot contract
 from outside the repository to docs/contract.md); remove an entry once the file exists."""
 

@@ -22,19 +22,23 @@ each mission is reproducible on its own and keeps its draws when other axes grow
 
 Setting ``x_m``/``y_m`` of a sensor placed by lat/lon first converts it to local metres.
 
-Each mission's id is the first 16 hex digits of the sha256 of the canonical JSON of its
-resolved scenario (plus the sample index in sample mode).
+Each mission's id is the first 16 hex digits of the sha256 of the sweep's identity (base
+scenario, sweep seed, axis keys and distributions: not the list/range values, so ids survive
+growing an axis) followed by the mission's list/range values (plus the sample index in sample
+mode): unique per parameter set, stable across runs of the same file, and cheap (one small
+``repr`` per mission, no JSON). Missions are planned lazily (:func:`plan_missions`: index, id
+and axis values only, a ``range`` axis is never materialised) and resolved into scenario
+dictionaries where they run (:class:`Expansion`, which a worker receives once per chunk).
 """
 
 from __future__ import annotations
 
 import hashlib
-import itertools
 import json
 import math
 import re
 import tomllib
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -148,7 +152,7 @@ class Axis:
 
     key: str
     path: Path_
-    values: tuple[Any, ...] | None = None
+    values: Sequence[Any] | None = None  # a tuple, or a range (never materialised)
     dist: Distribution | None = None
 
     @property
@@ -166,6 +170,7 @@ class SweepSpec:
     seed: int
     axes: tuple[Axis, ...]
     sample: int | None
+    digest: str = ""  # sha256 of the sweep file's canonical table (see sweep_digest)
 
     @property
     def discrete(self) -> tuple[Axis, ...]:
@@ -269,7 +274,7 @@ def parse_axis(source: str, key: str, value: Any) -> Axis:
                 f"{where}.range = {bounds!r}; allowed: [start, stop] or [start, stop, step] "
                 "integers, step != 0",
             )
-        values = tuple(range(*bounds))
+        values = range(*bounds)  # lazy: {range = [0, 1e9]} costs nothing until it runs
         if not values:
             raise _fail(source, f"{where}.range = {bounds!r} is empty; stop must pass start")
         return Axis(key, path, values=values)
@@ -324,7 +329,8 @@ def parse_sweep(data: dict[str, Any], source: str, folder: Path) -> SweepSpec:
     if not isinstance(table, dict) or not table:
         raise _fail(source, "[axes] is missing or empty; give at least one axis")
     axes = tuple(parse_axis(source, k, v) for k, v in flatten_axes(table))
-    spec = SweepSpec(source, _base_scenario(source, data["base"], folder), seed, axes, sample)
+    base = _base_scenario(source, data["base"], folder)
+    spec = SweepSpec(source, base, seed, axes, sample, sweep_digest(data))
     if sample is None and not spec.discrete:
         raise _fail(
             source,
@@ -332,7 +338,29 @@ def parse_sweep(data: dict[str, Any], source: str, folder: Path) -> SweepSpec:
             "[0, 100]}) or use mode = {sample = N}",
         )
     _check_axes(spec)
+    _check_repeats(spec)
     return spec
+
+
+def sweep_digest(data: dict[str, Any]) -> str:
+    """sha256 of a sweep table's canonical JSON: edits to comments or layout keep it."""
+    return hashlib.sha256(_canonical(data).encode()).hexdigest()
+
+
+def _check_repeats(spec: SweepSpec) -> None:
+    """A value listed twice in one axis would run one mission twice under one id."""
+    for axis in spec.discrete:
+        if isinstance(axis.values, range):
+            continue
+        seen: set[str] = set()
+        for value in axis.values or ():
+            text = repr(value)
+            if text in seen:
+                raise _fail(
+                    spec.source,
+                    f"axes.{axis.key} lists {value!r} twice; remove the repeated value",
+                )
+            seen.add(text)
 
 
 def load_sweep(path: str | Path) -> SweepSpec:
@@ -436,61 +464,144 @@ def _column(key: str, index: int) -> str:
     return key.replace("[*]", f"[{index}]", 1)
 
 
-def _resolve(
-    spec: SweepSpec,
-    base: dict[str, Any],
-    chosen: dict[str, Any],
-    rng: np.random.Generator,
-    replica: int | None,
-    index: int,
-) -> SweepMission:
-    data = base
-    params: dict[str, Any] = {}
-    values = dict(chosen)
-    for axis in spec.drawn:
-        assert axis.dist is not None
-        count = _stars(axis.path, base)
-        drawn = axis.dist.draw(rng, count or 1)
-        values[axis.key] = drawn if count is not None else drawn[0]
-    for axis in spec.axes:
-        value = values[axis.key]
-        count = _stars(axis.path, base)
-        if count is not None and axis.values is not None:
-            value = [value] * count
-        data = _assign(data, axis.path, value, spec.source, axis.key)
-        if count is None:
-            params[axis.key] = value
-        else:
-            params.update({_column(axis.key, i): v for i, v in enumerate(value)})
-    data = _place_sensors(data)
-    identity = {"scenario": data} if replica is None else {"scenario": data, "sample": replica}
-    mission_id = hashlib.sha256(_canonical(identity).encode()).hexdigest()[:16]
-    return SweepMission(index, mission_id, params, data)
+@dataclass(frozen=True)
+class PlannedMission:
+    """A mission before it is resolved: position, id and one value per axis (``spec.axes``)."""
+
+    index: int
+    mission_id: str
+    values: tuple[Any, ...]
 
 
-def iter_missions(spec: SweepSpec) -> Iterator[SweepMission]:
-    """Every mission of the sweep, in a fixed order (lazily: memory does not grow with it)."""
+@dataclass(frozen=True)
+class Expansion:
+    """Everything needed to turn a :class:`PlannedMission` into a scenario (small, picklable).
+
+    A worker receives it once per chunk, with the planned missions: the base scenario travels
+    once, each mission only as its axis values.
+    """
+
+    source: str
+    base_dir: str
+    base: dict[str, Any]
+    axes: tuple[Axis, ...]
+    counts: tuple[int | None, ...]  # elements each "*" axis spans (None: no "*")
+
+    def scenario(self, values: Sequence[Any]) -> dict[str, Any]:
+        """The resolved scenario dictionary of a mission."""
+        data = self.base
+        for axis, count, value in zip(self.axes, self.counts, values, strict=True):
+            if count is not None and axis.values is not None:
+                value = [value] * count
+            data = _assign(data, axis.path, value, self.source, axis.key)
+        return _place_sensors(data)
+
+    def params(self, values: Sequence[Any]) -> dict[str, Any]:
+        """Axis values by column (``sensors[*]`` axes get one column per sensor)."""
+        params: dict[str, Any] = {}
+        for axis, count, value in zip(self.axes, self.counts, values, strict=True):
+            if count is None:
+                params[axis.key] = value
+            elif axis.values is not None:
+                params.update({_column(axis.key, i): value for i in range(count)})
+            else:
+                params.update({_column(axis.key, i): v for i, v in enumerate(value)})
+        return params
+
+    def validate(self, mission: PlannedMission) -> Scenario:
+        """The mission's scenario, validated; errors name the sweep file and mission values."""
+        shown = ", ".join(f"{k} = {v!r}" for k, v in self.params(mission.values).items())
+        source = f"{self.source} (mission {mission.index}: {shown})"
+        if len(source) > 200:
+            source = f"{self.source} (mission {mission.index})"
+        return scenario_from_dict(self.scenario(mission.values), source, Path(self.base_dir))
+
+
+def expansion(spec: SweepSpec) -> Expansion:
     base = _base_dict(spec.base)
-    paired = [a for a in spec.discrete if a.paired]
-    unpaired = [a for a in spec.discrete if not a.paired]
-    paired_combos = list(itertools.product(*(a.values or () for a in paired)))
-    if spec.sample is None:
-        combos = itertools.product(*(a.values or () for a in spec.discrete))
-        for index, combo in enumerate(combos):
-            chosen = {a.key: v for a, v in zip(spec.discrete, combo, strict=True)}
-            key = [chosen[a.key] for a in unpaired]
-            yield _resolve(spec, base, chosen, _draw_seed(spec.seed, key), None, index)
+    counts = tuple(_stars(axis.path, base) for axis in spec.axes)
+    return Expansion(spec.source, spec.base.base_dir, base, spec.axes, counts)
+
+
+def _id_prefix(spec: SweepSpec, base: dict[str, Any]) -> bytes:
+    """What every id of the sweep hashes first: all but the list/range values."""
+    identity = {
+        "base": base,
+        "seed": spec.seed,
+        "axes": [
+            [a.key, None if a.dist is None else [a.dist.name, a.dist.params]] for a in spec.axes
+        ],
+    }
+    return hashlib.sha256(_canonical(identity).encode()).digest()
+
+
+def _lazy_product(sequences: Sequence[Sequence[Any]]) -> Iterator[tuple[Any, ...]]:
+    """``itertools.product`` without copying its inputs (which would materialise a range)."""
+    if not sequences:
+        yield ()
         return
+    for head in sequences[0]:
+        for rest in _lazy_product(sequences[1:]):
+            yield (head, *rest)
+
+
+def plan_missions(spec: SweepSpec) -> Iterator[PlannedMission]:
+    """Every mission of the sweep, in a fixed order, lazily (memory does not grow with it)."""
+    base = _base_dict(spec.base)
+    counts = {a.key: _stars(a.path, base) for a in spec.drawn}
+    prefix = _id_prefix(spec, base)
+    discrete = spec.discrete
+    paired = [a for a in discrete if a.paired]
+    unpaired = [a for a in discrete if not a.paired]
+
+    def draws(rng: np.random.Generator) -> dict[str, Any]:
+        values: dict[str, Any] = {}
+        for axis in spec.drawn:
+            assert axis.dist is not None
+            count = counts[axis.key]
+            drawn = axis.dist.draw(rng, count or 1)
+            values[axis.key] = drawn if count is not None else drawn[0]
+        return values
+
+    def planned(
+        index: int, chosen: dict[str, Any], drawn: dict[str, Any], key: Any
+    ) -> PlannedMission:
+        every = {**chosen, **drawn}
+        digest = hashlib.sha256(prefix + repr(key).encode()).hexdigest()[:16]
+        return PlannedMission(index, digest, tuple(every[a.key] for a in spec.axes))
+
+    if spec.sample is None:
+        unpaired_at = [i for i, a in enumerate(discrete) if not a.paired]
+        for index, combo in enumerate(_lazy_product([a.values or () for a in discrete])):
+            chosen = {a.key: v for a, v in zip(discrete, combo, strict=True)}
+            drawn = {}
+            if spec.drawn:
+                drawn = draws(_draw_seed(spec.seed, [combo[i] for i in unpaired_at]))
+            yield planned(index, chosen, drawn, combo)
+        return
+    paired_combos = list(_lazy_product([a.values or () for a in paired]))
     for replica in range(spec.sample):
         picks = np.random.default_rng([spec.seed, replica])
         chosen = {
             a.key: (a.values or ())[int(picks.integers(len(a.values or ())))] for a in unpaired
         }
+        drawn = draws(np.random.default_rng([spec.seed, replica, 1])) if spec.drawn else {}
         for p, combo in enumerate(paired_combos):
             both = {**chosen, **{a.key: v for a, v in zip(paired, combo, strict=True)}}
-            rng = np.random.default_rng([spec.seed, replica, 1])
-            index = replica * len(paired_combos) + p
-            yield _resolve(spec, base, both, rng, replica, index)
+            key = (replica, tuple(both[a.key] for a in discrete))
+            yield planned(replica * len(paired_combos) + p, both, drawn, key)
+
+
+def iter_missions(spec: SweepSpec) -> Iterator[SweepMission]:
+    """Every mission of the sweep, resolved, in a fixed order (lazily)."""
+    resolve = expansion(spec)
+    for mission in plan_missions(spec):
+        yield SweepMission(
+            mission.index,
+            mission.mission_id,
+            resolve.params(mission.values),
+            resolve.scenario(mission.values),
+        )
 
 
 def validate_mission(spec: SweepSpec, mission: SweepMission) -> Scenario:
@@ -517,9 +628,11 @@ def _check_axes(spec: SweepSpec) -> None:
                     f"allowed: {', '.join(sorted(POLICIES))}",
                 )
         count = _stars(axis.path, base)
-        candidates = (
-            list(axis.values) if axis.values is not None else [None]
-        )  # distributions: checked on their draws
+        candidates: Iterable[Any] = [None]  # distributions: checked on their draws
+        if isinstance(axis.values, range):
+            candidates = {axis.values[0], axis.values[-1]}  # integers: the extremes suffice
+        elif axis.values is not None:
+            candidates = axis.values
         for value in candidates:
             if axis.dist is not None:
                 value = axis.dist.draw(np.random.default_rng(0), count or 1)

@@ -14,7 +14,7 @@ import json
 import math
 import sys
 import time
-from collections.abc import Hashable, Iterator, Sequence
+from collections.abc import Callable, Hashable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, wait
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -227,6 +227,32 @@ def mission_bytes(scenario: Scenario) -> int:
     return slots * per_slot
 
 
+#: Axes that change a mission's memory, and the value that needs the most.
+_WORST: dict[str, Callable[[Sequence[Any]], Any]] = {
+    "mission.duration_s": lambda v: max(v[0], v[-1]) if isinstance(v, range) else max(v),
+    "mission.slot_s": lambda v: min(v),
+    "radio.shadowing_std_db": lambda v: max(v),
+    "radio.fading": lambda v: next((f for f in v if f != "none"), v[0]),
+}
+
+
+def _largest_mission(spec: SweepSpec) -> Scenario:
+    """The base scenario with every memory-relevant list axis at its most demanding value."""
+    from skymule.scenario import scenario_from_dict
+
+    resolve = expansion(spec)
+    data = resolve.base
+    for axis in spec.discrete:
+        worst = _WORST.get(axis.key)
+        if worst is not None and axis.values:
+            data = resolve.scenario_with(data, axis, worst(axis.values))
+    data = resolve.placed(data)
+    try:
+        return scenario_from_dict(data, spec.source, Path(spec.base.base_dir))
+    except SkymuleError:  # mixed types in an axis: the missions' own checks will say so
+        return spec.base
+
+
 def auto_chunk_size(
     spec: SweepSpec, limit: int, n_workers: int, budget_bytes: int = CHUNK_MEMORY_BYTES
 ) -> int:
@@ -235,7 +261,7 @@ def auto_chunk_size(
     A shadowing field is drawn per mission and dropped once its track is sampled, so it costs
     one field at a time (not per mission) and does not enter the per-mission estimate.
     """
-    by_memory = max(1, budget_bytes // mission_bytes(spec.base))
+    by_memory = max(1, budget_bytes // mission_bytes(_largest_mission(spec)))
     by_balance = max(1, math.ceil(len(spec) / (2 * n_workers)))
     return max(1, min(limit, by_memory, by_balance))
 

@@ -496,6 +496,16 @@ class Expansion:
             data = _assign(data, axis.path, value, self.source, axis.key)
         return _place_sensors(data)
 
+    def scenario_with(self, data: dict[str, Any], axis: Axis, value: Any) -> dict[str, Any]:
+        """``data`` (a base or resolved dict) with one list/range axis set to ``value``."""
+        count = _stars(axis.path, data)
+        value = value if count is None else [value] * count
+        return _assign(data, axis.path, value, self.source, axis.key)
+
+    def placed(self, data: dict[str, Any]) -> dict[str, Any]:
+        """``data`` with sensors given x_m/y_m by an axis turned into local metres."""
+        return _place_sensors(data)
+
     def params(self, values: Sequence[Any]) -> dict[str, Any]:
         """Axis values by column (``sensors[*]`` axes get one column per sensor)."""
         params: dict[str, Any] = {}

@@ -520,11 +520,15 @@ class Expansion:
 
     def validate(self, mission: PlannedMission) -> Scenario:
         """The mission's scenario, validated; errors name the sweep file and mission values."""
-        shown = ", ".join(f"{k} = {v!r}" for k, v in self.params(mission.values).items())
-        source = f"{self.source} (mission {mission.index}: {shown})"
-        if len(source) > 200:
-            source = f"{self.source} (mission {mission.index})"
-        return scenario_from_dict(self.scenario(mission.values), source, Path(self.base_dir))
+        data = self.scenario(mission.values)
+        try:
+            return scenario_from_dict(data, self.source, Path(self.base_dir))
+        except SkymuleError:  # again, with the mission named (built only when needed)
+            shown = ", ".join(f"{k} = {v!r}" for k, v in self.params(mission.values).items())
+            source = f"{self.source} (mission {mission.index}: {shown})"
+            if len(source) > 200:
+                source = f"{self.source} (mission {mission.index})"
+            return scenario_from_dict(data, source, Path(self.base_dir))
 
 
 def expansion(spec: SweepSpec) -> Expansion:

@@ -34,11 +34,10 @@ dictionaries where they run (:class:`Expansion`, which a worker receives once pe
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 import re
 import tomllib
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -46,104 +45,23 @@ from typing import Any
 import numpy as np
 
 from skymule.errors import SkymuleError
-from skymule.geo import LocalFrame
+from skymule.experiments.distributions import DISTRIBUTIONS, Distribution
+from skymule.experiments.fields import (
+    Path_,
+    assign,
+    base_dict,
+    canonical,
+    column,
+    draw_seed,
+    place_sensors,
+    stars,
+)
 from skymule.scenario import Scenario, load_scenario, scenario_from_dict
 
 TOP_LEVEL_KEYS = ("base", "seed", "mode", "axes")
 POLICY_PREFIX = "policy."
 _SEGMENT = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)((?:\[(?:\d+|\*)\])*)$")
 _INDEX = re.compile(r"\[(\d+|\*)\]")
-
-Path_ = tuple[str | int, ...]
-"""A parsed axis key: field names, list indices and "*" (every element)."""
-
-
-@dataclass(frozen=True)
-class Distribution:
-    """A named distribution with validated parameters (``draw(rng, size) -> (size,)``)."""
-
-    name: str
-    params: tuple[tuple[str, Any], ...]
-
-    def draw(self, rng: np.random.Generator, size: int) -> list[Any]:
-        return DISTRIBUTIONS[self.name].draw(rng, dict(self.params), size)
-
-
-@dataclass(frozen=True)
-class DistributionKind:
-    """Parameters a distribution takes, their check, and how to draw from it."""
-
-    params: tuple[str, ...]
-    check: Callable[[dict[str, Any]], str | None]
-    draw: Callable[[np.random.Generator, dict[str, Any], int], list[Any]]
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-
-
-def _numbers(params: dict[str, Any]) -> str | None:
-    bad = [k for k, v in params.items() if not _is_number(v)]
-    return f"{bad[0]} = {params[bad[0]]!r} must be a finite number" if bad else None
-
-
-def _check_low_high(params: dict[str, Any]) -> str | None:
-    problem = _numbers(params)
-    if problem is None and not params["low"] < params["high"]:
-        return f"low = {params['low']!r} must be below high = {params['high']!r}"
-    return problem
-
-
-def _check_spread(name: str) -> Callable[[dict[str, Any]], str | None]:
-    def check(params: dict[str, Any]) -> str | None:
-        problem = _numbers(params)
-        if problem is None and params[name] < 0:
-            return f"{name} = {params[name]!r} must be >= 0"
-        return problem
-
-    return check
-
-
-def _check_integers(params: dict[str, Any]) -> str | None:
-    problem = _check_low_high(params)
-    if problem is None and not all(isinstance(params[k], int) for k in ("low", "high")):
-        return "low and high must be integers"
-    return problem
-
-
-def _check_choice(params: dict[str, Any]) -> str | None:
-    values = params["values"]
-    return None if isinstance(values, list) and values else "values must be a non-empty list"
-
-
-DISTRIBUTIONS: dict[str, DistributionKind] = {
-    "uniform": DistributionKind(
-        ("low", "high"),
-        _check_low_high,
-        lambda rng, p, n: rng.uniform(p["low"], p["high"], n).tolist(),
-    ),
-    "normal": DistributionKind(
-        ("mean", "std"),
-        _check_spread("std"),
-        lambda rng, p, n: rng.normal(p["mean"], p["std"], n).tolist(),
-    ),
-    "lognormal": DistributionKind(
-        ("mean", "sigma"),
-        _check_spread("sigma"),
-        lambda rng, p, n: rng.lognormal(p["mean"], p["sigma"], n).tolist(),
-    ),
-    "integers": DistributionKind(
-        ("low", "high"),
-        _check_integers,
-        lambda rng, p, n: rng.integers(p["low"], p["high"], n).tolist(),
-    ),
-    "choice": DistributionKind(
-        ("values",),
-        _check_choice,
-        lambda rng, p, n: [p["values"][i] for i in rng.integers(0, len(p["values"]), n)],
-    ),
-}
-"""Distribution registry: ``dist = NAME`` -> parameters, check and draw."""
 
 
 @dataclass(frozen=True)
@@ -344,7 +262,7 @@ def parse_sweep(data: dict[str, Any], source: str, folder: Path) -> SweepSpec:
 
 def sweep_digest(data: dict[str, Any]) -> str:
     """sha256 of a sweep table's canonical JSON: edits to comments or layout keep it."""
-    return hashlib.sha256(_canonical(data).encode()).hexdigest()
+    return hashlib.sha256(canonical(data).encode()).hexdigest()
 
 
 def _check_repeats(spec: SweepSpec) -> None:
@@ -378,92 +296,6 @@ def load_sweep(path: str | Path) -> SweepSpec:
 # --- resolving missions ---------------------------------------------------------------
 
 
-def _assign(node: Any, path: Path_, value: Any, source: str, key: str) -> Any:
-    """A copy of ``node`` with ``path`` set to ``value`` (lists for "*"); copies only the path."""
-    head, rest = path[0], path[1:]
-    if head == "*" or isinstance(head, int):
-        if not isinstance(node, list):
-            raise _fail(source, f"axes.{key}: {head!r} indexes a field that is not a list")
-        items = list(node)
-        if isinstance(head, int):
-            if head >= len(items):
-                raise _fail(
-                    source, f"axes.{key}: index {head} out of range; the base has {len(items)}"
-                )
-            targets: Sequence[int] = [head]
-        else:
-            targets = range(len(items))
-        for i in targets:
-            item = value[i] if head == "*" else value
-            items[i] = _assign(items[i], rest, item, source, key) if rest else item
-        return items
-    if not isinstance(node, dict):
-        raise _fail(source, f"axes.{key}: {head!r} is not a field of a table")
-    copy = dict(node)
-    if rest:
-        copy[head] = _assign(copy.get(head, {}), rest, value, source, key)
-    else:
-        copy[head] = value
-    return copy
-
-
-def _stars(path: Path_, base: dict[str, Any]) -> int | None:
-    """Number of elements a "*" in ``path`` spans in ``base`` (None without a "*")."""
-    node: Any = base
-    for part in path:
-        if part == "*":
-            return len(node) if isinstance(node, list) else 0
-        if isinstance(node, dict):
-            node = node.get(part)
-        elif isinstance(node, list) and isinstance(part, int) and part < len(node):
-            node = node[part]
-        else:
-            node = None
-    return None
-
-
-def _base_dict(base: Scenario) -> dict[str, Any]:
-    """The base scenario as a dict, with lat/lon sensors also placed in local metres."""
-    data = base.to_toml_dict()
-    frame = LocalFrame(base.site.origin.lat, base.site.origin.lon)
-    sensors = []
-    for sensor in data["sensors"]:
-        if "lat" in sensor and "x_m" not in sensor:
-            x_m, y_m = frame.to_local(sensor["lat"], sensor["lon"])
-            sensor = {**sensor, "_xy": (float(x_m), float(y_m))}
-        sensors.append(sensor)
-    return {**data, "sensors": sensors}
-
-
-def _place_sensors(data: dict[str, Any]) -> dict[str, Any]:
-    """Sensors given x_m or y_m by an axis drop lat/lon (converted to metres)."""
-    sensors = []
-    for sensor in data.get("sensors", []):
-        if isinstance(sensor, dict) and "_xy" in sensor:
-            sensor = dict(sensor)
-            x_m, y_m = sensor.pop("_xy")
-            if "x_m" in sensor or "y_m" in sensor:
-                sensor.pop("lat", None)
-                sensor.pop("lon", None)
-                sensor.setdefault("x_m", x_m)
-                sensor.setdefault("y_m", y_m)
-        sensors.append(sensor)
-    return {**data, "sensors": sensors}
-
-
-def _canonical(value: Any) -> str:
-    return json.dumps(value, sort_keys=True, separators=(",", ":"), default=str)
-
-
-def _draw_seed(seed: int, key: Any) -> np.random.Generator:
-    digest = hashlib.sha256(_canonical(key).encode()).digest()
-    return np.random.default_rng([seed, int.from_bytes(digest[:8], "little")])
-
-
-def _column(key: str, index: int) -> str:
-    return key.replace("[*]", f"[{index}]", 1)
-
-
 @dataclass(frozen=True)
 class PlannedMission:
     """A mission before it is resolved: position, id and one value per axis (``spec.axes``)."""
@@ -493,18 +325,18 @@ class Expansion:
         for axis, count, value in zip(self.axes, self.counts, values, strict=True):
             if count is not None and axis.values is not None:
                 value = [value] * count
-            data = _assign(data, axis.path, value, self.source, axis.key)
-        return _place_sensors(data)
+            data = assign(data, axis.path, value, self.source, axis.key)
+        return place_sensors(data)
 
     def scenario_with(self, data: dict[str, Any], axis: Axis, value: Any) -> dict[str, Any]:
         """``data`` (a base or resolved dict) with one list/range axis set to ``value``."""
-        count = _stars(axis.path, data)
+        count = stars(axis.path, data)
         value = value if count is None else [value] * count
-        return _assign(data, axis.path, value, self.source, axis.key)
+        return assign(data, axis.path, value, self.source, axis.key)
 
     def placed(self, data: dict[str, Any]) -> dict[str, Any]:
         """``data`` with sensors given x_m/y_m by an axis turned into local metres."""
-        return _place_sensors(data)
+        return place_sensors(data)
 
     def params(self, values: Sequence[Any]) -> dict[str, Any]:
         """Axis values by column (``sensors[*]`` axes get one column per sensor)."""
@@ -513,9 +345,9 @@ class Expansion:
             if count is None:
                 params[axis.key] = value
             elif axis.values is not None:
-                params.update({_column(axis.key, i): value for i in range(count)})
+                params.update({column(axis.key, i): value for i in range(count)})
             else:
-                params.update({_column(axis.key, i): v for i, v in enumerate(value)})
+                params.update({column(axis.key, i): v for i, v in enumerate(value)})
         return params
 
     def validate(self, mission: PlannedMission) -> Scenario:
@@ -532,8 +364,8 @@ class Expansion:
 
 
 def expansion(spec: SweepSpec) -> Expansion:
-    base = _base_dict(spec.base)
-    counts = tuple(_stars(axis.path, base) for axis in spec.axes)
+    base = base_dict(spec.base)
+    counts = tuple(stars(axis.path, base) for axis in spec.axes)
     return Expansion(spec.source, spec.base.base_dir, base, spec.axes, counts)
 
 
@@ -546,7 +378,7 @@ def _id_prefix(spec: SweepSpec, base: dict[str, Any]) -> bytes:
             [a.key, None if a.dist is None else [a.dist.name, a.dist.params]] for a in spec.axes
         ],
     }
-    return hashlib.sha256(_canonical(identity).encode()).digest()
+    return hashlib.sha256(canonical(identity).encode()).digest()
 
 
 def _lazy_product(sequences: Sequence[Sequence[Any]]) -> Iterator[tuple[Any, ...]]:
@@ -561,8 +393,8 @@ def _lazy_product(sequences: Sequence[Sequence[Any]]) -> Iterator[tuple[Any, ...
 
 def plan_missions(spec: SweepSpec) -> Iterator[PlannedMission]:
     """Every mission of the sweep, in a fixed order, lazily (memory does not grow with it)."""
-    base = _base_dict(spec.base)
-    counts = {a.key: _stars(a.path, base) for a in spec.drawn}
+    base = base_dict(spec.base)
+    counts = {a.key: stars(a.path, base) for a in spec.drawn}
     prefix = _id_prefix(spec, base)
     discrete = spec.discrete
     paired = [a for a in discrete if a.paired]
@@ -590,7 +422,7 @@ def plan_missions(spec: SweepSpec) -> Iterator[PlannedMission]:
             chosen = {a.key: v for a, v in zip(discrete, combo, strict=True)}
             drawn = {}
             if spec.drawn:
-                drawn = draws(_draw_seed(spec.seed, [combo[i] for i in unpaired_at]))
+                drawn = draws(draw_seed(spec.seed, [combo[i] for i in unpaired_at]))
             yield planned(index, chosen, drawn, combo)
         return
     paired_combos = list(_lazy_product([a.values or () for a in paired]))
@@ -631,7 +463,7 @@ def _check_axes(spec: SweepSpec) -> None:
     """Each axis alone, on the base: names the axis when a field is unknown or a value bad."""
     from skymule.policies import POLICIES, unknown_policies
 
-    base = _base_dict(spec.base)
+    base = base_dict(spec.base)
     for axis in spec.axes:
         if axis.key == "policy.name":
             unknown = unknown_policies([str(v) for v in axis.values or ()])
@@ -641,7 +473,7 @@ def _check_axes(spec: SweepSpec) -> None:
                     f"axes.policy.name value {unknown[0]!r} is not a policy; "
                     f"allowed: {', '.join(sorted(POLICIES))}",
                 )
-        count = _stars(axis.path, base)
+        count = stars(axis.path, base)
         candidates: Iterable[Any] = [None]  # distributions: checked on their draws
         if isinstance(axis.values, range):
             candidates = {axis.values[0], axis.values[-1]}  # integers: the extremes suffice
@@ -653,5 +485,5 @@ def _check_axes(spec: SweepSpec) -> None:
                 value = value if count is not None else value[0]
             elif count is not None:
                 value = [value] * count
-            data = _place_sensors(_assign(base, axis.path, value, spec.source, axis.key))
+            data = place_sensors(assign(base, axis.path, value, spec.source, axis.key))
             scenario_from_dict(data, f"{spec.source}: axes.{axis.key}", Path(spec.base.base_dir))

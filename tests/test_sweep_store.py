@@ -220,3 +220,15 @@ def test_a_value_listed_twice_is_one_line_and_exit_2(tmp_path, axis):
     result = run_cli("sweep", path, "--out", tmp_path / "out", "--executor", "inprocess")
     assert result.returncode == 2
     assert "twice" in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_the_run_order_groups_policies_and_plans_the_same_missions(tmp_path):
+    """Sweeps run paired axes innermost (shared tracks in one chunk): same missions, same ids."""
+    spec = load_sweep(write(tmp_path, SMALL.format(n=2)))  # policy x seed x duration = 8
+    in_order = list(plan_missions(spec))
+    grouped = list(plan_missions(spec, paired_last=True))
+    assert [m.index for m in in_order] == list(range(8))
+    assert [m.index for m in grouped[:4]] == [0, 4, 1, 5]
+    assert [m.values[0] for m in grouped[:2]] == ["greedy", "hgad"]
+    assert grouped[0].values[1:] == grouped[1].values[1:]  # same seed, draws and duration
+    assert sorted(grouped, key=lambda m: m.index) == in_order

@@ -256,13 +256,14 @@ def _largest_mission(spec: SweepSpec) -> Scenario:
 def auto_chunk_size(
     spec: SweepSpec, limit: int, n_workers: int, budget_bytes: int = CHUNK_MEMORY_BYTES
 ) -> int:
-    """Missions per chunk: at most ``limit``, within the memory budget, >= 2 chunks per worker.
+    """Missions per chunk: at most ``limit``, within the memory budget, >= 2 chunks per worker
+    when there are several.
 
     A shadowing field is drawn per mission and dropped once its track is sampled, so it costs
     one field at a time (not per mission) and does not enter the per-mission estimate.
     """
     by_memory = max(1, budget_bytes // mission_bytes(_largest_mission(spec)))
-    by_balance = max(1, math.ceil(len(spec) / (2 * n_workers)))
+    by_balance = math.ceil(len(spec) / (2 * n_workers)) if n_workers > 1 else limit
     return max(1, min(limit, by_memory, by_balance))
 
 
@@ -328,7 +329,8 @@ def run_sweep(
             _progress(progress, total, len(found.ids)) as advance,
         ):
             pending: set[Future] = set()
-            for chunk in _chunks(plan_missions(spec), found.ids, size, seen, spec.source):
+            planned = plan_missions(spec, paired_last=True)
+            for chunk in _chunks(planned, found.ids, size, seen, spec.source):
                 pending.add(pool.submit(run_planned, resolve, chunk))
                 while len(pending) >= 2 * n_workers:
                     n_run += _collect(out, pending, advance)

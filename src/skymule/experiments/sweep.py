@@ -37,7 +37,7 @@ import hashlib
 import math
 import re
 import tomllib
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -391,8 +391,13 @@ def _lazy_product(sequences: Sequence[Sequence[Any]]) -> Iterator[tuple[Any, ...
             yield (head, *rest)
 
 
-def plan_missions(spec: SweepSpec) -> Iterator[PlannedMission]:
-    """Every mission of the sweep, in a fixed order, lazily (memory does not grow with it)."""
+def plan_missions(spec: SweepSpec, *, paired_last: bool = False) -> Iterator[PlannedMission]:
+    """Every mission of the sweep, lazily (memory does not grow with it).
+
+    In index order, or with ``paired_last`` (what sweeps run) with the ``policy.*`` values of
+    one combination next to each other, so the missions that share a built track and draws
+    fall into one chunk; ``index`` is the position in the file's order either way.
+    """
     base = base_dict(spec.base)
     counts = {a.key: stars(a.path, base) for a in spec.drawn}
     prefix = _id_prefix(spec, base)
@@ -416,6 +421,9 @@ def plan_missions(spec: SweepSpec) -> Iterator[PlannedMission]:
         digest = hashlib.sha256(prefix + repr(key).encode()).hexdigest()[:16]
         return PlannedMission(index, digest, tuple(every[a.key] for a in spec.axes))
 
+    if spec.sample is None and paired_last:
+        yield from _paired_last(spec, discrete, draws, planned)
+        return
     if spec.sample is None:
         unpaired_at = [i for i, a in enumerate(discrete) if not a.paired]
         for index, combo in enumerate(_lazy_product([a.values or () for a in discrete])):
@@ -436,6 +444,34 @@ def plan_missions(spec: SweepSpec) -> Iterator[PlannedMission]:
             both = {**chosen, **{a.key: v for a, v in zip(paired, combo, strict=True)}}
             key = (replica, tuple(both[a.key] for a in discrete))
             yield planned(replica * len(paired_combos) + p, both, drawn, key)
+
+
+def _paired_last(
+    spec: SweepSpec,
+    discrete: Sequence[Axis],
+    draws: Callable[[np.random.Generator], dict[str, Any]],
+    planned: Callable[[int, dict[str, Any], dict[str, Any], Any], PlannedMission],
+) -> Iterator[PlannedMission]:
+    """Product mode, paired axes innermost: draws once per combination of the others."""
+    sizes = [len(a.values or ()) for a in discrete]
+    strides = [math.prod(sizes[i + 1 :]) for i in range(len(sizes))]
+    outer = [i for i, a in enumerate(discrete) if not a.paired]
+    inner = [i for i, a in enumerate(discrete) if a.paired]
+    inner_digits = list(_lazy_product([range(sizes[i]) for i in inner]))
+    for digits in _lazy_product([range(sizes[i]) for i in outer]):
+        combo: list[Any] = [None] * len(discrete)
+        start = 0
+        for i, d in zip(outer, digits, strict=True):
+            combo[i] = (discrete[i].values or ())[d]
+            start += d * strides[i]
+        drawn = draws(draw_seed(spec.seed, [combo[i] for i in outer])) if spec.drawn else {}
+        for paired_digits in inner_digits:
+            index = start
+            for i, d in zip(inner, paired_digits, strict=True):
+                combo[i] = (discrete[i].values or ())[d]
+                index += d * strides[i]
+            chosen = {a.key: v for a, v in zip(discrete, combo, strict=True)}
+            yield planned(index, chosen, drawn, tuple(combo))
 
 
 def iter_missions(spec: SweepSpec) -> Iterator[SweepMission]:

@@ -89,7 +89,10 @@ def _read_holder(path: Path) -> Holder | None:
 @contextlib.contextmanager
 def locked(out: Path) -> Iterator[None]:
     """Hold ``out``'s lock while the block runs; a second sweep on it gets one clear line."""
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SkymuleError(f"--out {out}: cannot create the folder ({exc.strerror})") from None
     path = out / LOCK
     me = {
         "pid": os.getpid(),
@@ -115,6 +118,8 @@ def locked(out: Path) -> Iterator[None]:
             for stale in out.glob(f"{LOCK}.stale-*"):
                 stale.unlink(missing_ok=True)
             continue
+        except OSError as exc:
+            raise SkymuleError(f"--out {out}: cannot write {path} ({exc.strerror})") from None
         with os.fdopen(fd, "w") as handle:
             json.dump(me, handle)
         break

@@ -151,6 +151,21 @@ def run_planned(resolve: Expansion, planned: Sequence[PlannedMission]) -> pd.Dat
     return _run_items(items)
 
 
+def run_and_store(resolve: Expansion, planned: Sequence[PlannedMission], out: str) -> int:
+    """:func:`run_planned`, with the worker writing its own part (atomically) into ``out``.
+
+    Used by executors on this machine: the rows never travel back to the sweep process,
+    which only counts them. Returns the number of missions stored.
+    """
+    frame = run_planned(resolve, planned)
+    store.write_part(Path(out), frame)
+    return len(frame)
+
+
+#: Executors whose workers see this machine's file system (and write their own parts).
+LOCAL_EXECUTORS = ("inprocess", "process")
+
+
 def _run_items(items: Sequence[_Item]) -> pd.DataFrame:
     """Build each geometry once, batch what the batched engine can run, summarise every row."""
     from skymule.metrics import summarize
@@ -331,7 +346,10 @@ def run_sweep(
             pending: set[Future] = set()
             planned = plan_missions(spec, paired_last=True)
             for chunk in _chunks(planned, found.ids, size, seen, spec.source):
-                pending.add(pool.submit(run_planned, resolve, chunk))
+                if executor in LOCAL_EXECUTORS:
+                    pending.add(pool.submit(run_and_store, resolve, chunk, str(out)))
+                else:
+                    pending.add(pool.submit(run_planned, resolve, chunk))
                 while len(pending) >= 2 * n_workers:
                     n_run += _collect(out, pending, advance)
             while pending:
@@ -347,10 +365,12 @@ def _collect(out: Path, pending: set[Future], advance: Any) -> int:
     count = 0
     for future in done:
         pending.discard(future)
-        frame = future.result()
-        store.write_part(out, frame)
-        advance(len(frame))
-        count += len(frame)
+        result = future.result()
+        if isinstance(result, pd.DataFrame):  # a remote worker's rows: stored here
+            store.write_part(out, result)
+            result = len(result)
+        advance(result)
+        count += result
     return count
 
 

@@ -1,5 +1,11 @@
 """Running a sweep: plan, skip what is done, run chunks on an executor, store, summarise.
 
+The sweep process only streams the plan (ids and axis values, :func:`plan_missions`), skips
+missions already stored, and sends chunks; a worker resolves and validates each mission once,
+builds each geometry once per chunk (missions that differ only in buffers, policy, name or,
+without shadowing, seed share one built track and batch together), and on this machine
+writes its own part. Chunks are at most ``chunk_size`` missions and within a memory budget.
+
 Fixed-trajectory Greedy/HGAD missions (per-slot fading included) run through the batched
 engine (:mod:`skymule.sim.batch`), whose summaries come straight from the batch arrays
 (``summarize_fixed_batch``: no per-mission log is built); every other mission (other policies,

@@ -11,7 +11,7 @@ from skymule.metrics import summarize
 from skymule.policies.hgad import HGAD
 from skymule.runner import simulate
 from skymule.scenario import load_scenario
-from skymule.sim.engine import run_mission
+from skymule.sim.run import run_mission
 from skymule.world import build_mission
 
 PRESET = "paper-sim-autonomous"

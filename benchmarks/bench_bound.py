@@ -25,7 +25,8 @@ import time
 
 import numpy as np
 
-from skymule.bounds.fixed import LP_METHOD, fixed_path_bound, mission_bound
+from skymule.bounds.fixed import LP_METHOD, fixed_path_bound
+from skymule.bounds.mission import mission_bound
 from skymule.runner import simulate
 from skymule.scenario import load_scenario
 from skymule.world import build_mission

@@ -24,7 +24,7 @@ from skymule.metrics import aadm_score, completion_time_s
 from skymule.policies.hgad import HGAD
 from skymule.policies.planner import Planner
 from skymule.scenario import Scenario, load_scenario
-from skymule.sim.engine import run_mission
+from skymule.sim.run import run_mission
 from skymule.world import build_mission
 
 PRESET = "paper-sim-autonomous"

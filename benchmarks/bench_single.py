@@ -10,7 +10,7 @@ import time
 
 from skymule.policies import make_policy
 from skymule.scenario import load_scenario
-from skymule.sim.engine import run_mission
+from skymule.sim.run import run_mission
 from skymule.world import build_mission
 
 

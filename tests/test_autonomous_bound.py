@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -22,9 +21,8 @@ from skymule.policies.greedy import Greedy
 from skymule.policies.hgad import HGAD
 from skymule.policies.planner import Planner
 from skymule.scenario import load_scenario
-from skymule.sim.autonomous import build_geometry
-from skymule.sim.engine import run_mission
-from skymule.world import build_mission
+from skymule.sim.run import run_mission
+from skymule.world import build_mission, with_fence
 
 PRESET = "paper-sim-autonomous"
 REL = 1e-9
@@ -142,7 +140,7 @@ def test_every_point_within_travel_distance_is_in_the_geodesic_reach_set():
     """Validity of the reach set itself: a fence point at in-fence travel distance d from home
     lies in G(d) (distance 0), for random homes and points on the Lake Wheeler fence."""
     rng = np.random.default_rng(11)
-    geometry = build_geometry(build_mission(load_scenario(PRESET)))
+    geometry = build_mission(load_scenario(PRESET))  # carries navigator, home, hover points
     nav = geometry.navigator
     x0, y0, x1, y1 = nav.fence.bounds
 
@@ -192,7 +190,7 @@ def _u_fence_mission(duration_s: float):
     fence = Polygon(
         [(0, 0), (300, 0), (300, 200), (160, 200), (160, 40), (140, 40), (140, 200), (0, 200)]
     )
-    return dataclasses.replace(build_mission(scenario), fence=fence)
+    return with_fence(build_mission(scenario), fence)
 
 
 def test_u_fence_geodesic_bound_is_tighter_and_matches_hand_computation():
@@ -223,7 +221,7 @@ def test_u_fence_reach_around_the_notch():
     reached after 150.33 + 20 m, the sensor is 150.33 m away, so the distance is
     min(30, 320.67 - r) (30: the notch wall seen from home)."""
     mission = _u_fence_mission(20.0)
-    geometry = build_geometry(mission)
+    geometry = mission
     around = 2 * math.hypot(10.0, 150.0) + 20.0
     radii = np.array([100.0, 250.0, 300.0, 310.0, around + 1.0])
     sensor = mission.sensor_m[:, :2]

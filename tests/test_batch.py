@@ -14,19 +14,19 @@ from hypothesis import strategies as st
 from skymule.experiments.run import _flat_summary, run_chunk
 from skymule.experiments.sweep import iter_missions, load_sweep
 from skymule.flight.paths import Track
-from skymule.metrics import handovers, summarize
+from skymule.metrics import handover_counts, summarize
 from skymule.policies import make_policy
 from skymule.radio.rates import Shannon
 from skymule.runner import simulate
 from skymule.scenario import PolicySpec, load_scenario, scenario_from_dict
-from skymule.sim.autonomous import fixed_geometry_fields
 from skymule.sim.batch import (
     batchable,
-    handover_counts,
     run_fixed_batch,
     summarize_fixed_batch,
 )
-from skymule.sim.engine import MissionLog, run_fixed, run_mission
+from skymule.sim.engine import run_fixed
+from skymule.sim.log import MissionLog
+from skymule.sim.run import run_mission
 from skymule.world import build_mission
 
 
@@ -46,14 +46,19 @@ def random_mission(base, rng: np.random.Generator, n_sensors: int):
     buffers = rng.choice([0.0, 1e5, 1e6, 3e6, 2e7], size=n_sensors) * rng.random(n_sensors)
     buffers[rng.random(n_sensors) < 0.3] = rng.choice([0.0, 1.4e6 * 2.41, 2.1e6])
     names = tuple(f"S{i}" for i in range(n_sensors))
+    n_slots = int(rng.integers(1, 60))
+    slot_s = float(rng.choice([1.0, 0.5, 2.0]))
+    # the AADM download window closing mid-mission (and mid-slot) in some missions
+    window_s = float(rng.uniform(0, n_slots + 1)) * slot_s if rng.random() < 0.3 else None
     return replace(
         base,
         sensor_names=names,
         sensor_m=np.zeros((n_sensors, 3)),
         buffers_bit=buffers,
-        n_slots=int(rng.integers(1, 60)),
-        slot_s=float(rng.choice([1.0, 0.5, 2.0])),
+        n_slots=n_slots,
+        slot_s=slot_s,
         track=track,
+        aadm_window_s=window_s,
     )
 
 
@@ -115,7 +120,7 @@ def test_batched_equals_reference_on_paper_preset(base_mission):
     logs = run_fixed_batch(missions, specs)
     for log, mission, spec in zip(logs, missions, specs, strict=True):
         reference = summarize(run_mission(mission, make_policy(spec)), "x")
-        assert summarize(replace(log, **fixed_geometry_fields(mission)), "x") == reference
+        assert summarize(log, "x") == reference
 
 
 def test_hgad_hovers_and_greedy_does_not_on_paper_preset(base_mission):
@@ -146,10 +151,10 @@ def test_trace_ends_when_uav_moves_past_last_sample(base_mission):
 # --- vectorised summaries (no MissionLog) and per-slot fading ------------------------------
 
 
-def random_geometry(rng: np.random.Generator, n_sensors: int) -> dict[str, object] | None:
-    """fixed_geometry_fields-like geometry near random tracks; sometimes partly or all absent."""
+def random_geometry(rng: np.random.Generator, n_sensors: int) -> dict[str, object]:
+    """Mission geometry near random tracks; sometimes partly or all absent."""
     if rng.random() < 0.15:
-        return None
+        return {"home_m": None, "hover_points_m": None, "visit_radius_m": 50.0}
     hover = rng.normal(0, 30, (n_sensors, 2))
     hover[rng.random(n_sensors) < 0.2] = np.nan
     return {
@@ -157,6 +162,10 @@ def random_geometry(rng: np.random.Generator, n_sensors: int) -> dict[str, objec
         "hover_points_m": None if rng.random() < 0.1 else hover,
         "visit_radius_m": float(rng.choice([5.0, 20.0, 50.0])),
     }
+
+
+def with_geometry(missions, geometry):
+    return [replace(m, **geo) for m, geo in zip(missions, geometry, strict=True)]
 
 
 def with_random_fading(mission, rng: np.random.Generator):
@@ -168,9 +177,8 @@ def with_random_fading(mission, rng: np.random.Generator):
     return replace(mission, rate_table=Shannon()) if rng.random() < 0.3 else mission
 
 
-def reference_summary(mission, spec, geometry, name: str = "x") -> dict:
-    log = run_fixed(mission, make_policy(spec))
-    return summarize(replace(log, **geometry) if geometry else log, name)
+def reference_summary(mission, spec, name: str = "x") -> dict:
+    return summarize(run_fixed(mission, make_policy(spec)), name)
 
 
 def assert_summaries_equal(got: dict, want: dict) -> None:
@@ -184,11 +192,11 @@ def assert_summaries_equal(got: dict, want: dict) -> None:
             assert got[key] == value, (key, got[key], value)
 
 
-def check_summaries(missions, specs, geometry, batch_size: int = 7) -> None:
+def check_summaries(missions, specs, batch_size: int = 7) -> None:
     names = [f"m{i}" for i in range(len(missions))]
-    got = summarize_fixed_batch(missions, specs, names, geometry, batch_size=batch_size)
-    for row, mission, spec, geo, name in zip(got, missions, specs, geometry, names, strict=True):
-        assert_summaries_equal(row, reference_summary(mission, spec, geo, name))
+    got = summarize_fixed_batch(missions, specs, names, batch_size=batch_size)
+    for row, mission, spec, name in zip(got, missions, specs, names, strict=True):
+        assert_summaries_equal(row, reference_summary(mission, spec, name))
 
 
 @settings(
@@ -205,7 +213,8 @@ def test_vectorised_summaries_equal_summarize_on_random_missions(
     ]
     specs = [random_spec(rng) for _ in range(n_missions)]
     geometry = [random_geometry(rng, n_sensors) for _ in range(n_missions)]
-    check_summaries(missions, specs, geometry)
+    missions = with_geometry(missions, geometry)
+    check_summaries(missions, specs)
     check_equal(missions, specs)  # the logs of fading missions too
 
 
@@ -220,14 +229,13 @@ def test_vectorised_summaries_with_mixed_sensor_counts_and_shared_tracks(base_mi
     specs = [random_spec(rng) for _ in missions]
     geometry = [random_geometry(rng, m.n_sensors) for m in missions]
     for mission, geo in zip(missions[::2], geometry[::2], strict=True):
-        if geo is not None:  # home near the track's end: within and beyond the 3 m tolerance
-            geo["home_m"] = mission.track.position_m[-1, :2] + rng.normal(0, 2, 2)
-    check_summaries(missions, specs, geometry, batch_size=6)
+        if geo["hover_points_m"] is not None:  # home near the track's end: within and beyond
+            geo["home_m"] = mission.track.position_m[-1, :2] + rng.normal(0, 2, 2)  # 3 m
+    check_summaries(with_geometry(missions, geometry), specs, batch_size=6)
 
 
 def test_vectorised_summaries_equal_summarize_on_paper_preset(base_mission):
     rng = np.random.default_rng(5)
-    geometry = fixed_geometry_fields(base_mission)
     missions, specs = [], []
     for index in range(8):
         buffers = rng.uniform(0, 1500e6, base_mission.n_sensors)
@@ -235,9 +243,9 @@ def test_vectorised_summaries_equal_summarize_on_paper_preset(base_mission):
             buffers[:] = [1e6, 2e6, 0.0, 3e6]  # emptied early: the AADM completion bonus
         missions.append(replace(base_mission, buffers_bit=buffers))
         specs.append(PolicySpec(name=("greedy", "hgad")[index % 2]))
-    check_summaries(missions, specs, [geometry] * len(missions), batch_size=1000)
-    # and as ``skymule run`` gives them (run_mission attaches the same geometry)
-    (row,) = summarize_fixed_batch(missions[:1], specs[:1], ["x"], [geometry])
+    check_summaries(missions, specs, batch_size=1000)
+    # and as ``skymule run`` gives them
+    (row,) = summarize_fixed_batch(missions[:1], specs[:1], ["x"])
     assert_summaries_equal(row, summarize(run_mission(missions[0], make_policy(specs[0])), "x"))
 
 
@@ -258,8 +266,7 @@ def test_batched_engine_runs_rician_fading_like_the_reference(rician_mission):
     ]
     specs = [PolicySpec(name=name) for name in ("greedy", "hgad", "greedy", "hgad")]
     check_equal(missions, specs)
-    geometry = [fixed_geometry_fields(rician_mission)] * len(missions)
-    check_summaries(missions, specs, geometry)
+    check_summaries(missions, specs)
     # fading changes what happens: the faded run differs from the unfaded one
     plain = replace(missions[1], fading_db=None)
     (faded_log, plain_log) = run_fixed_batch([missions[1], plain], [specs[1]] * 2)
@@ -294,6 +301,17 @@ def test_sweep_rows_from_vectorised_summaries_equal_skymule_run(tmp_path):
             got = row[key]
             nan = isinstance(value, float) and math.isnan(value)
             assert (isinstance(got, float) and math.isnan(got)) if nan else got == value, key
+
+
+def handovers(served) -> int:
+    """Plain reference: changes of served sensor over the slots that served one."""
+    changes, previous = 0, None
+    for sensor in served:
+        if sensor == -1:
+            continue
+        changes += previous is not None and sensor != previous
+        previous = sensor
+    return changes
 
 
 def test_handover_counts_with_gaps_in_service_equal_metrics():

@@ -11,7 +11,8 @@ import pandas as pd
 import pytest
 
 from conftest import CliResult, run_cli
-from skymule.bounds.fixed import BoundError, mission_bound
+from skymule.bounds.mission import mission_bound
+from skymule.bounds.result import BoundError
 from skymule.errors import SkymuleError
 from skymule.io.traces import write_dt_export
 from skymule.scenario import load_scenario

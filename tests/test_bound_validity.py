@@ -17,7 +17,8 @@ import pytest
 import shapely
 from shapely.geometry import Polygon
 
-from skymule.bounds.fixed import mission_bound, mission_track_rates
+from skymule.bounds.fixed import mission_track_rates
+from skymule.bounds.mission import mission_bound
 from skymule.geo import LocalFrame, load_geofence
 from skymule.io.traces import write_dt_export
 from skymule.policies import HGAD, Greedy, Policy

@@ -7,7 +7,8 @@ import pytest
 import scipy.sparse as sp
 from scipy.optimize import Bounds, LinearConstraint, milp
 
-from skymule.bounds.fixed import BoundError, BoundResult, fixed_path_bound
+from skymule.bounds.fixed import fixed_path_bound
+from skymule.bounds.result import BoundError, BoundResult
 
 REL = 1e-6
 

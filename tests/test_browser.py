@@ -12,7 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from skymule.report.html import PER_RUN_PANELS, build_report
+from skymule.report.build import build_report
+from skymule.report.html import PER_RUN_PANELS
 from skymule.runner import simulate
 from skymule.scenario import scenario_from_dict
 from skymule.world import build_mission

@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from skymule.bounds.fixed import fixed_path_bound, mission_bound, mission_track_rates
+from skymule.bounds.fixed import fixed_path_bound, mission_track_rates
+from skymule.bounds.mission import mission_bound
 from skymule.errors import SkymuleError
 from skymule.flight.paths import Track
 from skymule.metrics import summarize

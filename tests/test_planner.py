@@ -14,7 +14,7 @@ from skymule.policies import make_policy
 from skymule.policies.hgad import HGAD
 from skymule.policies.planner import Planner, allocate_hover, held_karp, two_opt_order
 from skymule.scenario import load_scenario
-from skymule.sim.engine import run_mission
+from skymule.sim.run import run_mission
 from skymule.world import build_mission
 from test_autonomous import _assert_invariants
 from test_autonomous_bound import random_scenario

@@ -19,9 +19,11 @@ import shapely
 from conftest import run_cli
 from skymule.errors import SkymuleError
 from skymule.policies import POLICIES, make_policy, unknown_policies
+from skymule.policies.base import Action
 from skymule.runner import simulate
 from skymule.scenario import load_scenario
-from skymule.sim.engine import NO_SENSOR, MissionLog, run_mission
+from skymule.sim.log import NO_SENSOR, MissionLog
+from skymule.sim.run import run_mission
 from skymule.world import Mission, build_mission
 
 PLUGINS = Path(__file__).parent / "plugins"
@@ -142,3 +144,94 @@ def test_cli_runs_and_compares_a_user_policy(
     done = run_cli("run", "paper-sim-fixed", "--policy", "my_policies:Missing")
     assert done.returncode == 2
     assert done.stderr.strip().count("\n") == 0 and "my_policies" in done.stderr
+
+
+class _Vandal:
+    """A policy that tries to write into every array it is handed, then serves sensor 0."""
+
+    name = "vandal"
+
+    def __init__(self) -> None:
+        self.refused: set[str] = set()
+        self.context_refused: set[str] = set()
+
+    def reset(self, context) -> None:  # type: ignore[no-untyped-def]
+        for field in ("buffers_bit", "peak_rate_bps", "sensor_m", "track_rate_bps"):
+            values = getattr(context, field)
+            if values is None:
+                continue
+            try:
+                values[...] = 0
+            except ValueError:
+                self.context_refused.add(field)
+
+    def act(self, observation):  # type: ignore[no-untyped-def]
+        writes = {
+            "rate_bps": lambda: observation.rate_bps.__setitem__(slice(None), 1e12),
+            "snr_db": lambda: observation.snr_db.__setitem__(slice(None), 99.0),
+            "position_m": lambda: observation.position_m.__setitem__(slice(None), 0.0),
+            "remaining_bit": lambda: observation.remaining_bit.__setitem__(slice(None), 0.0),
+        }
+        for field, write in writes.items():
+            try:
+                write()
+            except ValueError:  # numpy: "assignment destination is read-only"
+                self.refused.add(field)
+        return Action(serve=0)
+
+
+@pytest.mark.parametrize("preset", PRESETS)
+def test_policies_cannot_write_into_the_engine(preset: str, missions: dict[str, Mission]) -> None:
+    """Every observation and context array is read-only, and a shared Mission is unharmed."""
+    mission = missions[preset]
+    before = run_mission(
+        mission, make_policy(mission.scenario.policy.model_copy(update={"name": "greedy"}))
+    )
+    vandal = _Vandal()
+    log = run_mission(mission, vandal)
+    assert vandal.refused == {"rate_bps", "snr_db", "position_m", "remaining_bit"}
+    assert vandal.context_refused >= {"buffers_bit", "peak_rate_bps", "sensor_m"}
+    assert_slot_contract(mission, log)
+    # slot 0 downloads what the true rate allows, not 1e12 bit/s
+    assert log.downloaded_bit[0] <= mission.buffers_bit[0]
+    assert log.downloaded_bit[0] == pytest.approx(log.rate_bps[0, 0] * mission.slot_s)
+    after = run_mission(
+        mission, make_policy(mission.scenario.policy.model_copy(update={"name": "greedy"}))
+    )
+    for field in ("position_m", "served", "downloaded_bit", "remaining_bit", "snr_db"):
+        np.testing.assert_array_equal(getattr(after, field), getattr(before, field))
+    with pytest.raises(ValueError):
+        mission.buffers_bit[0] = 0.0
+    if mission.track is not None:
+        with pytest.raises(ValueError):
+            mission.track.position_m[0] = 0.0
+
+
+def _out_of_reach(preset: str) -> Mission:
+    """The preset with every sensor ~100 km away: every rate is 0 everywhere it can fly."""
+    scenario = load_scenario(preset)
+    far = [
+        sensor.model_copy(
+            update={"lat": None, "lon": None, "x_m": 100_000.0 + 50 * i, "y_m": 100_000.0}
+        )
+        for i, sensor in enumerate(scenario.sensors)
+    ]
+    return build_mission(scenario.model_copy(update={"sensors": far}))
+
+
+@pytest.mark.parametrize("policy_name", sorted(POLICIES))
+@pytest.mark.parametrize("preset", PRESETS)
+def test_every_policy_serves_nothing_and_ends_when_no_rate_is_usable(
+    policy_name: str, preset: str
+) -> None:
+    mission = _out_of_reach(preset)
+    spec = mission.scenario.policy.model_copy(update={"name": policy_name})
+    try:
+        log = run_mission(mission, make_policy(spec))
+    except SkymuleError as exc:  # a mode the policy does not support: one line
+        assert "\n" not in str(exc)
+        return
+    assert not log.rate_bps.any()
+    assert (log.served == NO_SENSOR).all()
+    assert not log.downloaded_bit.any()
+    assert_slot_contract(mission, log)

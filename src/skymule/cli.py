@@ -16,11 +16,12 @@ from rich import box
 from rich.console import Console
 from rich.table import Table
 
+from skymule.aadm.cli import aadm_app
 from skymule.errors import SkymuleError
 from skymule.metrics import HEADLINE_METRICS
 
 if TYPE_CHECKING:
-    from skymule.bounds.fixed import MissionBound
+    from skymule.bounds.result import MissionBound
     from skymule.geo import LocalFrame
     from skymule.radio.sources import SignalSource
     from skymule.scenario import Scenario
@@ -32,6 +33,7 @@ app = typer.Typer(
     no_args_is_help=True,
     help="UAV data-mule missions: simulate, replay, compare and plot.",
 )
+app.add_typer(aadm_app, name="aadm")
 # tables are wider than 80 columns: piped output keeps every digit
 console = Console(width=None if sys.stdout.isatty() else 120)
 
@@ -171,7 +173,8 @@ GAP_COLUMNS = ("gap_to_bound_mbit", "gap_to_bound_frac")
 
 def _bound_or_note(mission: Mission) -> tuple[MissionBound | None, str | None]:
     """(the mission's upper bound, None), or (None, why there is none) for compare."""
-    from skymule.bounds.fixed import BoundError, mission_bound
+    from skymule.bounds.mission import mission_bound
+    from skymule.bounds.result import BoundError
 
     try:
         return mission_bound(mission), None
@@ -257,7 +260,7 @@ def bound(
     out: Annotated[Path | None, typer.Option("--out", help="Folder for bound.json.")] = None,
 ) -> None:
     """Upper bound on the data any policy can download in a scenario (LP/MILP, HiGHS)."""
-    from skymule.bounds.fixed import mission_bound
+    from skymule.bounds.mission import mission_bound
     from skymule.scenario import load_scenario
     from skymule.world import build_mission
 
@@ -302,7 +305,7 @@ def report(
     ] = None,
 ) -> None:
     """Write DIR/report.html (self-contained) and DIR/figures/*.png|pdf from its files."""
-    from skymule.report.html import build_report
+    from skymule.report.build import build_report
 
     path = build_report(run_dir, pdf=pdf, baseline=baseline)
     console.print(f"wrote {path} and {run_dir / 'figures'}/*.png, *.pdf")
@@ -345,7 +348,7 @@ def analyze(
 ) -> None:
     """Replay a recorded flight under several policies and write a compare folder + report."""
     from skymule.analyze import analyze_flight
-    from skymule.report.html import build_report
+    from skymule.report.build import build_report
 
     out_dir = out if out is not None else Path(f"{log.stem}-analysis")
     rows = analyze_flight(

@@ -1,13 +1,29 @@
-"""Mission metrics: pure functions of a :class:`~skymule.sim.engine.MissionLog`."""
+"""Mission metrics: one implementation over padded arrays of B missions.
+
+Every summary number (``summary.json``, sweep rows, comparison tables) comes from
+:func:`summaries` over a :class:`Flights`: the batched engine builds one from its arrays
+without any per-mission log, and :func:`summarize` is the one-mission case, built from a
+:class:`~skymule.sim.log.MissionLog`. The AADM score comes from its one implementation,
+:func:`skymule.aadm.score.aadm_scores`, called here for every summary.
+
+Positions are given as tracks plus sample indices: mission b is at
+``track_position_m[track_id[b], sample[b, t]]`` during slot t and ends at sample
+``end_sample[b]``; a non-hovering slot moves to the next sample (or holds at a track's last
+one). A log is its own track: its positions followed by its end position, sample t in slot t.
+This is what lets the batched engine share one track among many missions.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from skymule.aadm.score import AADM_WINDOW_S, AadmScore, aadm_scores
 from skymule.energy import propulsion_power_w
-from skymule.sim.engine import NO_SENSOR, MissionLog
+from skymule.sim.log import NO_SENSOR, MissionLog
 
 BITS_PER_MBIT = 1e6
 
@@ -22,136 +38,459 @@ HEADLINE_METRICS = (
 )
 """The summary fields shown in tables and aggregated over sweeps."""
 
-#: AADM challenge scoring (AERPAW AADM rules): mission reference time [s], landing
-#: tolerance [m] and penalty per metre beyond it.
-AADM_REFERENCE_S = 600.0
-AADM_LANDING_TOLERANCE_M = 3.0
-AADM_PENALTY_PER_M = 20.0
+#: The AERPAW testbed requires landing within this distance of the launch point [m] (a check
+#: beside the AADM score, which has no landing term).
+LANDING_TOLERANCE_M = 5.0
+
+
+@dataclass(frozen=True)
+class Flights:
+    """What happened in B missions, as padded arrays (T slots at most, N sensors).
+
+    Row b holds mission b; only its first ``n_run[b]`` slots happened, and the padding after
+    them holds NO_SENSOR in ``served``, 0 in ``downloaded_bit`` and False in ``hovering``.
+
+    Attributes:
+        n_run: (B,) slots run T'.
+        slot_s: (B,) slot length [s].
+        buffers_bit: (B, N) initial buffers [bit].
+        left_bit: (B, N) buffers after the last slot [bit].
+        served: (B, T) served sensor, or NO_SENSOR.
+        downloaded_bit: (B, T) bits downloaded in each slot.
+        hovering: (B, T) True where the UAV held its position after the slot by choice.
+        track_position_m: (U, K, 3) positions of U tracks [m].
+        track_samples: (U,) samples in each track (the rest is padding).
+        track_id: (B,) each mission's track.
+        sample: (B, T) track sample the UAV is at during each slot (non-decreasing, from 0).
+        end_sample: (B,) track sample after the last slot.
+        home_m: (B, 2) home point [m] (NaN: no home).
+        hover_points_m: (B, N, 2) point each sensor is served from [m] (NaN: unknown).
+        visit_radius_m: (B,) a sensor counts as visited within this distance [m].
+        target: (B, T) autonomous: sensor the policy was heading for (NO_SENSOR: none), or
+            None when no mission has targets.
+        aadm_window_s: (B,) the AADM download window the score counts downloads in [s].
+    """
+
+    n_run: np.ndarray
+    slot_s: np.ndarray
+    buffers_bit: np.ndarray
+    left_bit: np.ndarray
+    served: np.ndarray
+    downloaded_bit: np.ndarray
+    hovering: np.ndarray
+    track_position_m: np.ndarray
+    track_samples: np.ndarray
+    track_id: np.ndarray
+    sample: np.ndarray
+    end_sample: np.ndarray
+    home_m: np.ndarray
+    hover_points_m: np.ndarray
+    visit_radius_m: np.ndarray
+    target: np.ndarray | None = None
+    aadm_window_s: np.ndarray | None = None
+
+
+def flights_from_log(log: MissionLog) -> Flights:
+    """One mission's log as :class:`Flights` (its own track; B = U = 1)."""
+    n_sensors, n_slots = len(log.sensor_names), log.n_slots
+    track = np.vstack([log.position_m.reshape(-1, 3), log.end_position_m[None, :]])
+    home = np.full((1, 2), np.nan) if log.home_m is None else np.reshape(log.home_m, (1, 2))
+    hover = (
+        np.full((1, n_sensors, 2), np.nan)
+        if log.hover_points_m is None
+        else np.reshape(log.hover_points_m, (1, n_sensors, 2))
+    )
+    left = log.remaining_bit[-1] if n_slots else log.buffers_bit
+    return Flights(
+        n_run=np.array([n_slots]),
+        slot_s=np.array([log.slot_s], float),
+        buffers_bit=np.reshape(log.buffers_bit, (1, n_sensors)),
+        left_bit=np.reshape(left, (1, n_sensors)),
+        served=log.served[None, :],
+        downloaded_bit=log.downloaded_bit[None, :],
+        hovering=log.hovering[None, :],
+        track_position_m=track[None],
+        track_samples=np.array([n_slots + 1]),
+        track_id=np.zeros(1, np.int64),
+        sample=np.arange(n_slots)[None, :],
+        end_sample=np.array([n_slots]),
+        home_m=home,
+        hover_points_m=hover,
+        visit_radius_m=np.array([log.visit_radius_m], float),
+        target=None if log.target is None else log.target[None, :],
+        aadm_window_s=np.array([log.aadm_window_s], float),
+    )
+
+
+# --- building blocks, vectorised over missions ----------------------------------------------
+
+
+def row_sums(values: np.ndarray, n_run: np.ndarray) -> np.ndarray:
+    """(B,) sum of the first ``n_run[b]`` entries of each row of ``values`` (B, T).
+
+    Bit for bit ``values[b, :n].sum()``: rows of one length are summed as a C-contiguous
+    (rows, n) block, which numpy reduces row by row with the same pairwise summation.
+    """
+    lengths = np.unique(n_run)
+    if lengths.size == 1 and lengths[0] == values.shape[1]:
+        return np.ascontiguousarray(values).sum(axis=1)
+    sums = np.zeros(values.shape[0])
+    for n in lengths:
+        rows = np.flatnonzero(n_run == n)
+        sums[rows] = np.ascontiguousarray(values[rows, :n]).sum(axis=1)
+    return sums
+
+
+def unique_rows(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distinct rows of ``key`` (B, C) and each row's group (B,), as np.unique(axis=0).
+
+    Fast path when every row is the same (a batch of one geometry); NaN equals NaN there.
+    """
+    first = key[:1]
+    same = (key == first) | (np.isnan(key) & np.isnan(first))
+    if same.all():
+        return first, np.zeros(key.shape[0], np.int64)
+    rows, group = np.unique(key, axis=0, return_inverse=True)
+    return rows, group.reshape(-1)
+
+
+def handover_counts(served: np.ndarray) -> np.ndarray:
+    """(B,) changes of served sensor over the slots that served one, ``served`` (T, B).
+
+    NO_SENSOR slots are skipped (serving A, nothing, A is no handover).
+    """
+    valid = served != NO_SENSOR
+    if not (valid[1:] & ~valid[:-1]).any():
+        # served slots form a prefix of every mission (Greedy/HGAD: buffers never refill)
+        return np.count_nonzero((served[1:] != served[:-1]) & valid[1:], axis=0)
+    slots = np.arange(served.shape[0])[:, None]
+    last = np.maximum.accumulate(np.where(valid, slots, -1), axis=0)
+    previous = np.vstack([np.full((1, served.shape[1]), -1), last[:-1]])
+    previous_served = np.take_along_axis(served, np.maximum(previous, 0), axis=0)
+    return np.count_nonzero(valid & (previous >= 0) & (previous_served != served), axis=0)
+
+
+def track_steps_m(position_m: np.ndarray, n_samples: np.ndarray) -> np.ndarray:
+    """(U, K) distance from track sample k to k + 1 [m]; 0 at and past the last sample."""
+    n_tracks, k_max = position_m.shape[:2]
+    steps = np.zeros((n_tracks, k_max))
+    steps[:, :-1] = np.linalg.norm(position_m[:, 1:] - position_m[:, :-1], axis=2)
+    steps[np.arange(steps.shape[1]) >= n_samples[:, None] - 1] = 0.0
+    return steps
+
+
+def slot_steps_and_power(flights: Flights) -> tuple[np.ndarray, np.ndarray]:
+    """(B, T) distance flown in each slot [m] and (B, T) propulsion power [W].
+
+    A hovering slot flies 0 m; any other moves one track step. Power is P(step / slot_s)
+    (Zeng, Xu & Zhang 2019, eq. 12), looked up in tables per distinct (track, slot length)
+    with one extra column for a hover.
+    """
+    pairs, pair = unique_rows(np.column_stack([flights.track_id, flights.slot_s]))
+    k_max = flights.track_position_m.shape[1]
+    steps = np.zeros((pairs.shape[0], k_max + 1))  # column k_max: a hover slot (0 m)
+    steps[:, :k_max] = track_steps_m(flights.track_position_m, flights.track_samples)[
+        pairs[:, 0].astype(int)
+    ]
+    power = propulsion_power_w(steps / pairs[:, 1:2])
+    column = np.where(flights.hovering, k_max, flights.sample)
+    index = column + pair[:, None] * (k_max + 1)
+    return steps.take(index), power.take(index)
+
+
+def completion_times_s(flights: Flights) -> np.ndarray:
+    """(B,) end of the slot in which the last buffered bit was downloaded [s].
+
+    NaN where the buffers were never all emptied; 0 where nothing was buffered. Buffers only
+    shrink, by downloads, so a mission that ends empty emptied in its last downloading slot.
+    """
+    slots = np.arange(flights.downloaded_bit.shape[1])[None, :]
+    last = np.where(flights.downloaded_bit > 0, slots, -1).max(axis=1, initial=-1)
+    emptied = ~(flights.left_bit > 0).any(axis=1) & (last >= 0)
+    done = np.where(emptied, (last + 1) * flights.slot_s, np.nan)
+    return np.where(flights.buffers_bit.any(axis=1), done, 0.0)
+
+
+def distance_to_home_m(flights: Flights) -> np.ndarray:
+    """(B,) horizontal distance from the end position to home [m] (NaN: no home)."""
+    end_m = flights.track_position_m[flights.track_id, flights.end_sample]
+    return np.hypot(end_m[:, 0] - flights.home_m[:, 0], end_m[:, 1] - flights.home_m[:, 1])
+
+
+# --- visit order ------------------------------------------------------------------------------
+
+
+def visit_order(flights: Flights) -> np.ndarray:
+    """(B, N) sensor indices in first-visit order, padded with NO_SENSOR.
+
+    Autonomous runs (with targets): sensor i is visited at the first slot the UAV was heading
+    for it and ended within ``visit_radius_m`` of its hover point (the paper's "navigation
+    order", Table II). Otherwise a run in which the UAV hovered while serving (HGAD) visits
+    sensor i at the first slot it hovered serving i; else (Greedy) at the first slot the UAV
+    was within ``visit_radius_m`` of i's hover point.
+    """
+    n_run = flights.n_run
+    served = flights.served
+    hovered = flights.hovering & (served != NO_SENSOR)
+    n_sensors = flights.buffers_bit.shape[1]
+    first = _first_hover_slots(served, hovered, n_run, n_sensors)
+    by_place = ~hovered.any(axis=1)
+    if flights.target is not None:
+        # all-NaN hover points: unknown (a log without them), so no target-based visits
+        by_target = (n_run > 0) & np.isfinite(flights.hover_points_m).any(axis=(1, 2))
+        if by_target.any():
+            rows = np.flatnonzero(by_target)
+            first[rows] = _first_target_arrivals(flights, rows)
+            by_place &= ~by_target
+    if by_place.any():
+        rows = np.flatnonzero(by_place)
+        first[rows] = _first_slot_near(flights, rows)
+    order = np.argsort(first, axis=1, kind="stable")
+    reached = np.take_along_axis(first, order, axis=1) < n_run[:, None]
+    return np.where(reached, order, NO_SENSOR)
+
+
+def _first_hover_slots(
+    served: np.ndarray, hovered: np.ndarray, n_run: np.ndarray, n_sensors: int
+) -> np.ndarray:
+    """(B, N) first slot each mission hovered serving each sensor (else n_run).
+
+    Only the first slot of each hover run is looked at.
+    """
+    start = hovered.copy()
+    start[:, 1:] &= ~(hovered[:, :-1] & (served[:, 1:] == served[:, :-1]))
+    mission, slot = np.nonzero(start)  # mission-major, slots in order within a mission
+    keys, at = np.unique(mission * n_sensors + served[mission, slot], return_index=True)
+    first = np.repeat(n_run[:, None], n_sensors, axis=1)
+    first.reshape(-1)[keys] = slot[at]
+    return first
+
+
+def _positions_after(flights: Flights, rows: np.ndarray) -> np.ndarray:
+    """(R, T, 2) horizontal position after each slot of missions ``rows`` [m]."""
+    sample = flights.sample[rows]
+    after = np.empty_like(sample)
+    after[:, :-1] = sample[:, 1:]
+    n_run = flights.n_run[rows]
+    # the slot after the last one run ends at end_sample
+    last = np.maximum(n_run - 1, 0)
+    after[:, -1] = sample[:, -1]
+    after[np.arange(rows.size), last] = flights.end_sample[rows]
+    track = flights.track_id[rows][:, None]
+    return flights.track_position_m[track, after, :2]
+
+
+def _first_target_arrivals(flights: Flights, rows: np.ndarray) -> np.ndarray:
+    """(R, N) first slot the UAV, heading for sensor i, ended near i's hover point."""
+    assert flights.target is not None
+    n_sensors = flights.buffers_bit.shape[1]
+    after = _positions_after(flights, rows)
+    offset = after[:, :, None, :] - flights.hover_points_m[rows][:, None, :, :]
+    near = np.hypot(offset[..., 0], offset[..., 1]) <= flights.visit_radius_m[rows][:, None, None]
+    hits = near & (flights.target[rows][:, :, None] == np.arange(n_sensors)[None, None, :])
+    hits &= (np.arange(hits.shape[1]) < flights.n_run[rows][:, None])[:, :, None]
+    n_run = flights.n_run[rows][:, None]
+    return np.where(hits.any(axis=1), hits.argmax(axis=1), n_run)
+
+
+def _first_slot_near(flights: Flights, rows: np.ndarray) -> np.ndarray:
+    """(R, N) first slot missions ``rows`` were within the visit radius of each sensor's
+    hover point (horizontally), or n_run if never.
+
+    The UAV walks its track from sample 0 one sample at a time, so that slot is the first one
+    at the first track sample k near the hover point: the number of slots spent before k.
+    """
+    n_run = flights.n_run[rows]
+    n_sensors = flights.buffers_bit.shape[1]
+    k_max = flights.track_position_m.shape[1]
+    # near[k, i] per distinct (track, hover points, radius); k_max: never near
+    key = np.column_stack(
+        [
+            flights.track_id[rows],
+            flights.hover_points_m[rows].reshape(rows.size, -1),
+            flights.visit_radius_m[rows],
+        ]
+    )
+    keys, group = unique_rows(key)
+    first_near = np.empty((keys.shape[0], n_sensors), np.int64)
+    for g, row in enumerate(keys):
+        u = int(row[0])
+        offset = flights.track_position_m[u, :, None, :2] - row[1:-1].reshape(1, -1, 2)
+        near = np.hypot(offset[..., 0], offset[..., 1]) <= row[-1]  # NaN -> False
+        near[flights.track_samples[u] :] = False
+        first_near[g] = np.where(near.any(axis=0), near.argmax(axis=0), k_max)
+    # slots spent before each sample k (bin k_max collects the slots after the mission)
+    bins = k_max + 1
+    ran = np.arange(flights.sample.shape[1])[None, :] < n_run[:, None]
+    flat = np.where(ran, flights.sample[rows], k_max) + np.arange(rows.size)[:, None] * bins
+    counts = np.bincount(flat.ravel(), minlength=rows.size * bins).reshape(-1, bins)
+    before = np.cumsum(counts, axis=1) - counts
+    return np.take_along_axis(before, first_near[group], axis=1)
+
+
+# --- summaries --------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Summaries:
+    """The summary of every mission of a :class:`Flights`, as arrays (SI units).
+
+    Attributes:
+        slots: (B,) slots run T'.
+        slot_s: (B,) slot length [s].
+        buffers_bit: (B, N) initial buffers [bit].
+        total_downloaded_bit: (B,) bits downloaded [bit].
+        per_sensor_downloaded_bit: (B, N) bits downloaded from each sensor [bit].
+        completion: (B,) downloaded / buffered (1 with nothing buffered).
+        handovers: (B,) changes of served sensor over the slots that served one.
+        hover_time_s: (B,) time spent hovering [s].
+        distance_m: (B,) distance flown [m].
+        energy_j: (B,) propulsion energy [J].
+        visit_order: (B, N) sensor indices in first-visit order, padded with NO_SENSOR.
+        distance_to_home_m: (B,) horizontal end-to-home distance [m] (NaN: no home).
+        aadm: the AADM challenge score and its parts (:mod:`skymule.aadm.score`).
+    """
+
+    slots: np.ndarray
+    slot_s: np.ndarray
+    buffers_bit: np.ndarray
+    total_downloaded_bit: np.ndarray
+    per_sensor_downloaded_bit: np.ndarray
+    completion: np.ndarray
+    handovers: np.ndarray
+    hover_time_s: np.ndarray
+    distance_m: np.ndarray
+    energy_j: np.ndarray
+    visit_order: np.ndarray
+    distance_to_home_m: np.ndarray
+    aadm: AadmScore
+
+
+def summaries(flights: Flights) -> Summaries:
+    """Every metric of every mission of ``flights``, vectorised over missions."""
+    n_run, slot_s, buffers = flights.n_run, flights.slot_s, flights.buffers_bit
+    total_buffer = buffers.sum(axis=1)
+    total = row_sums(flights.downloaded_bit, n_run)
+    has_buffer = total_buffer > 0
+    safe_buffer = np.where(has_buffer, total_buffer, 1.0)
+    steps, power = slot_steps_and_power(flights)
+    to_home = distance_to_home_m(flights)
+    return Summaries(
+        slots=n_run.copy(),
+        slot_s=slot_s.copy(),
+        buffers_bit=buffers.copy(),
+        total_downloaded_bit=total,
+        per_sensor_downloaded_bit=buffers - flights.left_bit,
+        completion=np.where(has_buffer, total / safe_buffer, 1.0),
+        handovers=handover_counts(flights.served.T),
+        hover_time_s=np.count_nonzero(flights.hovering, axis=1) * slot_s,
+        distance_m=row_sums(steps, n_run),
+        energy_j=row_sums(power, n_run) * slot_s,
+        visit_order=visit_order(flights),
+        distance_to_home_m=to_home,
+        aadm=aadm_scores(
+            flights.downloaded_bit,
+            total_buffer,
+            n_run,
+            slot_s,
+            AADM_WINDOW_S if flights.aadm_window_s is None else flights.aadm_window_s,
+        ),
+    )
+
+
+def summary_dicts(
+    summary: Summaries,
+    sensor_names: Sequence[tuple[str, ...]],
+    policies: Sequence[str],
+    scenario_names: Sequence[str],
+) -> list[dict[str, Any]]:
+    """One ``summary.json`` dictionary per mission (Mbit and kJ at this edge)."""
+    mission_time = (summary.slots * summary.slot_s).tolist()
+    slots = summary.slots.tolist()
+    slot_s = summary.slot_s.tolist()
+    total = (summary.total_downloaded_bit / BITS_PER_MBIT).tolist()
+    total_buffer = (summary.buffers_bit.sum(axis=1) / BITS_PER_MBIT).tolist()
+    per_sensor = (summary.per_sensor_downloaded_bit / BITS_PER_MBIT).tolist()
+    buffers = (summary.buffers_bit / BITS_PER_MBIT).tolist()
+    completion = summary.completion.tolist()
+    handovers = summary.handovers.tolist()
+    hover = summary.hover_time_s.tolist()
+    distance = summary.distance_m.tolist()
+    energy = (summary.energy_j / 1e3).tolist()
+    order = summary.visit_order.tolist()
+    landed = (summary.distance_to_home_m <= LANDING_TOLERANCE_M).tolist()
+    to_home = summary.distance_to_home_m.tolist()
+    aadm = summary.aadm
+    t1, s1, s2 = aadm.t1_s.tolist(), aadm.s1.tolist(), aadm.s2.tolist()
+    complete, score = aadm.complete.tolist(), aadm.score.tolist()
+    rows = []
+    for b, names in enumerate(sensor_names):
+        rows.append(
+            {
+                "scenario": scenario_names[b],
+                "policy": policies[b],
+                "mission_time_s": mission_time[b],
+                "slots": slots[b],
+                "slot_s": slot_s[b],
+                "total_downloaded_mbit": total[b],
+                "total_buffer_mbit": total_buffer[b],
+                "per_sensor_downloaded_mbit": dict(zip(names, per_sensor[b], strict=True)),
+                "per_sensor_buffer_mbit": dict(zip(names, buffers[b], strict=True)),
+                "completion": completion[b],
+                "handovers": handovers[b],
+                "hover_time_s": hover[b],
+                "distance_m": distance[b],
+                "energy_kj": energy[b],
+                "visit_order": [names[i] for i in order[b] if i != NO_SENSOR],
+                "landed_within_5m": landed[b],
+                "distance_to_home_m": to_home[b],
+                "aadm_score": score[b],
+                "aadm_t1_s": t1[b],
+                "aadm_s1": s1[b],
+                "aadm_s2": s2[b],
+                "aadm_complete": complete[b],
+            }
+        )
+    return rows
+
+
+def summarize(log: MissionLog, scenario_name: str) -> dict[str, Any]:
+    """The run summary written to ``summary.json``: :func:`summaries` of one mission."""
+    (row,) = summary_dicts(
+        summaries(flights_from_log(log)), [log.sensor_names], [log.policy], [scenario_name]
+    )
+    return row
+
+
+# --- per-slot values and single-mission conveniences (slots.csv, tests) ----------------------
 
 
 def step_lengths_m(log: MissionLog) -> np.ndarray:
     """(T',) distance flown during each slot [m] (from r_t to r_{t+1})."""
-    after = np.vstack([log.position_m[1:], log.end_position_m[None, :]])
-    return np.linalg.norm(after - log.position_m, axis=1)
-
-
-def handovers(served: np.ndarray) -> int:
-    """Times the served sensor changed, over the slots in which some sensor was served."""
-    active = served[served != NO_SENSOR]
-    return int(np.count_nonzero(active[1:] != active[:-1]))
-
-
-def per_sensor_downloaded_bit(log: MissionLog) -> np.ndarray:
-    """(N,) bits downloaded from each sensor."""
-    return log.buffers_bit - (log.remaining_bit[-1] if log.n_slots else log.buffers_bit)
+    return slot_steps_and_power(flights_from_log(log))[0][0]
 
 
 def speed_mps(log: MissionLog) -> np.ndarray:
-    """(T',) horizontal-plus-vertical speed flown during each slot [m/s]."""
+    """(T',) speed flown during each slot [m/s]."""
     return step_lengths_m(log) / log.slot_s
 
 
 def power_w(log: MissionLog) -> np.ndarray:
     """(T',) rotary-wing propulsion power in each slot [W] (Zeng, Xu & Zhang 2019, eq. 12)."""
-    return np.asarray(propulsion_power_w(speed_mps(log)), float).reshape(-1)
+    return slot_steps_and_power(flights_from_log(log))[1][0]
 
 
-def energy_j(log: MissionLog) -> float:
-    """Propulsion energy of the mission [J]: sum over slots of P(V_t) * slot_s."""
-    return float(power_w(log).sum() * log.slot_s)
-
-
-def distance_to_home_m(log: MissionLog) -> float:
-    """Horizontal distance from the UAV's end position to home [m] (NaN without a home)."""
-    if log.home_m is None:
-        return float("nan")
-    return float(np.hypot(*(log.end_position_m[:2] - log.home_m)))
-
-
-def visit_order(log: MissionLog) -> list[str]:
-    """Sensor names in the order they were first visited.
-
-    Autonomous runs (the log has the policy's ``target``): sensor i is visited at the first
-    slot the UAV was heading for it and ended within ``visit_radius_m`` of its hover point
-    (the paper's "navigation order", Table II). Fixed runs: a run in which the UAV hovered
-    while serving (HGAD) counts a sensor at the first slot it hovered serving it; otherwise
-    (Greedy) at the first slot the UAV was within ``visit_radius_m`` of its hover point.
-    """
-    n_sensors = len(log.sensor_names)
-    hovered = log.hovering & (log.served != NO_SENSOR)
-    if log.target is not None and log.hover_points_m is not None and log.n_slots:
-        after = np.vstack([log.position_m[1:, :2], log.end_position_m[None, :2]])
-        offset = after[:, None, :] - log.hover_points_m[None, :, :]
-        near = np.hypot(offset[..., 0], offset[..., 1]) <= log.visit_radius_m
-        hits = near & (log.target[:, None] == np.arange(n_sensors)[None, :])
-    elif hovered.any():
-        hits = hovered[:, None] & (log.served[:, None] == np.arange(n_sensors)[None, :])
-    elif log.hover_points_m is not None and log.n_slots:
-        offset = log.position_m[:, None, :2] - log.hover_points_m[None, :, :]
-        hits = np.hypot(offset[..., 0], offset[..., 1]) <= log.visit_radius_m  # NaN -> False
-    else:
-        return []
-    first = np.where(hits.any(axis=0), hits.argmax(axis=0), log.n_slots)
-    order = [int(i) for i in np.argsort(first, kind="stable") if first[i] < log.n_slots]
-    return [log.sensor_names[i] for i in order]
+def handovers(served: np.ndarray) -> int:
+    """Times the served sensor changed, over the slots in which some sensor was served."""
+    return int(handover_counts(np.asarray(served).reshape(-1, 1))[0])
 
 
 def completion_time_s(log: MissionLog) -> float | None:
     """End of the slot in which the last buffered bit was downloaded [s]; None if never."""
-    if not log.n_slots:
-        return 0.0 if not log.buffers_bit.any() else None
-    empty = np.flatnonzero(log.remaining_bit.sum(axis=1) <= 0)
-    if not log.buffers_bit.any():
-        return 0.0
-    return float((empty[0] + 1) * log.slot_s) if empty.size else None
+    done = float(completion_times_s(flights_from_log(log))[0])
+    return None if np.isnan(done) else done
 
 
 def aadm_score(log: MissionLog) -> float:
-    """The AADM challenge score.
-
-    100 * downloaded / total, plus max(0, 600 - t) when every buffer was emptied by time t,
-    minus 20 per metre the UAV ends more than 3 m from home (no penalty without a home).
-    The completion bonus is clipped at 0 so that finishing late never scores below not
-    finishing.
-    """
-    total = float(log.buffers_bit.sum())
-    score = 100.0 * float(log.downloaded_bit.sum()) / total if total > 0 else 100.0
-    done = completion_time_s(log)
-    if done is not None:
-        score += max(0.0, AADM_REFERENCE_S - done)
-    distance = distance_to_home_m(log)
-    if np.isfinite(distance):
-        score -= AADM_PENALTY_PER_M * max(0.0, distance - AADM_LANDING_TOLERANCE_M)
-    return float(score)
-
-
-def summarize(log: MissionLog, scenario_name: str) -> dict[str, Any]:
-    """The run summary written to ``summary.json`` (Mbit at this edge)."""
-    per_sensor = per_sensor_downloaded_bit(log)
-    total_buffer = float(log.buffers_bit.sum())
-    total = float(log.downloaded_bit.sum())
-    names = log.sensor_names
-    return {
-        "scenario": scenario_name,
-        "policy": log.policy,
-        "mission_time_s": log.n_slots * log.slot_s,
-        "slots": log.n_slots,
-        "slot_s": log.slot_s,
-        "total_downloaded_mbit": total / BITS_PER_MBIT,
-        "total_buffer_mbit": total_buffer / BITS_PER_MBIT,
-        "per_sensor_downloaded_mbit": {
-            n: float(v) / BITS_PER_MBIT for n, v in zip(names, per_sensor, strict=True)
-        },
-        "per_sensor_buffer_mbit": {
-            n: float(v) / BITS_PER_MBIT for n, v in zip(names, log.buffers_bit, strict=True)
-        },
-        "completion": total / total_buffer if total_buffer > 0 else 1.0,
-        "handovers": handovers(log.served),
-        "hover_time_s": float(np.count_nonzero(log.hovering) * log.slot_s),
-        "distance_m": float(step_lengths_m(log).sum()),
-        "energy_kj": energy_j(log) / 1e3,
-        "visit_order": visit_order(log),
-        "landed_at_home": bool(distance_to_home_m(log) <= AADM_LANDING_TOLERANCE_M),
-        "distance_to_home_m": distance_to_home_m(log),
-        "aadm_score": aadm_score(log),
-    }
+    """The AADM challenge score of one mission (:func:`skymule.aadm.score.aadm_scores`)."""
+    return float(summaries(flights_from_log(log)).aadm.score[0])

@@ -10,7 +10,8 @@ from skymule.io.runs import slots_frame, write_run
 from skymule.metrics import summarize
 from skymule.policies import make_policy
 from skymule.scenario import Scenario
-from skymule.sim.engine import MissionLog, run_mission
+from skymule.sim.log import MissionLog
+from skymule.sim.run import run_mission
 from skymule.world import Mission, build_mission
 
 

@@ -8,21 +8,31 @@ comes out is in metres, seconds, bits and dB.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
-from shapely.geometry import Polygon
+from shapely.geometry import Point, Polygon, box
 
+from skymule.aadm.plan import is_plan, plan_waypoints_m, scenario_fence
+from skymule.aadm.score import AADM_WINDOW_S
 from skymule.errors import ScenarioError, SkymuleError
+from skymule.flight.navigation import Navigator, hover_point
 from skymule.flight.paths import Track, path_length_m, read_waypoints_csv, sample_path
-from skymule.geo import LocalFrame, covers, load_geofence, sensor_positions_m
+from skymule.geo import LocalFrame, covers, sensor_positions_m
 from skymule.radio.channel import mission_fading_db, signal_source
 from skymule.radio.rates import RateTable, rate_bps, resolve_rate_table
 from skymule.radio.sources import SignalSource
 from skymule.scenario import Scenario
 
 BITS_PER_MBIT = 1e6
+
+#: Half-width [m] of the square that stands in for a geofence when a scenario gives none.
+UNFENCED_HALF_WIDTH_M = 1.0e6
+
+#: Clearance [m] of hover points from the fence boundary (see ``hover_point``).
+HOVER_MARGIN_M = 1.0
 
 
 @dataclass(frozen=True)
@@ -45,6 +55,22 @@ class Mission:
         fading_db: (T, N) small-scale fading [dB] added to the SNR the UAV observes in slot t,
             drawn once per mission (identical for every policy), or None. Peak rates (HGAD)
             come from the track without fading.
+        mode: "fixed" (the UAV follows ``track``) or "autonomous" (the policy steers).
+        home_m: (2,) home point [m] (``trajectory.home`` or the site origin), or None.
+        hover_points_m: (N, 2) point inside the geofence each sensor is served from [m]
+            (NaN where the sensor has no position), or None.
+        visit_radius_m: a sensor counts as visited within this distance of its hover point [m].
+        altitude_m: autonomous flight altitude [m].
+        max_speed_mps: autonomous speed cap [m/s].
+        return_home: autonomous: the UAV must be home when the mission ends.
+        navigator: autonomous: in-fence shortest paths (a very large square without a fence);
+            None on fixed trajectories.
+        aadm_window_s: the AADM download window [s] (``mission.aadm_window_s``): slots that
+            start at or after it serve nothing; None: every slot may serve (the AADM score
+            still counts only the controller's 500 s).
+
+    A Mission is immutable: its arrays are read-only (writing raises), so policies and
+    engines can share one Mission across runs.
     """
 
     scenario: Scenario
@@ -60,6 +86,41 @@ class Mission:
     source: SignalSource | None
     track: Track | None
     fading_db: np.ndarray | None = None
+    mode: str = "fixed"
+    home_m: np.ndarray | None = None
+    hover_points_m: np.ndarray | None = None
+    visit_radius_m: float = 50.0
+    altitude_m: float = 30.0
+    max_speed_mps: float = 10.0
+    return_home: bool = True
+    navigator: Navigator | None = None
+    aadm_window_s: float | None = None
+
+    def __post_init__(self) -> None:
+        for item in fields(self):
+            value = getattr(self, item.name)
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
+        if self.track is not None:
+            self.track.position_m.flags.writeable = False
+            self.track.snr_db.flags.writeable = False
+
+    @property
+    def window_slots(self) -> int | None:
+        """Slots that start before the download window closes, or None (no window)."""
+        if self.aadm_window_s is None:
+            return None
+        return math.ceil(self.aadm_window_s / self.slot_s - 1e-9)
+
+    @property
+    def score_window_s(self) -> float:
+        """The window the AADM score counts downloads in [s]."""
+        return AADM_WINDOW_S if self.aadm_window_s is None else self.aadm_window_s
+
+    @property
+    def max_step_m(self) -> float:
+        """Longest move in one slot, max_speed_mps * slot_s [m]."""
+        return self.max_speed_mps * self.slot_s
 
     @property
     def n_sensors(self) -> int:
@@ -78,6 +139,88 @@ class Mission:
 
 MAX_SLOTS = 10_000_000
 """Longest mission and longest sampled path, in slots (115 days of 1-s slots)."""
+
+
+def home_xy(scenario: Scenario, frame: LocalFrame) -> np.ndarray:
+    """(2,) home point [m]: ``trajectory.home`` (lat/lon or [x, y]) or the site origin."""
+    home = scenario.trajectory.home
+    if home is None:
+        return np.zeros(2)
+    if isinstance(home, list):
+        if len(home) != 2:
+            raise ScenarioError(
+                f"trajectory.home = {home!r}: give [x_m, y_m] (2 numbers) or {{ lat, lon }}"
+            )
+        return np.asarray(home, float)
+    x_m, y_m = frame.to_local(home.lat, home.lon)
+    return np.array([float(x_m), float(y_m)])
+
+
+def fence_or_box(fence: Polygon | None) -> Polygon:
+    """The geofence, or a very large square standing in for it when there is none."""
+    if fence is not None:
+        return fence
+    half = UNFENCED_HALF_WIDTH_M
+    return box(-half, -half, half, half)
+
+
+def hover_points(fence: Polygon | None, sensor_m: np.ndarray) -> np.ndarray:
+    """(N, 2) point inside the fence closest to each sensor [m] (NaN: no position)."""
+    hover = np.full((len(sensor_m), 2), np.nan)
+    for index, sensor in enumerate(sensor_m):
+        if np.all(np.isfinite(sensor[:2])):
+            xy = (float(sensor[0]), float(sensor[1]))
+            hover[index] = xy if fence is None else hover_point(fence, xy, HOVER_MARGIN_M)
+    return hover
+
+
+def check_home_inside(fence: Polygon | None, home_m: np.ndarray) -> None:
+    """Reject a home point outside the geofence (ScenarioError naming trajectory.home)."""
+    if fence is not None and not fence.buffer(1e-6).covers(Point(home_m)):
+        raise ScenarioError(
+            f"trajectory.home = ({home_m[0]:.1f}, {home_m[1]:.1f}) m lies outside the "
+            "geofence; the home point must be inside it"
+        )
+
+
+def check_duration(mission: Mission) -> None:
+    """Reject an autonomous mission too short to reach the nearest hover point and return.
+
+    Raises ScenarioError naming mission.duration_s, the time needed and why.
+    """
+    navigator, home, hover = mission.navigator, mission.home_m, mission.hover_points_m
+    if navigator is None or home is None or hover is None:
+        return
+    reachable = np.all(np.isfinite(hover), axis=1)
+    if not reachable.any():
+        return
+    distances = [
+        navigator.travel_distance((float(home[0]), float(home[1])), (float(x), float(y)))
+        for x, y in hover[reachable]
+    ]
+    nearest = int(np.argmin(distances))
+    name = np.asarray(mission.sensor_names)[reachable][nearest]
+    needed_slots = 2 * math.ceil(distances[nearest] / mission.max_step_m - 1e-9)
+    if mission.n_slots < max(needed_slots, 1):
+        raise ScenarioError(
+            f"mission.duration_s = {mission.n_slots * mission.slot_s:g}: too short to fly from "
+            f"home to the nearest hover point ({name}, {distances[nearest]:.0f} m) and back at "
+            f"max_speed_mps = {mission.max_speed_mps:g}; needs >= "
+            f"{needed_slots * mission.slot_s:g} s"
+        )
+
+
+def with_fence(mission: Mission, fence: Polygon | None) -> Mission:
+    """``mission`` under another geofence: hover points and navigator rebuilt from it."""
+    autonomous = mission.mode == "autonomous"
+    if autonomous and mission.home_m is not None:
+        check_home_inside(fence, mission.home_m)
+    return replace(
+        mission,
+        fence=fence,
+        hover_points_m=hover_points(fence_or_box(fence) if autonomous else fence, mission.sensor_m),
+        navigator=Navigator(fence_or_box(fence)) if autonomous else None,
+    )
 
 
 def _n_slots(duration_s: float, slot_s: float) -> int:
@@ -108,7 +251,9 @@ def _waypoints(scenario: Scenario, frame: LocalFrame) -> np.ndarray:
     spec = scenario.trajectory.waypoints
     if spec is None:
         raise ScenarioError("trajectory.waypoints is required for mode = 'fixed' with a model")
-    if isinstance(spec, str):
+    if is_plan(spec):  # a QGroundControl .plan (skymule.aadm.plan)
+        waypoints = plan_waypoints_m(scenario.resolve_path(str(spec)), frame)
+    elif isinstance(spec, str):
         waypoints = read_waypoints_csv(scenario.resolve_path(spec), frame.to_local)
     else:
         if any(len(point) != 3 for point in spec):
@@ -166,9 +311,7 @@ def build_mission(scenario: Scenario) -> Mission:
     """Resolve a scenario into a :class:`Mission` (raises ScenarioError on user mistakes)."""
     frame = LocalFrame(scenario.site.origin.lat, scenario.site.origin.lon)
     base_dir = Path(scenario.base_dir)
-    fence = (
-        load_geofence(scenario.site.geofence, frame, base_dir) if scenario.site.geofence else None
-    )
+    fence = scenario_fence(scenario, frame)  # site.geofence, or a .plan's inclusion fence
     sensor_m = sensor_positions_m(scenario.sensors, frame)
     rate_table = resolve_rate_table(scenario.radio.rate_table, base_dir)
     slot_s = scenario.mission.slot_s
@@ -204,7 +347,12 @@ def build_mission(scenario: Scenario) -> Mission:
             samples = sample_path(waypoints, scenario.trajectory.speed_mps, slot_s)
             track = Track(position_m=samples, snr_db=source.snr_db(samples), hold_at_end=True)
 
-    return Mission(
+    trajectory = scenario.trajectory
+    autonomous = trajectory.mode == "autonomous"
+    home = home_xy(scenario, frame)
+    if autonomous:
+        check_home_inside(fence, home)
+    mission = Mission(
         scenario=scenario,
         frame=frame,
         fence=fence,
@@ -218,7 +366,19 @@ def build_mission(scenario: Scenario) -> Mission:
         source=source,
         track=track,
         fading_db=mission_fading_db(scenario, n_slots, len(names)),
+        mode=trajectory.mode,
+        home_m=home,
+        hover_points_m=hover_points(fence_or_box(fence) if autonomous else fence, sensor_m),
+        visit_radius_m=trajectory.visit_radius_m,
+        altitude_m=trajectory.altitude_m,
+        max_speed_mps=trajectory.max_speed_mps,
+        return_home=trajectory.return_home,
+        navigator=Navigator(fence_or_box(fence)) if autonomous else None,
+        aadm_window_s=scenario.mission.aadm_window_s,
     )
+    if autonomous:
+        check_duration(mission)
+    return mission
 
 
 def mission_from_track(

@@ -1,6 +1,6 @@
 """An upper bound on what any autonomous policy can download (time-expanded reach LP).
 
-Setting (the slot contract of DESIGN.md and :mod:`skymule.sim.autonomous`)
+Setting (the slot contract of docs/contract.md and :mod:`skymule.sim.autonomous`)
 ------------------------------------------------------------------------------
 ``T`` slots of ``dt`` seconds; the UAV starts at home ``h``, flies at altitude ``z`` inside the
 geofence ``F`` and moves at most ``s = v_max dt`` metres per slot along an in-fence path. In
@@ -85,10 +85,10 @@ from scipy.optimize import linprog
 from shapely.geometry import Point, Polygon
 from shapely.geometry.base import BaseGeometry
 
-from skymule.bounds.fixed import LP_METHOD, BoundResult
+from skymule.bounds.fixed import LP_METHOD
+from skymule.bounds.result import BoundResult
 from skymule.errors import SkymuleError
 from skymule.flight.navigation import Navigator
-from skymule.sim.autonomous import build_geometry
 from skymule.world import Mission
 
 __all__ = [
@@ -342,17 +342,17 @@ def best_rate_bps(
         raise SkymuleError(
             f"autonomous bound: reach = {reach!r}; allowed: {', '.join(REACH_MODES)}"
         )
-    spec = mission.scenario.trajectory
-    if spec.mode != "autonomous":
+    if mission.mode != "autonomous":
         raise SkymuleError(
-            f"autonomous bound: trajectory.mode = {spec.mode!r}; it needs 'autonomous' "
+            f"autonomous bound: trajectory.mode = {mission.mode!r}; it needs 'autonomous' "
             "(use the fixed-trajectory bound for fixed paths)"
         )
     if mission.source is None:
         raise SkymuleError("autonomous bound: needs a position-queryable signal.source (model)")
-    geometry = build_geometry(mission)
-    fence = geometry.navigator.fence
-    radii = reach_radii_m(mission.n_slots, geometry.max_step_m, spec.return_home)
+    navigator, home_m, hover_m = mission.navigator, mission.home_m, mission.hover_points_m
+    assert navigator is not None and home_m is not None and hover_m is not None
+    fence = navigator.fence
+    radii = reach_radii_m(mission.n_slots, mission.max_step_m, mission.return_home)
     unique, inverse = np.unique(radii, return_inverse=True)
     radio = mission.scenario.radio
     monotone = (
@@ -362,18 +362,16 @@ def best_rate_bps(
         and (radio.model != "al-hourani" or _al_hourani_monotone(mission))
     )
     if monotone:
-        snr = _exact_best_snr(
-            mission, geometry.altitude_m, unique, geometry.navigator, geometry.home_m, reach
-        )
+        snr = _exact_best_snr(mission, mission.altitude_m, unique, navigator, home_m, reach)
         how = f"exact reach sets, {reach} reach ({radio.model} is distance-monotone)"
     else:
         snr, spacing = _grid_best_snr(
             mission,
-            geometry.altitude_m,
+            mission.altitude_m,
             unique,
             fence,
-            geometry.home_m,
-            geometry.hover_points_m,
+            home_m,
+            hover_m,
             grid_m,
             margin_db,
         )

@@ -84,29 +84,23 @@ Spatial shadowing is deterministic per seed and part of the track, so it is supp
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
-from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import linprog
 
-from skymule.errors import SkymuleError
+from skymule.bounds.result import BoundError, BoundResult, MissionBound
 
 if TYPE_CHECKING:
     from skymule.world import Mission
 
 __all__ = [
-    "BoundError",
-    "BoundResult",
-    "MissionBound",
+    "fixed_mission_bound",
     "fixed_path_bound",
-    "mission_bound",
     "mission_track_rates",
 ]
-
-BITS_PER_MBIT = 1e6
 
 #: HiGHS method for every bound LP. The interior-point method (with crossover, so the solution
 #: is a vertex with duals) gives the same optima as the default dual simplex on every bound
@@ -116,34 +110,6 @@ LP_METHOD = "highs-ipm"
 
 #: Relative tolerance for pruning a last sample whose dual bound does not beat the incumbent.
 PRUNE_TOL = 1e-9
-
-
-class BoundError(SkymuleError):
-    """Invalid input to a bound computation, or a scenario it does not support (one line)."""
-
-
-@dataclass(frozen=True)
-class BoundResult:
-    """Result of :func:`fixed_path_bound`.
-
-    Attributes:
-        upper_bound_bit: upper bound on the bits any admissible policy collects (bit).
-        method: human-readable description of the relaxation and solver.
-        status: solver status message.
-        solve_time_s: wall-clock time spent building and solving the model (s).
-        served_time_s: ``(K, N)`` seconds spent serving sensor ``i`` at sample ``k`` in the
-            optimal relaxed solution.
-        dwell_time_s: ``(K,)`` seconds spent at sample ``k``.
-        last_sample: index of the last sample reached.
-    """
-
-    upper_bound_bit: float
-    method: str
-    status: str
-    solve_time_s: float
-    served_time_s: np.ndarray
-    dwell_time_s: np.ndarray
-    last_sample: int
 
 
 def _validate(
@@ -395,46 +361,6 @@ def fixed_path_bound(
     )
 
 
-@dataclass(frozen=True)
-class MissionBound:
-    """An upper bound for one scenario, as ``skymule bound`` reports it (SI units).
-
-    Attributes:
-        scenario: scenario name.
-        mode: ``trajectory.mode`` ("fixed" or "autonomous").
-        upper_bound_bit: bound on the bits any policy downloads (bit).
-        method: relaxation and solver used.
-        status: solver status.
-        solve_time_s: wall-clock solve time (s).
-        total_buffer_bit: sum of the initial buffers (bit).
-        no_hover_upper_bound_bit: fixed trajectories: the paper's formulation with ``r_t``
-            fixed (no pausing), in bit; None for autonomous ones.
-    """
-
-    scenario: str
-    mode: str
-    upper_bound_bit: float
-    method: str
-    status: str
-    solve_time_s: float
-    total_buffer_bit: float
-    no_hover_upper_bound_bit: float | None = None
-
-    def to_json_dict(self) -> dict[str, Any]:
-        """The ``bound.json`` record (Mbit at the edge)."""
-        no_hover = self.no_hover_upper_bound_bit
-        return {
-            "scenario": self.scenario,
-            "mode": self.mode,
-            "upper_bound_mbit": self.upper_bound_bit / BITS_PER_MBIT,
-            "no_hover_upper_bound_mbit": None if no_hover is None else no_hover / BITS_PER_MBIT,
-            "total_buffer_mbit": self.total_buffer_bit / BITS_PER_MBIT,
-            "method": self.method,
-            "status": self.status,
-            "solve_time_s": self.solve_time_s,
-        }
-
-
 def mission_track_rates(mission: Mission) -> np.ndarray:
     """``(K, N)`` rate (bit/s) at every track sample of a fixed mission (NaN SNR: rate 0)."""
     if mission.track is None:
@@ -445,7 +371,7 @@ def mission_track_rates(mission: Mission) -> np.ndarray:
     return np.asarray(mission.rate_bps(mission.track.snr_db), dtype=float)
 
 
-def _fixed_mission_bound(mission: Mission) -> MissionBound:
+def fixed_mission_bound(mission: Mission) -> MissionBound:
     """Pause-anywhere bound plus the paper's no-hover LP for a fixed trajectory."""
     fading = mission.scenario.radio.fading
     if fading != "none" or mission.fading_db is not None:
@@ -469,60 +395,3 @@ def _fixed_mission_bound(mission: Mission) -> MissionBound:
         total_buffer_bit=float(np.sum(mission.buffers_bit)),
         no_hover_upper_bound_bit=no_hover.upper_bound_bit,
     )
-
-
-def _autonomous_mission_bound(mission: Mission) -> MissionBound:
-    """``skymule.bounds.autonomous.autonomous_bound`` wrapped as a :class:`MissionBound`."""
-    try:
-        from skymule.bounds.autonomous import autonomous_bound
-    except ModuleNotFoundError as exc:
-        if exc.name != "skymule.bounds.autonomous":
-            raise
-        raise BoundError(
-            "bound: the autonomous bound is not available (module skymule.bounds.autonomous "
-            "is missing); only trajectory.mode = 'fixed' is supported here"
-        ) from None
-    result = autonomous_bound(mission)
-    return MissionBound(
-        scenario=mission.scenario.name,
-        mode="autonomous",
-        upper_bound_bit=float(result.upper_bound_bit),
-        method=result.method,
-        status=result.status,
-        solve_time_s=float(result.solve_time_s),
-        total_buffer_bit=float(np.sum(mission.buffers_bit)),
-    )
-
-
-MISSION_BOUNDS: dict[str, Callable[[Mission], MissionBound]] = {
-    "fixed": _fixed_mission_bound,
-    "autonomous": _autonomous_mission_bound,
-}
-"""``trajectory.mode`` -> bound of a built mission."""
-
-
-def unsupported_reason(mission: Mission) -> str | None:
-    """One line naming a trajectory mode the bounds do not cover, or None."""
-    mode = mission.scenario.trajectory.mode
-    if mode not in MISSION_BOUNDS:
-        return f"bound: trajectory.mode = {mode!r} is not supported; allowed: " + ", ".join(
-            sorted(MISSION_BOUNDS)
-        )
-    return None
-
-
-def mission_bound(mission: Mission) -> MissionBound:
-    """Upper bound on the bits any policy downloads in ``mission``.
-
-    Raises:
-        BoundError: the scenario has something the bound does not model (a trajectory mode
-            without a bound, fading on a fixed trajectory), or the autonomous bound is not
-            installed.
-    """
-    reason = unsupported_reason(mission)
-    if reason is not None:
-        raise BoundError(reason)
-    result = MISSION_BOUNDS[mission.scenario.trajectory.mode](mission)
-    # no policy downloads more than the buffers hold: clipping keeps it a bound and drops
-    # solver round-off above the total
-    return replace(result, upper_bound_bit=min(result.upper_bound_bit, result.total_buffer_bit))

@@ -15,7 +15,6 @@ from shapely.geometry import Point
 
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.scenario import Scenario
-from skymule.sim.autonomous import build_geometry, check_duration
 from skymule.world import build_mission
 
 
@@ -99,9 +98,8 @@ def random_autonomous_scenario(
     """
     while True:
         scenario = _draw(rng, base, ranges)
-        mission = build_mission(scenario)
         try:
-            check_duration(mission, build_geometry(mission))
+            build_mission(scenario)  # rejects missions too short to fly
         except ScenarioError:
             continue
         return scenario

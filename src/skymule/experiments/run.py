@@ -46,7 +46,6 @@ from skymule.world import BITS_PER_MBIT, Mission
 
 if TYPE_CHECKING:
     from skymule.scenario import PolicySpec, Scenario
-    from skymule.sim.autonomous import FixedGeometry
 
 Task = tuple[int, str, dict[str, Any], dict[str, Any]]
 """(mission index, mission id, axis values, resolved scenario dict)."""
@@ -176,13 +175,11 @@ def _run_items(items: Sequence[_Item]) -> pd.DataFrame:
     """Build each geometry once, batch what the batched engine can run, summarise every row."""
     from skymule.metrics import summarize
     from skymule.policies import make_policy
-    from skymule.sim.autonomous import fixed_geometry_fields
     from skymule.sim.batch import batchable, summarize_fixed_batch
-    from skymule.sim.engine import run_mission
+    from skymule.sim.run import run_mission
     from skymule.world import build_mission
 
     built: dict[Hashable, Mission] = {}
-    geometry: dict[Hashable, FixedGeometry] = {}
     summaries: list[dict[str, Any] | None] = [None] * len(items)
     batched: list[tuple[int, Mission, PolicySpec, Hashable]] = []
     for position, item in enumerate(items):
@@ -197,8 +194,6 @@ def _run_items(items: Sequence[_Item]) -> pd.DataFrame:
         mission = _per_mission(shared, item.scenario)
         if batchable(mission, item.scenario.policy):
             batched.append((position, mission, item.scenario.policy, item.key))
-            if item.key not in geometry:
-                geometry[item.key] = fixed_geometry_fields(mission)
         else:
             log = run_mission(mission, make_policy(item.scenario.policy))
             summaries[position] = summarize(log, item.scenario.name)
@@ -207,7 +202,6 @@ def _run_items(items: Sequence[_Item]) -> pd.DataFrame:
             [m for _, m, _, _ in batched],
             [s for _, _, s, _ in batched],
             [m.scenario.name for _, m, _, _ in batched],
-            [geometry[key] for _, _, _, key in batched],
         )
         for (position, _, _, _), batch_summary in zip(batched, rows_batched, strict=True):
             summaries[position] = batch_summary

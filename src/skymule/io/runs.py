@@ -17,7 +17,7 @@ import pandas as pd
 from skymule.errors import SkymuleError
 from skymule.geo import LocalFrame
 from skymule.metrics import BITS_PER_MBIT, power_w, speed_mps, step_lengths_m
-from skymule.sim.engine import NO_SENSOR, MissionLog
+from skymule.sim.log import NO_SENSOR, MissionLog
 
 SUMMARY_FILE = "summary.json"
 SLOTS_FILE = "slots.csv"

@@ -13,6 +13,8 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
+from skymule.sim.contract import served_bits
+
 if TYPE_CHECKING:
     from skymule.flight.navigation import Navigator
 
@@ -67,10 +69,23 @@ class MissionContext:
     track_rate_bps: np.ndarray | None = None
     track_hold_at_end: bool = True
 
+    def __post_init__(self) -> None:
+        for name in (
+            "buffers_bit",
+            "peak_rate_bps",
+            "sensor_m",
+            "hover_points_m",
+            "home_m",
+            "track_rate_bps",
+        ):
+            values = getattr(self, name)
+            if values is not None:
+                object.__setattr__(self, name, read_only(values))
+
 
 @dataclass(frozen=True)
 class Observation:
-    """What the UAV knows at the start of slot ``slot``.
+    """What the UAV knows at the start of slot ``slot`` (read-only: writing raises).
 
     Attributes:
         slot: slot index t.
@@ -85,6 +100,10 @@ class Observation:
     snr_db: np.ndarray
     rate_bps: np.ndarray
     remaining_bit: np.ndarray
+
+    def __post_init__(self) -> None:
+        for name in ("position_m", "snr_db", "rate_bps", "remaining_bit"):
+            object.__setattr__(self, name, read_only(getattr(self, name)))
 
 
 @dataclass(frozen=True)
@@ -105,6 +124,17 @@ class Action:
     target: int | None = None
 
 
+def read_only(values: np.ndarray) -> np.ndarray:
+    """A view of ``values`` that raises on writing (the engine's arrays stay the engine's).
+
+    The engines hand policies read-only base arrays or fresh copies, so a policy cannot turn
+    writing back on and reach engine state through the view.
+    """
+    view = np.asarray(values).view()
+    view.flags.writeable = False
+    return view
+
+
 class Policy(Protocol):
     """A per-mission decision maker. Create a fresh one (or ``reset``) for every mission."""
 
@@ -117,4 +147,6 @@ class Policy(Protocol):
 
 def slot_download_bit(observation: Observation, sensor: int, slot_s: float) -> float:
     """Bits sensor ``sensor`` would deliver this slot: min(R * dt, Q) (the slot contract)."""
-    return float(min(observation.rate_bps[sensor] * slot_s, observation.remaining_bit[sensor]))
+    return float(
+        served_bits(observation.rate_bps[sensor], observation.remaining_bit[sensor], slot_s)
+    )

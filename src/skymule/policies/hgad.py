@@ -1,6 +1,7 @@
 """HGAD: Hover-based Greedy Adaptive Download on a fixed trajectory.
 
-Follows the slot contract in DESIGN.md exactly (the paper's Section IV-B as we pin it down):
+Follows the slot contract (``docs/contract.md``; the paper's Section IV-B as we pin it down),
+whose one implementation is :mod:`skymule.sim.contract`:
 
 * peak rate R*_i from the historical data; trigger threshold gamma_i = hover_threshold * R*_i;
 * at the start of each slot, a sensor whose rate is below gamma_i stops cooling down;
@@ -21,20 +22,19 @@ from __future__ import annotations
 import numpy as np
 
 from skymule.policies.autonomous import HGADTour, Priority
-from skymule.policies.base import Action, MissionContext, Observation, slot_download_bit
+from skymule.policies.base import Action, MissionContext, Observation
+from skymule.sim import contract
 
 
 def hgad_choice(rate_bps: np.ndarray, snr_db: np.ndarray, remaining_bit: np.ndarray) -> int | None:
-    """argmax rate over sensors with data; ties: higher SNR, then lowest index."""
-    has_data = remaining_bit > 0
-    if not np.any(has_data):
-        return None
-    # lexsort sorts ascending by the last key first: rate, then SNR, then -index
-    index = np.arange(len(rate_bps))
-    rate = np.where(has_data, rate_bps, -np.inf)
-    snr = np.where(has_data, snr_db, -np.inf)
-    order = np.lexsort((-index, snr, rate))
-    return int(order[-1])
+    """argmax rate over sensors with data and R > 0; ties: higher SNR, then lowest index.
+
+    One mission of :func:`skymule.sim.contract.hgad_choice`.
+    """
+    rate = rate_bps[:, None]
+    usable = contract.servable(rate, remaining_bit[:, None])
+    choice = int(contract.hgad_choice(rate, snr_db[:, None], usable)[0])
+    return None if choice == contract.NO_SENSOR else choice
 
 
 class HGAD:
@@ -52,56 +52,50 @@ class HGAD:
         self.max_hover_s = max_hover_s
         self.priority: Priority = priority
         self._tour: HGADTour | None = None
-        self._slot_s = 1.0
+        self._slot_s = np.ones(1)
+        self._max_hover_s = np.full(1, max_hover_s)
         self._threshold_bps = np.zeros(0)
         self._peak_bps = np.zeros(0)
-        self._cooling = np.zeros(0, bool)
-        self._hover_sensor: int | None = None
-        self._budget_s = 0.0
+        self._state = contract.HoverState.start(0, 1)
 
     def reset(self, context: MissionContext) -> None:
-        self._slot_s = context.slot_s
-        self._peak_bps = np.asarray(context.peak_rate_bps, float)
+        self._slot_s = np.full(1, context.slot_s)
+        self._max_hover_s = np.full(1, self.max_hover_s)
+        self._peak_bps = np.array(context.peak_rate_bps, float)
         self._threshold_bps = self.hover_threshold * self._peak_bps
-        self._cooling = np.zeros(len(self._peak_bps), bool)
-        self._hover_sensor = None
-        self._budget_s = 0.0
+        self._state = contract.HoverState.start(len(self._peak_bps), 1)
         autonomous = context.mode == "autonomous"
         self._tour = HGADTour(context, self.max_hover_s, self.priority) if autonomous else None
 
     def act(self, observation: Observation) -> Action:
-        rate = observation.rate_bps
         if self._tour is not None:
-            en_route = hgad_choice(rate, observation.snr_db, observation.remaining_bit)
-            return self._tour.act(observation, en_route)
-        self._cooling &= ~(rate < self._threshold_bps)
-
-        if self._hover_sensor is not None:
-            hovered = self._hover_sensor
-            self._budget_s -= self._slot_s
-            left_after = observation.remaining_bit[hovered] - slot_download_bit(
-                observation, hovered, self._slot_s
+            en_route = hgad_choice(
+                observation.rate_bps, observation.snr_db, observation.remaining_bit
             )
-            if self._budget_s <= 1e-12 or left_after <= 0:
-                self._hover_sensor = None
-                self._cooling[hovered] = True
-            return Action(serve=hovered, hover=True)
-
-        sensor = hgad_choice(rate, observation.snr_db, observation.remaining_bit)
-        if sensor is None:
+            return self._tour.act(observation, en_route)
+        # one mission as a batch of one: (N, 1) arrays through the contract
+        rate = observation.rate_bps[:, None]
+        remaining = observation.remaining_bit[:, None]
+        usable = contract.servable(rate, remaining)
+        choice = contract.hgad_choice(rate, observation.snr_db[:, None], usable)
+        sensor = contract.hover_sensor_or(self._state, choice)
+        cell = contract.cells(sensor)
+        left = remaining.reshape(-1).take(cell)
+        rate_served = rate.reshape(-1).take(cell)
+        bits = contract.served_bits(rate_served, left, self._slot_s)
+        hover = contract.hgad_update(
+            self._state,
+            sensor=sensor,
+            cell=cell,
+            rate_bps=rate,
+            rate_served_bps=rate_served,
+            left_after_bit=left - bits,
+            threshold_bps=self._threshold_bps,
+            peak_rate_bps=self._peak_bps,
+            max_hover_s=self._max_hover_s,
+            slot_s=self._slot_s,
+        )
+        serve = int(sensor[0])
+        if serve == contract.NO_SENSOR:
             return Action(serve=None)
-        left_after = observation.remaining_bit[sensor] - slot_download_bit(
-            observation, sensor, self._slot_s
-        )
-        triggers = (
-            rate[sensor] > 0
-            and self._peak_bps[sensor] > 0
-            and rate[sensor] >= self._threshold_bps[sensor]
-            and left_after > 0
-            and not self._cooling[sensor]
-        )
-        if not triggers:
-            return Action(serve=sensor)
-        self._budget_s = min(left_after / self._peak_bps[sensor], self.max_hover_s)
-        self._hover_sensor = sensor
-        return Action(serve=sensor, hover=True)
+        return Action(serve=serve, hover=bool(hover[0]))

@@ -50,9 +50,11 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import linprog
 
-from skymule.bounds.fixed import BoundResult, fixed_path_bound
+from skymule.bounds.fixed import fixed_path_bound
+from skymule.bounds.result import BoundResult
 from skymule.errors import SkymuleError
 from skymule.policies.base import Action, MissionContext, Observation
+from skymule.sim.contract import served_bits
 
 NO_SENSOR = -1
 """``SlotSchedule.serve`` value for a slot in which nobody is served."""
@@ -261,7 +263,7 @@ def assign_slots(
     for t, k in enumerate(sample.tolist()):
         if t > 0 and k != sample[t - 1]:
             left_s = served_s[k].copy()
-        bits = np.minimum(rate[k] * slot_s, remaining)
+        bits = served_bits(rate[k], remaining, slot_s)
         i = _slot_choice(left_s, bits, slot_s, previous, planned_at[k + 1])
         if i != NO_SENSOR:
             remaining[i] -= bits[i]
@@ -485,7 +487,7 @@ def plan_schedule(
 
 def most_bits_choice(observation: Observation, slot_s: float) -> int | None:
     """Sensor with data delivering the most bits now, ``min(R dt, Q)``; None if none does."""
-    bits = np.minimum(observation.rate_bps * slot_s, observation.remaining_bit)
+    bits = served_bits(observation.rate_bps, observation.remaining_bit, slot_s)
     if not np.any(bits > 0):
         return None
     return int(np.argmax(bits))

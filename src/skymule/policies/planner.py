@@ -51,6 +51,7 @@ import numpy as np
 
 from skymule.errors import SkymuleError
 from skymule.policies.base import Action, MissionContext, Observation
+from skymule.sim.contract import served_bits
 
 XY = tuple[float, float]
 
@@ -114,7 +115,7 @@ def knapsack_bits(
     rate_bps: np.ndarray, buffer_bit: np.ndarray, budget: int, slot_s: float
 ) -> float:
     """Bits from hovering: one free slot per target plus the knapsack's extra slots."""
-    first = np.minimum(rate_bps * slot_s, buffer_bit)
+    first = served_bits(rate_bps, buffer_bit, slot_s)
     extra = allocate_hover(rate_bps, buffer_bit - first, budget, slot_s)
     return float(np.minimum(rate_bps * slot_s * (1 + extra), buffer_bit).sum())
 
@@ -332,7 +333,7 @@ class Planner:
                 i = int(np.argmax(masked))
                 if masked[i] <= 0:
                     return
-            got = min(rates[i] * dt, q[i])
+            got = float(served_bits(rates[i], q[i], dt))
             q[i] -= got
             bits += got
             if done == n_slots and not (q > 0).any():
@@ -509,7 +510,7 @@ class Planner:
             _, _, at_arrival = self._simulate(position, slot, remaining, order, zero, altitude)
             travel = self._travel_slots(position, order)
             idx = np.asarray(order, int)
-            need = at_arrival - np.minimum(rates[idx] * dt, at_arrival)
+            need = at_arrival - served_bits(rates[idx], at_arrival, dt)
             extra = allocate_hover(rates[idx], need, n_slots - slot - travel, dt)
             bits, done, _ = self._simulate(position, slot, remaining, order, extra, altitude)
             plan = Plan(order, tuple(int(e) for e in extra), bits, done)

@@ -20,7 +20,6 @@ from typing import Any
 import matplotlib.pyplot as plt
 from matplotlib.axes import Axes
 
-from skymule.io.runs import is_run_dir
 from skymule.report.figures import draw_cumulative_download, draw_snr_cdf
 from skymule.report.inputs import (
     ReportInput,
@@ -117,7 +116,7 @@ SUMMARY_FIELDS: tuple[tuple[str, str, str], ...] = (
     ("distance_m", "distance [m]", "{:.0f}"),
     ("mission_time_s", "mission time [s]", "{:.0f}"),
     ("energy_kj", "energy [kJ]", "{:.1f}"),
-    ("landed_at_home", "landed at home", "{}"),
+    ("landed_within_5m", "landed within 5 m of home", "{}"),
     ("distance_to_home_m", "end distance to home [m]", "{:.1f}"),
     ("aadm_score", "AADM score (run)", "{:.1f}"),
 )
@@ -176,14 +175,16 @@ def sensor_table(runs: tuple[RunData, ...]) -> str:
 
 def score_table(runs: tuple[RunData, ...], scores: list[ScoreBreakdown]) -> str:
     rows = [
-        ["100 x completion", *(f"{s.download_points:.1f}" for s in scores)],
+        ["S2 = 100 x downloaded / total", *(f"{s.download_points:.1f}" for s in scores)],
         [
             "all data by [s]",
             *("-" if s.completed_at_s is None else f"{s.completed_at_s:.0f}" for s in scores),
         ],
-        ["time bonus (600 - t)", *(f"{s.time_bonus:.1f}" for s in scores)],
-        ["end distance to home [m]", *(f"{s.end_distance_m:.1f}" for s in scores)],
-        ["landing penalty (20/m beyond 3 m)", *(f"{s.landing_penalty:.1f}" for s in scores)],
+        ["S1 = 500 - t1 if all downloaded", *(f"{s.time_bonus:.1f}" for s in scores)],
+        [
+            "end distance to home [m] (testbed: land within 5 m)",
+            *(f"{s.end_distance_m:.1f}" for s in scores),
+        ],
         ["score", *(f"<b>{s.total:.1f}</b>" for s in scores)],
     ]
     if any(s.reported is not None for s in scores):
@@ -273,17 +274,10 @@ def _scenario_block(report: ReportInput) -> str:
     return intro + f"<pre>{html.escape(text)}</pre>"
 
 
-def build_report(folder: Path, pdf: bool = True, baseline: str | None = None) -> Path:
-    """Write ``folder/report.html`` (and ``folder/figures/*.png|pdf``); returns the HTML path.
-
-    ``pdf=False`` skips the vector PDFs (faster; the HTML only embeds the PNGs). A sweep
-    folder (``results.parquet``) gets the sweep report (:mod:`skymule.report.sweep`), with
-    ``baseline`` as the policy the paired gains are taken over.
-    """
-    from skymule.report.sweep import build_sweep_report, is_sweep_dir
-
-    if is_sweep_dir(folder) and not is_run_dir(folder):
-        return build_sweep_report(folder, pdf=pdf, baseline=baseline)
+def build_run_report(folder: Path, pdf: bool = True) -> Path:
+    """Write ``folder/report.html`` (and ``folder/figures/*.png|pdf``) for a run or compare
+    folder; returns the HTML path. ``pdf=False`` skips the vector PDFs (the HTML only embeds
+    the PNGs)."""
     report = load_input(folder)
     runs = report.runs
     figures = folder / FIGURES_DIR

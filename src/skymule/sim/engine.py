@@ -1,183 +1,160 @@
-"""The slot loop: one mission, one policy, one log.
+"""The reference engine for fixed trajectories: one mission, one policy, one log.
 
-This is the readable reference engine. Every slot t:
+This is the readable reference; the batched engine (:mod:`skymule.sim.batch`) must agree with
+it value for value. Every slot t (``docs/contract.md``):
 
 1. the UAV is at r_t (the start of the slot) and observes SNR, rate and buffers there;
 2. the policy returns an action: whom to serve, whether to hover;
-3. the served sensor i delivers y = min(R_i * dt, Q_i) bits; nothing else changes buffers;
-4. on a fixed trajectory the UAV advances one track sample unless it hovers (holding at the
-   end of a planned path; a recorded trace ends the mission when it is used up).
+3. the served sensor i delivers y = min(R_i * dt, Q_i) bits (:func:`contract.served_bits`);
+4. the UAV advances one track sample unless it hovers (holding at the end of a planned
+   path; a recorded trace ends the mission when it is used up).
 
-Faster engines (batched over missions) must agree with this one value for value.
+:class:`FixedFlight` is the engine as a state machine (``observe`` / ``apply``), for callers
+that drive it slot by slot (learning environments, live agents); :func:`run_fixed` is the
+loop that hands each observation to a policy.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
-
 import numpy as np
 
 from skymule.errors import SkymuleError
-from skymule.policies.base import MissionContext, Observation, Policy
+from skymule.policies.base import Action, Observation, Policy
+from skymule.sim import contract
+from skymule.sim.context import mission_context
+from skymule.sim.contract import NO_SENSOR
+from skymule.sim.log import MissionLog
 from skymule.world import Mission
 
-NO_SENSOR = -1
-"""``served`` value for a slot in which no sensor was served."""
+__all__ = ["NO_SENSOR", "FixedFlight", "MissionLog", "check_serve", "run_fixed"]
 
 
-@dataclass(frozen=True)
-class MissionLog:
-    """What happened, slot by slot (T' <= T slots; a trace may end the mission early).
-
-    Attributes:
-        policy: policy name.
-        sensor_names: (N,) names.
-        slot_s: slot length [s].
-        buffers_bit: (N,) initial buffers [bit].
-        position_m: (T', 3) UAV position at the start of each slot [m].
-        end_position_m: (3,) UAV position after the last slot [m].
-        snr_db: (T', N) SNR observed at the start of each slot [dB] (NaN: no sample).
-        rate_bps: (T', N) rate to each sensor [bit/s].
-        served: (T',) served sensor index, or NO_SENSOR.
-        downloaded_bit: (T',) bits downloaded in each slot.
-        remaining_bit: (T', N) buffers after each slot's download [bit].
-        hovering: (T',) True where the UAV held its position after the slot by choice.
-        home_m: (2,) home point [m] (trajectory.home or the site origin), or None.
-        hover_points_m: (N, 2) point inside the geofence each sensor is served from [m]
-            (NaN where unknown), or None.
-        visit_radius_m: a sensor counts as visited within this distance of its hover point [m].
-        target: autonomous: (T',) sensor the policy was heading for in each slot, or
-            NO_SENSOR; None on fixed trajectories.
-    """
-
-    policy: str
-    sensor_names: tuple[str, ...]
-    slot_s: float
-    buffers_bit: np.ndarray
-    position_m: np.ndarray
-    end_position_m: np.ndarray
-    snr_db: np.ndarray
-    rate_bps: np.ndarray
-    served: np.ndarray
-    downloaded_bit: np.ndarray
-    remaining_bit: np.ndarray
-    hovering: np.ndarray
-    home_m: np.ndarray | None = None
-    hover_points_m: np.ndarray | None = None
-    visit_radius_m: float = 50.0
-    target: np.ndarray | None = None
-
-    @property
-    def n_slots(self) -> int:
-        return int(self.served.shape[0])
-
-
-def mission_context(mission: Mission) -> MissionContext:
-    track = mission.track
-    peak = mission.peak_rate_bps() if track is not None else np.zeros(mission.n_sensors)
-    return MissionContext(
-        sensor_names=mission.sensor_names,
-        slot_s=mission.slot_s,
-        n_slots=mission.n_slots,
-        buffers_bit=mission.buffers_bit.copy(),
-        peak_rate_bps=peak,
-        mode=mission.scenario.trajectory.mode,
-        sensor_m=mission.sensor_m.copy(),
-        track_rate_bps=None if track is None else mission.rate_bps(track.snr_db),
-        track_hold_at_end=True if track is None else track.hold_at_end,
-    )
-
-
-def check_serve(serve: int | None, n_sensors: int, policy: Policy) -> int:
+def check_serve(serve: int | None, n_sensors: int, who: str) -> int:
+    """The served sensor index of an action (NO_SENSOR for None); SkymuleError if invalid."""
     if serve is None:
         return NO_SENSOR
+    if isinstance(serve, bool) or not isinstance(serve, int | np.integer):
+        raise SkymuleError(
+            f"policy {who!r} chose sensor {serve!r}; allowed: 0..{n_sensors - 1} or None"
+        )
     if not 0 <= int(serve) < n_sensors:
         raise SkymuleError(
-            f"policy {policy.name!r} chose sensor {serve}; allowed: 0..{n_sensors - 1} or None"
+            f"policy {who!r} chose sensor {serve}; allowed: 0..{n_sensors - 1} or None"
         )
     return int(serve)
 
 
-def run_fixed(mission: Mission, policy: Policy) -> MissionLog:
-    """Run a fixed-trajectory mission (planned path or recorded trace) under ``policy``."""
-    track = mission.track
-    if track is None:
-        raise SkymuleError("run_fixed needs a fixed trajectory (trajectory.mode = 'fixed')")
-    dt = mission.slot_s
-    n_sensors = mission.n_sensors
-    # SNR and rates for every track sample, computed once before the loop
-    rates = mission.rate_bps(track.snr_db)
-    snr_seen = np.nan_to_num(track.snr_db, nan=-np.inf)
-    fading = mission.fading_db  # (T, N) per-slot fading [dB] on top of the track, or None
-    remaining = mission.buffers_bit.astype(float).copy()
-    policy.reset(mission_context(mission))
+def _frozen(values: np.ndarray) -> np.ndarray:
+    values.flags.writeable = False
+    return values
 
-    sample_of_slot: list[int] = []
-    served: list[int] = []
-    downloaded: list[float] = []
-    remaining_after: list[np.ndarray] = []
-    hovering: list[bool] = []
-    sample = 0
-    for slot in range(mission.n_slots):
-        if sample >= track.n_samples:
-            break  # a recorded trace is used up
-        snr_now, rate_now = snr_seen[sample], rates[sample]
+
+class FixedFlight:
+    """One fixed-trajectory mission in progress (planned path or recorded trace).
+
+    Call :meth:`observe`, then :meth:`apply` with the action, until :attr:`done`; then
+    :meth:`log`. The Mission is only read.
+    """
+
+    def __init__(self, mission: Mission) -> None:
+        track = mission.track
+        if track is None:
+            raise SkymuleError("run_fixed needs a fixed trajectory (trajectory.mode = 'fixed')")
+        self.mission = mission
+        self._track = track
+        # SNR and rates for every track sample, computed once
+        self._rates = _frozen(mission.rate_bps(track.snr_db))
+        self._snr_seen = _frozen(np.nan_to_num(track.snr_db, nan=-np.inf))
+        self._remaining = np.array(mission.buffers_bit, float)
+        self.slot = 0
+        self._sample = 0
+        self._rate_now = self._rates[0]
+        self._samples: list[int] = []
+        self._served: list[int] = []
+        self._downloaded: list[float] = []
+        self._remaining_after: list[np.ndarray] = []
+        self._hovering: list[bool] = []
+
+    @property
+    def done(self) -> bool:
+        """True once the mission is over (all slots run, or a recorded trace used up)."""
+        return self.slot >= self.mission.n_slots or self._sample >= self._track.n_samples
+
+    def observe(self) -> Observation:
+        """What the UAV sees at the start of the current slot."""
+        sample, fading = self._sample, self.mission.fading_db
+        snr_now, self._rate_now = self._snr_seen[sample], self._rates[sample]
         if fading is not None:
-            snr_now = snr_seen[sample] + fading[slot]
-            rate_now = mission.rate_bps(snr_now)
-        observation = Observation(
-            slot=slot,
-            position_m=track.position_m[sample],
+            snr_now = _frozen(self._snr_seen[sample] + fading[self.slot])
+            self._rate_now = _frozen(self.mission.rate_bps(snr_now))
+        return Observation(
+            slot=self.slot,
+            position_m=self._track.position_m[sample],
             snr_db=snr_now,
-            rate_bps=rate_now,
-            remaining_bit=remaining.copy(),
+            rate_bps=self._rate_now,
+            remaining_bit=self._remaining.copy(),
         )
-        action = policy.act(observation)
-        sensor = check_serve(action.serve, n_sensors, policy)
+
+    def apply(self, action: Action, who: str = "policy") -> float:
+        """Apply ``action`` to the slot last observed; returns the bits downloaded."""
+        sensor = check_serve(action.serve, self.mission.n_sensors, who)
+        window = self.mission.window_slots
+        if window is not None and self.slot >= window:
+            sensor = NO_SENSOR  # the download window has closed
         bits = 0.0
         if sensor != NO_SENSOR:
-            bits = float(min(rate_now[sensor] * dt, remaining[sensor]))
-            remaining[sensor] -= bits
-        sample_of_slot.append(sample)
-        served.append(sensor)
-        downloaded.append(bits)
-        remaining_after.append(remaining.copy())
-        hovering.append(bool(action.hover))
+            bits = float(
+                contract.served_bits(
+                    self._rate_now[sensor], self._remaining[sensor], self.mission.slot_s
+                )
+            )
+            self._remaining[sensor] -= bits
+        self._samples.append(self._sample)
+        self._served.append(sensor)
+        self._downloaded.append(bits)
+        self._remaining_after.append(self._remaining.copy())
+        self._hovering.append(bool(action.hover))
         if not action.hover:
-            sample = min(sample + 1, track.n_samples - 1) if track.hold_at_end else sample + 1
+            last = self._track.n_samples - 1
+            self._sample = (
+                min(self._sample + 1, last) if self._track.hold_at_end else (self._sample + 1)
+            )
+        self.slot += 1
+        return bits
 
-    index = np.asarray(sample_of_slot, int)
-    end_sample = min(sample, track.n_samples - 1)
-    snr_log, rate_log = track.snr_db[index], rates[index]
-    if fading is not None:
-        snr_log = snr_log + fading[: index.size]
-        rate_log = mission.rate_bps(snr_log)
-    return MissionLog(
-        policy=policy.name,
-        sensor_names=mission.sensor_names,
-        slot_s=dt,
-        buffers_bit=mission.buffers_bit.copy(),
-        position_m=track.position_m[index],
-        end_position_m=track.position_m[end_sample].copy(),
-        snr_db=snr_log,
-        rate_bps=rate_log,
-        served=np.asarray(served, int),
-        downloaded_bit=np.asarray(downloaded, float),
-        remaining_bit=np.asarray(remaining_after, float).reshape(-1, n_sensors),
-        hovering=np.asarray(hovering, bool),
-    )
+    def log(self, policy: str) -> MissionLog:
+        """The mission log of the slots run so far."""
+        mission, track = self.mission, self._track
+        index = np.asarray(self._samples, int)
+        end_sample = min(self._sample, track.n_samples - 1)
+        snr_log, rate_log = track.snr_db[index], self._rates[index]
+        if mission.fading_db is not None:
+            snr_log = snr_log + mission.fading_db[: index.size]
+            rate_log = mission.rate_bps(snr_log)
+        return MissionLog(
+            policy=policy,
+            sensor_names=mission.sensor_names,
+            slot_s=mission.slot_s,
+            buffers_bit=mission.buffers_bit.copy(),
+            position_m=track.position_m[index],
+            end_position_m=track.position_m[end_sample].copy(),
+            snr_db=snr_log,
+            rate_bps=rate_log,
+            served=np.asarray(self._served, int),
+            downloaded_bit=np.asarray(self._downloaded, float),
+            remaining_bit=np.asarray(self._remaining_after, float).reshape(-1, mission.n_sensors),
+            hovering=np.asarray(self._hovering, bool),
+            home_m=mission.home_m,
+            hover_points_m=mission.hover_points_m,
+            visit_radius_m=mission.visit_radius_m,
+            aadm_window_s=mission.score_window_s,
+        )
 
 
-def run_mission(mission: Mission, policy: Policy) -> MissionLog:
-    """Run one mission under ``policy`` (fixed or autonomous trajectory)."""
-    # imported here: engine_autonomous builds on this module
-    from skymule.sim.autonomous import fixed_geometry_fields, run_autonomous
-
-    if mission.scenario.trajectory.mode == "fixed":
-        return replace(run_fixed(mission, policy), **fixed_geometry_fields(mission))
-    if mission.scenario.trajectory.mode == "autonomous":
-        return run_autonomous(mission, policy)
-    raise SkymuleError(
-        f"trajectory.mode = {mission.scenario.trajectory.mode!r} is not supported yet; "
-        "allowed: fixed"
-    )
+def run_fixed(mission: Mission, policy: Policy) -> MissionLog:
+    """Run a fixed-trajectory mission (planned path or recorded trace) under ``policy``."""
+    flight = FixedFlight(mission)
+    policy.reset(mission_context(mission))
+    while not flight.done:
+        flight.apply(policy.act(flight.observe()), policy.name)
+    return flight.log(policy.name)

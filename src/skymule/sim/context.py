@@ -1,0 +1,65 @@
+"""What a policy may know before a mission starts: :class:`MissionContext` from a Mission."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from skymule.errors import SkymuleError
+from skymule.policies.base import MissionContext
+from skymule.world import Mission
+
+
+def autonomous_peak_rate_bps(mission: Mission) -> np.ndarray:
+    """(N,) R*_i for autonomous flight: the rate at sensor i's own hover point (paper Alg. 2).
+
+    0 for sensors without a position (no hover point).
+    """
+    if mission.source is None or mission.hover_points_m is None:
+        raise SkymuleError("autonomous missions need signal.source = 'model' or 'radiomap'")
+    hover = mission.hover_points_m
+    points = np.nan_to_num(hover, nan=0.0)
+    at_hover = np.column_stack([points, np.full(len(points), mission.altitude_m)])
+    snr = mission.source.snr_db(at_hover)  # (N sensors at their own hover point, N)
+    peak = np.diag(mission.rate_bps(snr)).copy() if len(points) else np.zeros(0)
+    peak[~np.all(np.isfinite(hover), axis=1)] = 0.0
+    return peak
+
+
+def mission_context(mission: Mission) -> MissionContext:
+    """The context a policy's ``reset`` gets (fixed or autonomous), read-only."""
+    if mission.mode == "autonomous":
+        if mission.source is None:
+            raise SkymuleError("autonomous missions need signal.source = 'model' or 'radiomap'")
+        return MissionContext(
+            sensor_names=mission.sensor_names,
+            slot_s=mission.slot_s,
+            n_slots=mission.n_slots,
+            buffers_bit=mission.buffers_bit,
+            peak_rate_bps=autonomous_peak_rate_bps(mission),
+            mode=mission.mode,
+            sensor_m=mission.sensor_m,
+            hover_points_m=mission.hover_points_m,
+            home_m=mission.home_m,
+            max_step_m=mission.max_step_m,
+            visit_radius_m=mission.visit_radius_m,
+            navigator=mission.navigator,
+            predict_snr_db=mission.source.snr_db,
+            return_home=mission.return_home,
+            rate_of_snr_bps=mission.rate_bps,
+        )
+    track = mission.track
+    if track is None:
+        raise SkymuleError("a fixed-trajectory mission needs a track (trajectory.waypoints)")
+    rates = mission.rate_bps(track.snr_db)
+    return MissionContext(
+        sensor_names=mission.sensor_names,
+        slot_s=mission.slot_s,
+        n_slots=mission.n_slots,
+        buffers_bit=mission.buffers_bit,
+        peak_rate_bps=rates.max(axis=0),
+        mode=mission.mode,
+        sensor_m=mission.sensor_m,
+        visit_radius_m=mission.visit_radius_m,
+        track_rate_bps=rates,
+        track_hold_at_end=track.hold_at_end,
+    )

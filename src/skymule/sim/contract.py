@@ -1,0 +1,199 @@
+"""The slot contract, executable: the one implementation every engine and policy calls.
+
+The rules are stated in ``docs/contract.md``; this module is their only code. Functions are
+vectorised over missions with sensor-major arrays, shape (N, B) for N sensors and B missions
+(reductions over the short sensor axis then run as N elementwise steps over missions); one
+mission is a batch of one (B = 1). The reference engine, the autonomous engine, the batched
+engine, the Greedy and HGAD policies and the planner's look-ahead all call these functions, so
+a rule cannot drift between them.
+
+* :func:`served_bits` -- what a served sensor delivers in a slot, y = min(R dt, Q);
+* :func:`greedy_choice` -- argmax SNR among sensors with data (ties: lowest index);
+* :func:`hgad_choice` -- argmax rate among sensors with data (ties: higher SNR, lowest index);
+* :class:`HoverState`, :func:`hover_sensor_or`, :func:`hgad_update` -- HGAD's hover state
+  machine on fixed trajectories (cooldown, trigger, budget).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+NO_SENSOR = -1
+"""Sensor index meaning "none": no sensor served, no hover, no target."""
+
+HOVER_EPS_S = 1e-12
+"""A hover ends once its remaining budget is at or below this [s] (round-off only)."""
+
+
+def served_bits(rate_bps: Any, remaining_bit: Any, slot_s: Any) -> Any:
+    """Bits a served sensor delivers in one slot: y = min(R * dt, Q) (elementwise, any shape).
+
+    Args:
+        rate_bps: rate of the served sensor [bit/s].
+        remaining_bit: data it holds at the start of the slot [bit].
+        slot_s: slot length dt [s].
+    """
+    return np.minimum(rate_bps * slot_s, remaining_bit)
+
+
+def servable(rate_bps: np.ndarray, remaining_bit: np.ndarray) -> np.ndarray:
+    """True where a sensor can be served: it has data left and a usable link (R > 0).
+
+    A policy whose every sensor is unservable serves nothing (rather than a sensor that would
+    deliver 0 bits).
+    """
+    return (remaining_bit > 0) & (rate_bps > 0)
+
+
+def first_true(mask: np.ndarray) -> np.ndarray:
+    """(B,) index of the first True down each column of ``mask`` (N, B); 0 where none."""
+    index = np.zeros(mask.shape[1], np.int64)
+    for sensor in range(mask.shape[0] - 1, 0, -1):
+        index[mask[sensor]] = sensor
+    index[mask[0]] = 0
+    return index
+
+
+def greedy_choice(snr_db: np.ndarray, has_data: np.ndarray) -> np.ndarray:
+    """(B,) Greedy's sensor: argmax SNR among servable sensors, ties to the lowest index.
+
+    Args:
+        snr_db: (N, B) SNR the UAV observes [dB] (-inf: no link).
+        has_data: (N, B) :func:`servable`: data left and a usable link.
+
+    Returns:
+        (B,) sensor index, or NO_SENSOR where no sensor is servable.
+    """
+    masked = np.where(has_data, snr_db, -np.inf)
+    choice = first_true(masked == masked.max(axis=0))
+    choice[~has_data.any(axis=0)] = NO_SENSOR
+    return choice
+
+
+def hgad_choice(rate_bps: np.ndarray, snr_db: np.ndarray, has_data: np.ndarray) -> np.ndarray:
+    """(B,) HGAD's sensor: argmax rate among servable sensors; ties: higher SNR, lowest index.
+
+    Args:
+        rate_bps: (N, B) rate to each sensor [bit/s].
+        snr_db: (N, B) SNR the UAV observes [dB] (-inf: no link).
+        has_data: (N, B) :func:`servable`: data left and a usable link.
+
+    Returns:
+        (B,) sensor index, or NO_SENSOR where no sensor is servable.
+    """
+    masked_rate = np.where(has_data, rate_bps, -np.inf)
+    best = masked_rate == masked_rate.max(axis=0)
+    masked_snr = np.where(best, snr_db, -np.inf)
+    best &= masked_snr == masked_snr.max(axis=0)
+    choice = first_true(best)
+    choice[~has_data.any(axis=0)] = NO_SENSOR
+    return choice
+
+
+def cells(sensor: np.ndarray, columns: np.ndarray | None = None) -> np.ndarray:
+    """(B,) flat index of (sensor[b], b) into a C-ordered (N, B) array (NO_SENSOR -> row 0).
+
+    ``columns`` is ``np.arange(B)``, passed in by callers that step many slots.
+    """
+    columns = np.arange(sensor.shape[0]) if columns is None else columns
+    return np.maximum(sensor, 0) * sensor.shape[0] + columns
+
+
+@dataclass(frozen=True)
+class HoverState:
+    """HGAD's state between slots, for B missions (arrays updated in place).
+
+    Attributes:
+        sensor: (B,) the sensor being hovered on, or NO_SENSOR when not hovering.
+        budget_s: (B,) hover time left [s].
+        cooling: (N * B,) flat (N, B) True where a sensor cools down after its hover: it cannot
+            trigger a hover again until its rate drops below its threshold.
+    """
+
+    sensor: np.ndarray
+    budget_s: np.ndarray
+    cooling: np.ndarray
+
+    @classmethod
+    def start(cls, n_sensors: int, n_missions: int) -> HoverState:
+        """Not hovering, nothing cooling down."""
+        return cls(
+            sensor=np.full(n_missions, NO_SENSOR, np.int64),
+            budget_s=np.zeros(n_missions),
+            cooling=np.zeros(n_sensors * n_missions, bool),
+        )
+
+
+def hover_sensor_or(state: HoverState, choice: np.ndarray) -> np.ndarray:
+    """(B,) the sensor served this slot: the hovered one while hovering, else ``choice``."""
+    return np.where(state.sensor >= 0, state.sensor, choice)
+
+
+def hgad_update(
+    state: HoverState,
+    *,
+    sensor: np.ndarray,
+    cell: np.ndarray,
+    rate_bps: np.ndarray,
+    rate_served_bps: np.ndarray,
+    left_after_bit: np.ndarray,
+    threshold_bps: np.ndarray,
+    peak_rate_bps: np.ndarray,
+    max_hover_s: np.ndarray,
+    slot_s: np.ndarray,
+    enabled: np.ndarray | bool = True,
+    active: np.ndarray | bool = True,
+) -> np.ndarray:
+    """Advance HGAD's hover state over one slot; (B,) True where the UAV holds its position.
+
+    The rules (``docs/contract.md``): at the start of the slot any sensor whose rate is below
+    its threshold gamma_i stops cooling down; a hover in progress counts dt off its budget and
+    ends after the slot in which the budget reaches 0 or the buffer empties (the sensor then
+    cools down); otherwise the served sensor triggers a hover of min(Q_i / R*_i, max_hover_s)
+    when R_i > 0, R*_i > 0, R_i >= gamma_i, data is left after this slot and it is not
+    cooling down. The trigger slot and every hover slot hold the UAV where it is.
+
+    Args:
+        state: updated in place.
+        sensor: (B,) sensor served this slot (:func:`hover_sensor_or`), or NO_SENSOR.
+        cell: (B,) :func:`cells` of ``sensor``.
+        rate_bps: (N, B) rate to each sensor this slot [bit/s] (C order).
+        rate_served_bps: (B,) rate of the served sensor [bit/s] (``rate_bps`` at ``cell``).
+        left_after_bit: (B,) the served sensor's buffer after this slot's download [bit].
+        threshold_bps: (N * B,) flat (N, B) trigger thresholds gamma_i [bit/s].
+        peak_rate_bps: (N * B,) flat (N, B) peak rates R*_i [bit/s].
+        max_hover_s: (B,) longest hover [s].
+        slot_s: (B,) slot length [s].
+        enabled: (B,) False for missions whose policy never hovers (mixed batches).
+        active: (B,) False for missions that are over (their state is left alone).
+    """
+    serving = sensor >= 0
+    rate_served = rate_served_bps
+    hover_flag = (state.sensor >= 0) & active
+    np.logical_and(state.cooling, ~(rate_bps.reshape(-1) < threshold_bps), out=state.cooling)
+    np.subtract(state.budget_s, slot_s, out=state.budget_s, where=hover_flag)
+    ends = hover_flag & ((state.budget_s <= HOVER_EPS_S) | (left_after_bit <= 0))
+    state.cooling[cell[ends]] = True
+    state.sensor[ends] = NO_SENSOR
+    peak_served = peak_rate_bps.take(cell)
+    trigger = (
+        enabled
+        & ~hover_flag
+        & serving
+        & (rate_served > 0)
+        & (peak_served > 0)
+        & (rate_served >= threshold_bps.take(cell))
+        & (left_after_bit > 0)
+        & ~state.cooling.take(cell)
+    )
+    if trigger.any():
+        chosen = np.flatnonzero(trigger)
+        max_hover = np.broadcast_to(max_hover_s, trigger.shape)
+        state.budget_s[chosen] = np.minimum(
+            left_after_bit[chosen] / peak_served[chosen], max_hover[chosen]
+        )
+        state.sensor[chosen] = sensor[chosen]
+    return hover_flag | trigger

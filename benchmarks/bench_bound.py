@@ -5,19 +5,29 @@ four sensors at different positions and a free-space-like rate profile
 ``R = B log2(1 + snr0 / (d / d0)^2)``. Buffers are 500/800/700/1000 Mbit, ``dt = 1 s``.
 The path has as many samples as the mission has slots (K = T).
 
+Scale: the fixed-path bound for 36,000 slots x 4 sensors (target < 10 s; buffers x 20) and
+for 3,600 slots x 16 sensors (target < 5 s; sensors on a 4 x 4 grid, buffers a quarter of the
+four-sensor ones), in CPU seconds, with the default interior-point method and, in the same
+run, the previous method (HiGHS dual simplex, ``lp_method="highs"``) with the ratio. The old
+method is skipped at 36,000 slots (it did not finish in 600 s) unless ``--old-36k`` is given.
+Both methods must give the same bound (the difference is printed).
+
 Then, for the fixed presets ``paper-sim-fixed`` and ``aadm-default``: the bound (with and
 without hovering), each policy's download and its gap to the bound (Mbit and fraction).
 
-Run: ``python benchmarks/bench_bound.py`` (``SKYMULE_BENCH_TINY=1``: one preset, 50/120-slot
-paths)
+Run: ``python benchmarks/bench_bound.py`` (``--quick`` skips the 36,000-slot case;
+``SKYMULE_BENCH_TINY=1``: one preset, 50/120-slot paths, no large cases)
 """
 
 from __future__ import annotations
 
+import argparse
+import time
+
 import numpy as np
 from _sizes import size
 
-from skymule.bounds.fixed import fixed_path_bound
+from skymule.bounds.fixed import LP_METHOD, fixed_path_bound
 from skymule.bounds.mission import mission_bound
 from skymule.runner import simulate
 from skymule.scenario import load_scenario
@@ -48,9 +58,16 @@ def lawnmower_xy(n_samples: int, side_m: float = 1000.0, n_legs: int = 6) -> np.
     return np.column_stack([np.interp(s, arc, pts[:, 0]), np.interp(s, arc, pts[:, 1])])
 
 
-def rates_bps(track_xy: np.ndarray) -> np.ndarray:
-    """``(K, 4)`` free-space-like rate (bit/s) from each track point to each sensor."""
-    horiz = np.linalg.norm(track_xy[:, None, :] - SENSORS_XY_M[None, :, :], axis=2)
+def grid_sensors(n_side: int, side_m: float = 1000.0) -> np.ndarray:
+    """``(n_side**2, 2)`` sensor positions (m) on a regular grid inside the field."""
+    ticks = (np.arange(n_side) + 0.5) * side_m / n_side
+    xx, yy = np.meshgrid(ticks, ticks)
+    return np.column_stack([xx.ravel(), yy.ravel()])
+
+
+def rates_bps(track_xy: np.ndarray, sensors_xy: np.ndarray = SENSORS_XY_M) -> np.ndarray:
+    """``(K, N)`` free-space-like rate (bit/s) from each track point to each sensor."""
+    horiz = np.linalg.norm(track_xy[:, None, :] - sensors_xy[None, :, :], axis=2)
     dist = np.hypot(horiz, ALTITUDE_M)
     return BANDWIDTH_HZ * np.log2(1.0 + SNR_AT_D0 / (dist / D0_M) ** 2)
 
@@ -72,7 +89,64 @@ def preset_gaps(preset: str) -> None:
         print(f"  {policy:<14} {got:8.1f} Mbit  gap {gap:7.1f} Mbit ({gap / upper:6.2%})")
 
 
+def _solve(rate: np.ndarray, buffers: np.ndarray, method: str) -> tuple[float, float]:
+    """(CPU seconds, bound in bit) of the hover bound with ``method``."""
+    start = time.process_time()
+    res = fixed_path_bound(rate, buffers, SLOT_S, rate.shape[0], lp_method=method)
+    return time.process_time() - start, res.upper_bound_bit
+
+
+def scale_case(
+    label: str, rate: np.ndarray, buffers: np.ndarray, target_s: float, old: bool
+) -> None:
+    """Print new-method time vs target, and the old method's time, ratio and bound difference."""
+    new_s, new_bit = _solve(rate, buffers, LP_METHOD)
+    verdict = "ok" if new_s < target_s else "MISSED"
+    line = (
+        f"{label}: {LP_METHOD} {new_s:.2f} s CPU (target < {target_s:g} s: {verdict}), "
+        f"bound {new_bit / 1e6:.3f} Mbit"
+    )
+    if old:
+        old_s, old_bit = _solve(rate, buffers, "highs")
+        line += (
+            f"; previous (highs) {old_s:.2f} s -> {old_s / new_s:.1f}x faster, "
+            f"bound difference {abs(new_bit - old_bit) / 1e6:.2e} Mbit"
+        )
+    else:
+        line += "; previous (highs) skipped (did not finish in 600 s; --old-36k runs it)"
+    print(line, flush=True)
+
+
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="skip the 36,000-slot case")
+    parser.add_argument("--old-36k", action="store_true", help="also time highs at 36,000 slots")
+    args = parser.parse_args()
+    if not size(False, True):  # the large cases (not at the smoke test's tiny size)
+        sixteen = grid_sensors(4)
+        sixteen_buffers = np.resize(BUFFERS_BIT, 16) / 4
+        scale_case(
+            "bound 3600 slots x 16 sensors (hover)",
+            rates_bps(lawnmower_xy(3600), sixteen),
+            sixteen_buffers,
+            5.0,
+            old=True,
+        )
+        scale_case(
+            "bound 3600 slots x 4 sensors (hover)",
+            rates_bps(lawnmower_xy(3600)),
+            BUFFERS_BIT,
+            5.0,
+            True,
+        )
+        if not args.quick:
+            scale_case(
+                "bound 36000 slots x 4 sensors (hover)",
+                rates_bps(lawnmower_xy(36000)),
+                BUFFERS_BIT * 20,  # ten hours: buffers large enough that the bound is not their sum
+                10.0,
+                old=args.old_36k,
+            )
     for preset in size(PRESETS, PRESETS[:1]):
         preset_gaps(preset)
     for n_slots in size((500, 3600), (50, 120)):

@@ -26,7 +26,7 @@ EXPECTED = {
     "bench_engine.py": ["single (2 missions)", "numpy + summaries", "memory bandwidth"],
     "bench_planner.py": ["planner gain over hgad", "mean gap to bound", "above the bound: 0"],
     "bench_single.py": ["paper-sim-fixed", "aadm-default", "slots/s"],
-    "bench_sweep.py": ["10 missions (inprocess", "missions/s", "peak RSS", "hgad"],
+    "bench_sweep.py": ["sample-10k", "us CPU/mission", "process executor", "seed axis"],
 }
 
 

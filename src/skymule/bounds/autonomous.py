@@ -85,6 +85,7 @@ from scipy.optimize import linprog
 from shapely.geometry import Point, Polygon
 from shapely.geometry.base import BaseGeometry
 
+from skymule.bounds.fixed import LP_METHOD
 from skymule.bounds.result import BoundResult
 from skymule.errors import SkymuleError
 from skymule.flight.navigation import Navigator
@@ -397,7 +398,7 @@ def _al_hourani_monotone(mission: Mission) -> bool:
 
 
 def time_sharing_lp(
-    rate_bps: np.ndarray, buffers_bit: np.ndarray, slot_s: float
+    rate_bps: np.ndarray, buffers_bit: np.ndarray, slot_s: float, lp_method: str = LP_METHOD
 ) -> tuple[float, str]:
     """Optimum [bit] and status of max sum R s, sum_i s[t,i] <= dt, sum_t R s <= Q.
 
@@ -420,7 +421,7 @@ def time_sharing_lp(
         A_ub=sp.vstack([a_time, a_buf]).tocsr(),
         b_ub=np.concatenate([counts * slot_s, buffers]),
         bounds=(0, None),
-        method="highs",
+        method=lp_method,
     )
     if res.status != 0:
         raise SkymuleError(f"autonomous bound: HiGHS failed ({res.message})")

@@ -102,6 +102,12 @@ __all__ = [
     "mission_track_rates",
 ]
 
+#: HiGHS method for every bound LP. The interior-point method (with crossover, so the solution
+#: is a vertex with duals) gives the same optima as the default dual simplex on every bound
+#: test and is 2.6-15x faster at 3,600 slots; at 36,000 slots the simplex does not finish in
+#: 10 minutes. ``"highs"`` stays selectable (``lp_method=``) for comparisons.
+LP_METHOD = "highs-ipm"
+
 #: Relative tolerance for pruning a last sample whose dual bound does not beat the incumbent.
 PRUNE_TOL = 1e-9
 
@@ -162,7 +168,7 @@ def _serve_block(rate: np.ndarray) -> tuple[sp.csr_array, sp.csr_array]:
 
 
 def _fixed_dwell_lp(
-    rate: np.ndarray, buf: np.ndarray, dwell_s: np.ndarray
+    rate: np.ndarray, buf: np.ndarray, dwell_s: np.ndarray, lp_method: str
 ) -> tuple[float, str, np.ndarray]:
     """LP optimum with the dwell per sample fixed: returns ``(bits, status, s (K, N))``."""
     k, n = rate.shape
@@ -172,7 +178,7 @@ def _fixed_dwell_lp(
         A_ub=sp.vstack([a_time, a_buf], format="csr"),
         b_ub=np.concatenate([dwell_s, buf]),
         bounds=(0, None),
-        method="highs",
+        method=lp_method,
     )
     if res.status != 0:
         raise RuntimeError(f"HiGHS failed on the no-hover LP: {res.message}")
@@ -215,7 +221,7 @@ class _PrefixSolution:
 
 
 def _prefix_lp(
-    rate: np.ndarray, buf: np.ndarray, slot_s: float, n_slots: int, last: int
+    rate: np.ndarray, buf: np.ndarray, slot_s: float, n_slots: int, last: int, lp_method: str
 ) -> _PrefixSolution:
     """``V(L)``: one time-shared slot at each sample ``0..L`` plus ``(T - L - 1) dt`` of hover.
 
@@ -235,7 +241,7 @@ def _prefix_lp(
     )
     b = np.concatenate([np.full(k, slot_s), [(n_slots - 1 - last) * slot_s], buf])
     res = linprog(
-        -np.concatenate([pre.ravel(), best]), A_ub=a, b_ub=b, bounds=(0, None), method="highs"
+        -np.concatenate([pre.ravel(), best]), A_ub=a, b_ub=b, bounds=(0, None), method=lp_method
     )
     if res.status != 0:
         raise RuntimeError(f"HiGHS failed on the prefix LP (L={last}): {res.message}")
@@ -249,7 +255,7 @@ def _prefix_lp(
 
 
 def _hover_search(
-    rate: np.ndarray, buf: np.ndarray, slot_s: float, n_slots: int
+    rate: np.ndarray, buf: np.ndarray, slot_s: float, n_slots: int, lp_method: str
 ) -> tuple[float, _PrefixSolution, int, int]:
     """Exact ``max_L V(L)`` over record samples, pruned with dual bounds.
 
@@ -267,7 +273,7 @@ def _hover_search(
         lower = best.bits if best is not None else -np.inf
         if solved[j] or open_ub[j] <= lower + PRUNE_TOL * max(1.0, abs(lower)):
             break
-        sol = _prefix_lp(rate, buf, slot_s, n_slots, int(candidates[j]))
+        sol = _prefix_lp(rate, buf, slot_s, n_slots, int(candidates[j]), lp_method)
         n_lp += 1
         solved[j] = True
         upper[j] = sol.bits
@@ -289,6 +295,7 @@ def fixed_path_bound(
     hover_allowed: bool = True,
     hold_at_end: bool = True,
     max_hover_s: float | None = None,
+    lp_method: str = LP_METHOD,
 ) -> BoundResult:
     """Upper bound on the bits collected along a fixed path (see the module docstring).
 
@@ -302,6 +309,7 @@ def fixed_path_bound(
             after moving past ``K - 1``).
         max_hover_s: per-pause hover cap of the policy being bounded; ignored by the bound
             (which stays valid), only validated.
+        lp_method: ``scipy.optimize.linprog`` HiGHS method (default :data:`LP_METHOD`).
 
     Returns:
         A :class:`BoundResult`; ``served_time_s`` is ``(K, N)`` and ``dwell_time_s`` ``(K,)``.
@@ -319,7 +327,7 @@ def fixed_path_bound(
     dwell = np.zeros(n_samples)
     if hover_allowed:
         reach = min(n_samples, n_slots)
-        bound, sol, last, n_lp = _hover_search(rate[:reach], buf, slot_s, n_slots)
+        bound, sol, last, n_lp = _hover_search(rate[:reach], buf, slot_s, n_slots, lp_method)
         served[: last + 1] = sol.transit_s
         best_at = np.argmax(rate[: last + 1], axis=0)
         np.add.at(served, (best_at, np.arange(n_sensors)), sol.hover_s)
@@ -327,14 +335,18 @@ def fixed_path_bound(
         np.add.at(dwell, best_at, sol.hover_s)  # several sensors may share a best sample
         dwell[last] += n_slots * slot_s - dwell.sum()
         status = f"{sol.status} ({n_lp} prefix LPs)"
-        method = "fixed-path exact search: pause anywhere, time-shared slots (HiGHS LPs)"
+        method = (
+            f"fixed-path exact search: pause anywhere, time-shared slots (HiGHS {lp_method} LPs)"
+        )
     else:
         counts = no_hover_slot_counts(n_samples, n_slots, hold_at_end=hold_at_end)
         dwell = counts * slot_s
-        bound, status, served = _fixed_dwell_lp(rate, buf, dwell)
+        bound, status, served = _fixed_dwell_lp(rate, buf, dwell, lp_method)
         last = int(np.flatnonzero(counts)[-1])
         semantics = "hold at end" if hold_at_end else "trace ends at last sample"
-        method = f"fixed-path LP: no hover ({semantics}), fractional association (HiGHS)"
+        method = (
+            f"fixed-path LP: no hover ({semantics}), fractional association (HiGHS {lp_method})"
+        )
     elapsed = time.perf_counter() - start
     served = np.clip(served, 0.0, None)
     dwell = np.clip(dwell, 0.0, None)

@@ -1,7 +1,8 @@
 """Executors behind one interface: a ``concurrent.futures.Executor`` from a registry.
 
 * ``inprocess``: runs each task when it is submitted (debugging, tests, tiny sweeps);
-* ``process``: a local process pool (default: all cores);
+* ``process``: a local process pool (default: all cores); its workers exit on their own when
+  the sweep process dies (even by ``kill -9``), see :func:`exit_with_parent`;
 * ``dask-local``: a ``dask.distributed.LocalCluster`` on this machine;
 * ``dask``: an existing Dask scheduler (``--scheduler tcp://HOST:PORT``; dask-jobqueue
   clusters on SLURM/PBS expose one too).
@@ -13,6 +14,8 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import threading
+import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from contextlib import AbstractContextManager, contextmanager
@@ -44,10 +47,39 @@ def _inprocess(workers: int | None, scheduler: str | None) -> Iterator[Executor]
         yield executor
 
 
+#: How often a worker checks that its parent is alive [s].
+PARENT_POLL_S = 1.0
+
+
+def _watch_parent(parent_pid: int, poll_s: float) -> None:
+    while True:
+        time.sleep(poll_s)
+        if os.getppid() != parent_pid:  # re-parented: the sweep process is gone
+            os._exit(1)
+
+
+def exit_with_parent(parent_pid: int, poll_s: float = PARENT_POLL_S) -> None:
+    """Worker initializer: a daemon thread ends this process once ``parent_pid`` has died.
+
+    Polling the parent pid works on every POSIX system and, unlike Linux's
+    ``PR_SET_PDEATHSIG``, does not fire when the thread that started the worker ends.
+    """
+    if os.getppid() != parent_pid:
+        os._exit(1)
+    threading.Thread(
+        target=_watch_parent, args=(parent_pid, poll_s), daemon=True, name="skymule-parent"
+    ).start()
+
+
 @contextmanager
 def _process(workers: int | None, scheduler: str | None) -> Iterator[Executor]:
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(workers or default_workers(), mp_context=context) as executor:
+    with ProcessPoolExecutor(
+        workers or default_workers(),
+        mp_context=context,
+        initializer=exit_with_parent,
+        initargs=(os.getpid(),),
+    ) as executor:
         yield executor
 
 

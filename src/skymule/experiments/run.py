@@ -1,5 +1,11 @@
 """Running a sweep: plan, skip what is done, run chunks on an executor, store, summarise.
 
+The sweep process only streams the plan (ids and axis values, :func:`plan_missions`), skips
+missions already stored, and sends chunks; a worker resolves and validates each mission once,
+builds each geometry once per chunk (missions that differ only in buffers, policy, name or,
+without shadowing, seed share one built track and batch together), and on this machine
+writes its own part. Chunks are at most ``chunk_size`` missions and within a memory budget.
+
 Fixed-trajectory Greedy/HGAD missions (per-slot fading included) run through the batched
 engine (:mod:`skymule.sim.batch`), whose summaries come straight from the batch arrays
 (``summarize_fixed_batch``: no per-mission log is built); every other mission (other policies,
@@ -11,20 +17,35 @@ gives.
 from __future__ import annotations
 
 import json
+import math
+import sys
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Hashable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, wait
 from dataclasses import dataclass, replace
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
+from skymule.errors import SkymuleError
 from skymule.experiments import store
 from skymule.experiments.executors import default_workers, open_executor
-from skymule.experiments.sweep import SweepMission, SweepSpec, iter_missions, validate_mission
+from skymule.experiments.sweep import (
+    Axis,
+    Expansion,
+    PlannedMission,
+    SweepSpec,
+    expansion,
+    plan_missions,
+)
+from skymule.radio.channel import mission_fading_db
+from skymule.world import BITS_PER_MBIT, Mission
+
+if TYPE_CHECKING:
+    from skymule.scenario import PolicySpec, Scenario
 
 Task = tuple[int, str, dict[str, Any], dict[str, Any]]
 """(mission index, mission id, axis values, resolved scenario dict)."""
@@ -57,37 +78,125 @@ def _param_value(value: Any) -> Any:
     return json.dumps(value) if isinstance(value, list | dict) else value
 
 
-def _geometry_key(data: dict[str, Any]) -> str:
-    """Missions differing only in buffers, policy and name share one built Mission."""
+def _needs_seed(scenario: Scenario) -> bool:
+    """True if the scenario's seed changes the built mission (shadowing draws a field).
+
+    Fading also follows the seed but is redrawn per mission (:func:`_per_mission`), so missions
+    that differ only in their seed share one built track and batch together.
+    """
+    return scenario.signal.source == "model" and scenario.radio.shadowing_std_db > 0
+
+
+def _geometry_key(data: dict[str, Any], scenario: Scenario) -> str:
+    """Missions differing only in buffers, policy, name (and seed) share one built Mission."""
     sensors = [{k: v for k, v in s.items() if k != "buffer_mbit"} for s in data["sensors"]]
-    rest = {k: v for k, v in data.items() if k not in ("policy", "name", "sensors")}
+    skip = (
+        ("policy", "name", "sensors")
+        if _needs_seed(scenario)
+        else ("policy", "name", "sensors", "seed")
+    )
+    rest = {k: v for k, v in data.items() if k not in skip}
     return json.dumps([rest, sensors], sort_keys=True, default=str)
 
 
+def _shares_geometry(axis: Axis) -> bool:
+    """Axes that never change the built mission (the seed is handled per mission)."""
+    return (
+        axis.paired
+        or axis.key in ("name", "seed")
+        or (axis.path[0] == "sensors" and axis.path[-1] == "buffer_mbit")
+    )
+
+
+@dataclass(frozen=True)
+class _Item:
+    """One mission of a chunk, validated: position, id, axis values (columns), geometry key."""
+
+    index: int
+    mission_id: str
+    params: dict[str, Any]
+    scenario: Scenario
+    key: Hashable
+
+
+def _per_mission(built: Mission, scenario: Scenario) -> Mission:
+    """The shared built mission with this mission's scenario, buffers and fading."""
+    buffers = np.array([s.buffer_mbit for s in scenario.sensors], float) * BITS_PER_MBIT
+    fading = built.fading_db
+    if fading is not None:  # fading is on for every mission of this geometry: redraw it
+        fading = mission_fading_db(scenario, built.n_slots, len(buffers))
+    return replace(built, scenario=scenario, buffers_bit=buffers, fading_db=fading)
+
+
 def run_chunk(tasks: Sequence[Task], base_dir: str) -> pd.DataFrame:
-    """Run a chunk of missions (in a worker); one row per mission, in task order."""
+    """Run a chunk of resolved missions; one row per mission, in task order."""
+    from skymule.scenario import scenario_from_dict
+
+    items = []
+    for index, mission_id, params, data in tasks:
+        scenario = scenario_from_dict(data, f"mission {mission_id}", Path(base_dir))
+        items.append(_Item(index, mission_id, params, scenario, _geometry_key(data, scenario)))
+    return _run_items(items)
+
+
+def run_planned(resolve: Expansion, planned: Sequence[PlannedMission]) -> pd.DataFrame:
+    """Run a chunk of planned missions (in a worker): each is resolved and validated here once.
+
+    The worker gets the base scenario once (``resolve``) and each mission as its axis values.
+    """
+    geometric = [i for i, axis in enumerate(resolve.axes) if not _shares_geometry(axis)]
+    items = []
+    for mission in planned:
+        scenario = resolve.validate(mission)
+        key: tuple[Any, ...] = tuple(repr(mission.values[i]) for i in geometric)
+        if _needs_seed(scenario):
+            key = (*key, scenario.seed)
+        params = resolve.params(mission.values)
+        items.append(_Item(mission.index, mission.mission_id, params, scenario, key))
+    return _run_items(items)
+
+
+def run_and_store(resolve: Expansion, planned: Sequence[PlannedMission], out: str) -> int:
+    """:func:`run_planned`, with the worker writing its own part (atomically) into ``out``.
+
+    Used by executors on this machine: the rows never travel back to the sweep process,
+    which only counts them. Returns the number of missions stored.
+    """
+    frame = run_planned(resolve, planned)
+    store.write_part(Path(out), frame)
+    return len(frame)
+
+
+#: Executors whose workers see this machine's file system (and write their own parts).
+LOCAL_EXECUTORS = ("inprocess", "process")
+
+
+def _run_items(items: Sequence[_Item]) -> pd.DataFrame:
+    """Build each geometry once, batch what the batched engine can run, summarise every row."""
     from skymule.metrics import summarize
     from skymule.policies import make_policy
-    from skymule.scenario import scenario_from_dict
     from skymule.sim.batch import batchable, summarize_fixed_batch
     from skymule.sim.run import run_mission
-    from skymule.world import BITS_PER_MBIT, build_mission
+    from skymule.world import build_mission
 
-    built: dict[str, Any] = {}
-    summaries: list[dict[str, Any] | None] = [None] * len(tasks)
-    batched: list[tuple[int, Any, Any, str]] = []
-    for position, (_, mission_id, _, data) in enumerate(tasks):
-        scenario = scenario_from_dict(data, f"mission {mission_id}", Path(base_dir))
-        key = _geometry_key(data)
-        if key not in built:
-            built[key] = build_mission(scenario)
-        buffers = np.array([s.buffer_mbit for s in scenario.sensors], float) * BITS_PER_MBIT
-        mission = replace(built[key], scenario=scenario, buffers_bit=buffers)
-        if batchable(mission, scenario.policy):
-            batched.append((position, mission, scenario.policy, key))
+    built: dict[Hashable, Mission] = {}
+    summaries: list[dict[str, Any] | None] = [None] * len(items)
+    batched: list[tuple[int, Mission, PolicySpec, Hashable]] = []
+    for position, item in enumerate(items):
+        shared = built.get(item.key)
+        if shared is None:
+            shared = build_mission(item.scenario)
+            if shared.track is not None:
+                # the track holds the SNR; a shadowing field (tens of MB) is not kept per mission
+                shared = replace(shared, source=None)
+            if shared.track is not None or not _needs_seed(item.scenario):
+                built[item.key] = shared
+        mission = _per_mission(shared, item.scenario)
+        if batchable(mission, item.scenario.policy):
+            batched.append((position, mission, item.scenario.policy, item.key))
         else:
-            log = run_mission(mission, make_policy(scenario.policy))
-            summaries[position] = summarize(log, scenario.name)
+            log = run_mission(mission, make_policy(item.scenario.policy))
+            summaries[position] = summarize(log, item.scenario.name)
     if batched:
         rows_batched = summarize_fixed_batch(
             [m for _, m, _, _ in batched],
@@ -97,42 +206,102 @@ def run_chunk(tasks: Sequence[Task], base_dir: str) -> pd.DataFrame:
         for (position, _, _, _), batch_summary in zip(batched, rows_batched, strict=True):
             summaries[position] = batch_summary
     rows = []
-    for (index, mission_id, params, _), summary in zip(tasks, summaries, strict=True):
+    for item, summary in zip(items, summaries, strict=True):
         assert summary is not None
-        row = {"mission_index": index, "mission_id": mission_id}
-        row.update({k: _param_value(v) for k, v in params.items()})
+        row = {"mission_index": item.index, "mission_id": item.mission_id}
+        row.update({k: _param_value(v) for k, v in item.params.items()})
         row.update(_flat_summary(summary))
         rows.append(row)
     return pd.DataFrame(rows)
 
 
 def plan(spec: SweepSpec) -> list[str]:
-    """Validate every mission (before any runs) and return their ids in sweep order."""
-    from skymule.world import build_mission
-
-    ids = []
-    for mission in iter_missions(spec):
-        scenario = validate_mission(spec, mission)
-        if mission.index == 0:
-            build_mission(scenario)  # geometry checks (fence, slot count) on the first one
-        ids.append(mission.mission_id)
-    return ids
+    """Every mission id in sweep order (no validation: missions are validated where they run)."""
+    return [mission.mission_id for mission in plan_missions(spec)]
 
 
-def _chunks(spec: SweepSpec, missing: set[str], size: int) -> Iterator[list[Task]]:
-    chunk: list[Task] = []
-    for mission in iter_missions(spec):
-        if mission.mission_id in missing:
-            chunk.append(_task(mission))
-            if len(chunk) == size:
-                yield chunk
-                chunk = []
+#: Memory a chunk may use in a worker [byte] (its batch arrays and built tracks).
+CHUNK_MEMORY_BYTES = 256 * 2**20
+
+#: Bytes per mission-slot and sensor the batched engine and its summaries hold (float buffers,
+#: rates and SNR seen), and per mission-slot (served, downloaded, sample, hovering, ...).
+_BYTES_PER_SLOT_SENSOR = 40
+_BYTES_PER_SLOT = 48
+
+
+def mission_bytes(scenario: Scenario) -> int:
+    """Estimated peak bytes one mission adds to a chunk (slots x sensors, its own track)."""
+    duration = scenario.mission.duration_s or 3600.0
+    slots = max(1, math.ceil(duration / scenario.mission.slot_s))
+    sensors = max(1, len(scenario.sensors))
+    per_slot = _BYTES_PER_SLOT + _BYTES_PER_SLOT_SENSOR * sensors
+    if scenario.radio.fading != "none":
+        per_slot += 8 * sensors
+    if _needs_seed(scenario):
+        per_slot += 3 * 8 * sensors  # a track of its own (SNR, rate, seen SNR) per mission
+    return slots * per_slot
+
+
+#: Axes that change a mission's memory, and the value that needs the most.
+_WORST: dict[str, Callable[[Sequence[Any]], Any]] = {
+    "mission.duration_s": lambda v: max(v[0], v[-1]) if isinstance(v, range) else max(v),
+    "mission.slot_s": lambda v: min(v),
+    "radio.shadowing_std_db": lambda v: max(v),
+    "radio.fading": lambda v: next((f for f in v if f != "none"), v[0]),
+}
+
+
+def _largest_mission(spec: SweepSpec) -> Scenario:
+    """The base scenario with every memory-relevant list axis at its most demanding value."""
+    from skymule.scenario import scenario_from_dict
+
+    resolve = expansion(spec)
+    data = resolve.base
+    for axis in spec.discrete:
+        worst = _WORST.get(axis.key)
+        if worst is not None and axis.values:
+            data = resolve.scenario_with(data, axis, worst(axis.values))
+    data = resolve.placed(data)
+    try:
+        return scenario_from_dict(data, spec.source, Path(spec.base.base_dir))
+    except SkymuleError:  # mixed types in an axis: the missions' own checks will say so
+        return spec.base
+
+
+def auto_chunk_size(
+    spec: SweepSpec, limit: int, n_workers: int, budget_bytes: int = CHUNK_MEMORY_BYTES
+) -> int:
+    """Missions per chunk: at most ``limit``, within the memory budget, >= 2 chunks per worker
+    when there are several.
+
+    A shadowing field is drawn per mission and dropped once its track is sampled, so it costs
+    one field at a time (not per mission) and does not enter the per-mission estimate.
+    """
+    by_memory = max(1, budget_bytes // mission_bytes(_largest_mission(spec)))
+    by_balance = math.ceil(len(spec) / (2 * n_workers)) if n_workers > 1 else limit
+    return max(1, min(limit, by_memory, by_balance))
+
+
+def _chunks(
+    planned: Iterator[PlannedMission], done: set[str], size: int, seen: set[str], source: str
+) -> Iterator[list[PlannedMission]]:
+    """Missions not yet done, in chunks of ``size``, streamed (the plan is never held)."""
+    chunk: list[PlannedMission] = []
+    for mission in planned:
+        if mission.mission_id in seen:
+            raise SkymuleError(
+                f"{source}: missions {mission.index} and an earlier one have the same "
+                "parameters; remove the repeated axis values"
+            )
+        seen.add(mission.mission_id)
+        if mission.mission_id in done:
+            continue
+        chunk.append(mission)
+        if len(chunk) == size:
+            yield chunk
+            chunk = []
     if chunk:
         yield chunk
-
-
-def _task(mission: SweepMission) -> Task:
-    return (mission.index, mission.mission_id, mission.params, mission.scenario)
 
 
 def run_sweep(
@@ -144,40 +313,51 @@ def run_sweep(
     scheduler: str | None = None,
     chunk_size: int = 500,
     progress: bool = True,
+    memory_bytes: int = CHUNK_MEMORY_BYTES,
 ) -> SweepOutcome:
-    """Run the missions of ``spec`` not yet in ``out``, then consolidate and summarise."""
-    from skymule.errors import SkymuleError
+    """Run the missions of ``spec`` not yet in ``out``, then consolidate and summarise.
 
+    ``out`` is locked while this runs and tied to ``spec``'s sweep file; ``chunk_size`` is an
+    upper bound, lowered to keep a chunk within ``memory_bytes``. The plan is streamed: missions
+    are planned, skipped (already done) or sent in chunks as they come.
+    """
     if chunk_size < 1:
         raise SkymuleError(f"--chunk-size {chunk_size}: allowed: an integer >= 1")
     start = time.perf_counter()
-    ids = plan(spec)
-    if len(set(ids)) != len(ids):
-        raise SkymuleError(
-            f"{spec.source}: two missions resolve to the same scenario; "
-            "remove the repeated axis values"
-        )
-    out.mkdir(parents=True, exist_ok=True)
-    missing = set(ids) - store.done_ids(out)
-    base_dir = spec.base.base_dir
-    n_run = 0
-    if missing:
+    with store.locked(out):
+        store.claim(out, spec.digest, spec.source)
+        found = store.scan(out, set_aside=True)
+        for path in found.damaged:
+            print(
+                f"warning: {path} is damaged (unreadable Parquet); set aside as "
+                f"{path.name}.damaged, its missions run again",
+                file=sys.stderr,
+            )
         n_workers = 1 if executor == "inprocess" else (workers or default_workers())
+        size = auto_chunk_size(spec, chunk_size, n_workers, memory_bytes)
+        resolve = expansion(spec)
+        seen: set[str] = set()
+        n_run = 0
+        total = len(spec)
         with (
             open_executor(executor, workers, scheduler) as pool,
-            _progress(progress, len(ids), len(ids) - len(missing)) as advance,
+            _progress(progress, total, len(found.ids)) as advance,
         ):
             pending: set[Future] = set()
-            for chunk in _chunks(spec, missing, chunk_size):
-                pending.add(pool.submit(run_chunk, chunk, base_dir))
+            planned = plan_missions(spec, paired_last=True)
+            for chunk in _chunks(planned, found.ids, size, seen, spec.source):
+                if executor in LOCAL_EXECUTORS:
+                    pending.add(pool.submit(run_and_store, resolve, chunk, str(out)))
+                else:
+                    pending.add(pool.submit(run_planned, resolve, chunk))
                 while len(pending) >= 2 * n_workers:
                     n_run += _collect(out, pending, advance)
             while pending:
                 n_run += _collect(out, pending, advance)
-    results = store.consolidate(out, ids)
-    summary = store.summary_table(results)
-    store.write_summary(out, summary)
-    return SweepOutcome(results, summary, len(ids), n_run, time.perf_counter() - start)
+        results = store.consolidate(out, seen)
+        summary = store.summary_table(results)
+        store.write_summary(out, summary)
+    return SweepOutcome(results, summary, len(seen), n_run, time.perf_counter() - start)
 
 
 def _collect(out: Path, pending: set[Future], advance: Any) -> int:
@@ -185,10 +365,12 @@ def _collect(out: Path, pending: set[Future], advance: Any) -> int:
     count = 0
     for future in done:
         pending.discard(future)
-        frame = future.result()
-        store.write_part(out, frame)
-        advance(len(frame))
-        count += len(frame)
+        result = future.result()
+        if isinstance(result, pd.DataFrame):  # a remote worker's rows: stored here
+            store.write_part(out, result)
+            result = len(result)
+        advance(result)
+        count += result
     return count
 
 

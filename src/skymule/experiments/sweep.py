@@ -22,19 +22,22 @@ each mission is reproducible on its own and keeps its draws when other axes grow
 
 Setting ``x_m``/``y_m`` of a sensor placed by lat/lon first converts it to local metres.
 
-Each mission's id is the first 16 hex digits of the sha256 of the canonical JSON of its
-resolved scenario (plus the sample index in sample mode).
+Each mission's id is the first 16 hex digits of the sha256 of the sweep's identity (base
+scenario, sweep seed, axis keys and distributions: not the list/range values, so ids survive
+growing an axis) followed by the mission's list/range values (plus the sample index in sample
+mode): unique per parameter set, stable across runs of the same file, and cheap (one small
+``repr`` per mission, no JSON). Missions are planned lazily (:func:`plan_missions`: index, id
+and axis values only, a ``range`` axis is never materialised) and resolved into scenario
+dictionaries where they run (:class:`Expansion`, which a worker receives once per chunk).
 """
 
 from __future__ import annotations
 
 import hashlib
-import itertools
-import json
 import math
 import re
 import tomllib
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -42,7 +45,17 @@ from typing import Any
 import numpy as np
 
 from skymule.errors import SkymuleError
-from skymule.geo import LocalFrame
+from skymule.experiments.distributions import DISTRIBUTIONS, Distribution
+from skymule.experiments.fields import (
+    Path_,
+    assign,
+    base_dict,
+    canonical,
+    column,
+    draw_seed,
+    place_sensors,
+    stars,
+)
 from skymule.io.textfiles import read_text
 from skymule.scenario import Scenario, load_scenario, scenario_from_dict
 
@@ -51,97 +64,6 @@ POLICY_PREFIX = "policy."
 _SEGMENT = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)((?:\[(?:\d+|\*)\])*)$")
 _INDEX = re.compile(r"\[(\d+|\*)\]")
 
-Path_ = tuple[str | int, ...]
-"""A parsed axis key: field names, list indices and "*" (every element)."""
-
-
-@dataclass(frozen=True)
-class Distribution:
-    """A named distribution with validated parameters (``draw(rng, size) -> (size,)``)."""
-
-    name: str
-    params: tuple[tuple[str, Any], ...]
-
-    def draw(self, rng: np.random.Generator, size: int) -> list[Any]:
-        return DISTRIBUTIONS[self.name].draw(rng, dict(self.params), size)
-
-
-@dataclass(frozen=True)
-class DistributionKind:
-    """Parameters a distribution takes, their check, and how to draw from it."""
-
-    params: tuple[str, ...]
-    check: Callable[[dict[str, Any]], str | None]
-    draw: Callable[[np.random.Generator, dict[str, Any], int], list[Any]]
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-
-
-def _numbers(params: dict[str, Any]) -> str | None:
-    bad = [k for k, v in params.items() if not _is_number(v)]
-    return f"{bad[0]} = {params[bad[0]]!r} must be a finite number" if bad else None
-
-
-def _check_low_high(params: dict[str, Any]) -> str | None:
-    problem = _numbers(params)
-    if problem is None and not params["low"] < params["high"]:
-        return f"low = {params['low']!r} must be below high = {params['high']!r}"
-    return problem
-
-
-def _check_spread(name: str) -> Callable[[dict[str, Any]], str | None]:
-    def check(params: dict[str, Any]) -> str | None:
-        problem = _numbers(params)
-        if problem is None and params[name] < 0:
-            return f"{name} = {params[name]!r} must be >= 0"
-        return problem
-
-    return check
-
-
-def _check_integers(params: dict[str, Any]) -> str | None:
-    problem = _check_low_high(params)
-    if problem is None and not all(isinstance(params[k], int) for k in ("low", "high")):
-        return "low and high must be integers"
-    return problem
-
-
-def _check_choice(params: dict[str, Any]) -> str | None:
-    values = params["values"]
-    return None if isinstance(values, list) and values else "values must be a non-empty list"
-
-
-DISTRIBUTIONS: dict[str, DistributionKind] = {
-    "uniform": DistributionKind(
-        ("low", "high"),
-        _check_low_high,
-        lambda rng, p, n: rng.uniform(p["low"], p["high"], n).tolist(),
-    ),
-    "normal": DistributionKind(
-        ("mean", "std"),
-        _check_spread("std"),
-        lambda rng, p, n: rng.normal(p["mean"], p["std"], n).tolist(),
-    ),
-    "lognormal": DistributionKind(
-        ("mean", "sigma"),
-        _check_spread("sigma"),
-        lambda rng, p, n: rng.lognormal(p["mean"], p["sigma"], n).tolist(),
-    ),
-    "integers": DistributionKind(
-        ("low", "high"),
-        _check_integers,
-        lambda rng, p, n: rng.integers(p["low"], p["high"], n).tolist(),
-    ),
-    "choice": DistributionKind(
-        ("values",),
-        _check_choice,
-        lambda rng, p, n: [p["values"][i] for i in rng.integers(0, len(p["values"]), n)],
-    ),
-}
-"""Distribution registry: ``dist = NAME`` -> parameters, check and draw."""
-
 
 @dataclass(frozen=True)
 class Axis:
@@ -149,7 +71,7 @@ class Axis:
 
     key: str
     path: Path_
-    values: tuple[Any, ...] | None = None
+    values: Sequence[Any] | None = None  # a tuple, or a range (never materialised)
     dist: Distribution | None = None
 
     @property
@@ -167,6 +89,7 @@ class SweepSpec:
     seed: int
     axes: tuple[Axis, ...]
     sample: int | None
+    digest: str = ""  # sha256 of the sweep file's canonical table (see sweep_digest)
 
     @property
     def discrete(self) -> tuple[Axis, ...]:
@@ -270,7 +193,7 @@ def parse_axis(source: str, key: str, value: Any) -> Axis:
                 f"{where}.range = {bounds!r}; allowed: [start, stop] or [start, stop, step] "
                 "integers, step != 0",
             )
-        values = tuple(range(*bounds))
+        values = range(*bounds)  # lazy: {range = [0, 1e9]} costs nothing until it runs
         if not values:
             raise _fail(source, f"{where}.range = {bounds!r} is empty; stop must pass start")
         return Axis(key, path, values=values)
@@ -325,7 +248,8 @@ def parse_sweep(data: dict[str, Any], source: str, folder: Path) -> SweepSpec:
     if not isinstance(table, dict) or not table:
         raise _fail(source, "[axes] is missing or empty; give at least one axis")
     axes = tuple(parse_axis(source, k, v) for k, v in flatten_axes(table))
-    spec = SweepSpec(source, _base_scenario(source, data["base"], folder), seed, axes, sample)
+    base = _base_scenario(source, data["base"], folder)
+    spec = SweepSpec(source, base, seed, axes, sample, sweep_digest(data))
     if sample is None and not spec.discrete:
         raise _fail(
             source,
@@ -333,7 +257,29 @@ def parse_sweep(data: dict[str, Any], source: str, folder: Path) -> SweepSpec:
             "[0, 100]}) or use mode = {sample = N}",
         )
     _check_axes(spec)
+    _check_repeats(spec)
     return spec
+
+
+def sweep_digest(data: dict[str, Any]) -> str:
+    """sha256 of a sweep table's canonical JSON: edits to comments or layout keep it."""
+    return hashlib.sha256(canonical(data).encode()).hexdigest()
+
+
+def _check_repeats(spec: SweepSpec) -> None:
+    """A value listed twice in one axis would run one mission twice under one id."""
+    for axis in spec.discrete:
+        if isinstance(axis.values, range):
+            continue
+        seen: set[str] = set()
+        for value in axis.values or ():
+            text = repr(value)
+            if text in seen:
+                raise _fail(
+                    spec.source,
+                    f"axes.{axis.key} lists {value!r} twice; remove the repeated value",
+                )
+            seen.add(text)
 
 
 def load_sweep(path: str | Path) -> SweepSpec:
@@ -349,147 +295,196 @@ def load_sweep(path: str | Path) -> SweepSpec:
 # --- resolving missions ---------------------------------------------------------------
 
 
-def _assign(node: Any, path: Path_, value: Any, source: str, key: str) -> Any:
-    """A copy of ``node`` with ``path`` set to ``value`` (lists for "*"); copies only the path."""
-    head, rest = path[0], path[1:]
-    if head == "*" or isinstance(head, int):
-        if not isinstance(node, list):
-            raise _fail(source, f"axes.{key}: {head!r} indexes a field that is not a list")
-        items = list(node)
-        if isinstance(head, int):
-            if head >= len(items):
-                raise _fail(
-                    source, f"axes.{key}: index {head} out of range; the base has {len(items)}"
-                )
-            targets: Sequence[int] = [head]
-        else:
-            targets = range(len(items))
-        for i in targets:
-            item = value[i] if head == "*" else value
-            items[i] = _assign(items[i], rest, item, source, key) if rest else item
-        return items
-    if not isinstance(node, dict):
-        raise _fail(source, f"axes.{key}: {head!r} is not a field of a table")
-    copy = dict(node)
-    if rest:
-        copy[head] = _assign(copy.get(head, {}), rest, value, source, key)
-    else:
-        copy[head] = value
-    return copy
+@dataclass(frozen=True)
+class PlannedMission:
+    """A mission before it is resolved: position, id and one value per axis (``spec.axes``)."""
+
+    index: int
+    mission_id: str
+    values: tuple[Any, ...]
 
 
-def _stars(path: Path_, base: dict[str, Any]) -> int | None:
-    """Number of elements a "*" in ``path`` spans in ``base`` (None without a "*")."""
-    node: Any = base
-    for part in path:
-        if part == "*":
-            return len(node) if isinstance(node, list) else 0
-        if isinstance(node, dict):
-            node = node.get(part)
-        elif isinstance(node, list) and isinstance(part, int) and part < len(node):
-            node = node[part]
-        else:
-            node = None
-    return None
+@dataclass(frozen=True)
+class Expansion:
+    """Everything needed to turn a :class:`PlannedMission` into a scenario (small, picklable).
+
+    A worker receives it once per chunk, with the planned missions: the base scenario travels
+    once, each mission only as its axis values.
+    """
+
+    source: str
+    base_dir: str
+    base: dict[str, Any]
+    axes: tuple[Axis, ...]
+    counts: tuple[int | None, ...]  # elements each "*" axis spans (None: no "*")
+
+    def scenario(self, values: Sequence[Any]) -> dict[str, Any]:
+        """The resolved scenario dictionary of a mission."""
+        data = self.base
+        for axis, count, value in zip(self.axes, self.counts, values, strict=True):
+            if count is not None and axis.values is not None:
+                value = [value] * count
+            data = assign(data, axis.path, value, self.source, axis.key)
+        return place_sensors(data)
+
+    def scenario_with(self, data: dict[str, Any], axis: Axis, value: Any) -> dict[str, Any]:
+        """``data`` (a base or resolved dict) with one list/range axis set to ``value``."""
+        count = stars(axis.path, data)
+        value = value if count is None else [value] * count
+        return assign(data, axis.path, value, self.source, axis.key)
+
+    def placed(self, data: dict[str, Any]) -> dict[str, Any]:
+        """``data`` with sensors given x_m/y_m by an axis turned into local metres."""
+        return place_sensors(data)
+
+    def params(self, values: Sequence[Any]) -> dict[str, Any]:
+        """Axis values by column (``sensors[*]`` axes get one column per sensor)."""
+        params: dict[str, Any] = {}
+        for axis, count, value in zip(self.axes, self.counts, values, strict=True):
+            if count is None:
+                params[axis.key] = value
+            elif axis.values is not None:
+                params.update({column(axis.key, i): value for i in range(count)})
+            else:
+                params.update({column(axis.key, i): v for i, v in enumerate(value)})
+        return params
+
+    def validate(self, mission: PlannedMission) -> Scenario:
+        """The mission's scenario, validated; errors name the sweep file and mission values."""
+        data = self.scenario(mission.values)
+        try:
+            return scenario_from_dict(data, self.source, Path(self.base_dir))
+        except SkymuleError:  # again, with the mission named (built only when needed)
+            shown = ", ".join(f"{k} = {v!r}" for k, v in self.params(mission.values).items())
+            source = f"{self.source} (mission {mission.index}: {shown})"
+            if len(source) > 200:
+                source = f"{self.source} (mission {mission.index})"
+            return scenario_from_dict(data, source, Path(self.base_dir))
 
 
-def _base_dict(base: Scenario) -> dict[str, Any]:
-    """The base scenario as a dict, with lat/lon sensors also placed in local metres."""
-    data = base.to_toml_dict()
-    frame = LocalFrame(base.site.origin.lat, base.site.origin.lon)
-    sensors = []
-    for sensor in data["sensors"]:
-        if "lat" in sensor and "x_m" not in sensor:
-            x_m, y_m = frame.to_local(sensor["lat"], sensor["lon"])
-            sensor = {**sensor, "_xy": (float(x_m), float(y_m))}
-        sensors.append(sensor)
-    return {**data, "sensors": sensors}
+def expansion(spec: SweepSpec) -> Expansion:
+    base = base_dict(spec.base)
+    counts = tuple(stars(axis.path, base) for axis in spec.axes)
+    return Expansion(spec.source, spec.base.base_dir, base, spec.axes, counts)
 
 
-def _place_sensors(data: dict[str, Any]) -> dict[str, Any]:
-    """Sensors given x_m or y_m by an axis drop lat/lon (converted to metres)."""
-    sensors = []
-    for sensor in data.get("sensors", []):
-        if isinstance(sensor, dict) and "_xy" in sensor:
-            sensor = dict(sensor)
-            x_m, y_m = sensor.pop("_xy")
-            if "x_m" in sensor or "y_m" in sensor:
-                sensor.pop("lat", None)
-                sensor.pop("lon", None)
-                sensor.setdefault("x_m", x_m)
-                sensor.setdefault("y_m", y_m)
-        sensors.append(sensor)
-    return {**data, "sensors": sensors}
+def _id_prefix(spec: SweepSpec, base: dict[str, Any]) -> bytes:
+    """What every id of the sweep hashes first: all but the list/range values."""
+    identity = {
+        "base": base,
+        "seed": spec.seed,
+        "axes": [
+            [a.key, None if a.dist is None else [a.dist.name, a.dist.params]] for a in spec.axes
+        ],
+    }
+    return hashlib.sha256(canonical(identity).encode()).digest()
 
 
-def _canonical(value: Any) -> str:
-    return json.dumps(value, sort_keys=True, separators=(",", ":"), default=str)
+def _lazy_product(sequences: Sequence[Sequence[Any]]) -> Iterator[tuple[Any, ...]]:
+    """``itertools.product`` without copying its inputs (which would materialise a range)."""
+    if not sequences:
+        yield ()
+        return
+    for head in sequences[0]:
+        for rest in _lazy_product(sequences[1:]):
+            yield (head, *rest)
 
 
-def _draw_seed(seed: int, key: Any) -> np.random.Generator:
-    digest = hashlib.sha256(_canonical(key).encode()).digest()
-    return np.random.default_rng([seed, int.from_bytes(digest[:8], "little")])
+def plan_missions(spec: SweepSpec, *, paired_last: bool = False) -> Iterator[PlannedMission]:
+    """Every mission of the sweep, lazily (memory does not grow with it).
+
+    In index order, or with ``paired_last`` (what sweeps run) with the ``policy.*`` values of
+    one combination next to each other, so the missions that share a built track and draws
+    fall into one chunk; ``index`` is the position in the file's order either way.
+    """
+    base = base_dict(spec.base)
+    counts = {a.key: stars(a.path, base) for a in spec.drawn}
+    prefix = _id_prefix(spec, base)
+    discrete = spec.discrete
+    paired = [a for a in discrete if a.paired]
+    unpaired = [a for a in discrete if not a.paired]
+
+    def draws(rng: np.random.Generator) -> dict[str, Any]:
+        values: dict[str, Any] = {}
+        for axis in spec.drawn:
+            assert axis.dist is not None
+            count = counts[axis.key]
+            drawn = axis.dist.draw(rng, count or 1)
+            values[axis.key] = drawn if count is not None else drawn[0]
+        return values
+
+    def planned(
+        index: int, chosen: dict[str, Any], drawn: dict[str, Any], key: Any
+    ) -> PlannedMission:
+        every = {**chosen, **drawn}
+        digest = hashlib.sha256(prefix + repr(key).encode()).hexdigest()[:16]
+        return PlannedMission(index, digest, tuple(every[a.key] for a in spec.axes))
+
+    if spec.sample is None and paired_last:
+        yield from _paired_last(spec, discrete, draws, planned)
+        return
+    if spec.sample is None:
+        unpaired_at = [i for i, a in enumerate(discrete) if not a.paired]
+        for index, combo in enumerate(_lazy_product([a.values or () for a in discrete])):
+            chosen: dict[str, Any] = {a.key: v for a, v in zip(discrete, combo, strict=True)}
+            drawn = {}
+            if spec.drawn:
+                drawn = draws(draw_seed(spec.seed, [combo[i] for i in unpaired_at]))
+            yield planned(index, chosen, drawn, combo)
+        return
+    paired_combos = list(_lazy_product([a.values or () for a in paired]))
+    for replica in range(spec.sample):
+        chosen = {}
+        if unpaired:  # a Generator costs ~30 us: only made when there is something to pick
+            picks = np.random.default_rng([spec.seed, replica])
+            chosen = {
+                a.key: (a.values or ())[int(picks.integers(len(a.values or ())))] for a in unpaired
+            }
+        drawn = draws(np.random.default_rng([spec.seed, replica, 1])) if spec.drawn else {}
+        for p, combo in enumerate(paired_combos):
+            both = {**chosen, **{a.key: v for a, v in zip(paired, combo, strict=True)}}
+            key = (replica, tuple(both[a.key] for a in discrete))
+            yield planned(replica * len(paired_combos) + p, both, drawn, key)
 
 
-def _column(key: str, index: int) -> str:
-    return key.replace("[*]", f"[{index}]", 1)
-
-
-def _resolve(
+def _paired_last(
     spec: SweepSpec,
-    base: dict[str, Any],
-    chosen: dict[str, Any],
-    rng: np.random.Generator,
-    replica: int | None,
-    index: int,
-) -> SweepMission:
-    data = base
-    params: dict[str, Any] = {}
-    values = dict(chosen)
-    for axis in spec.drawn:
-        assert axis.dist is not None
-        count = _stars(axis.path, base)
-        drawn = axis.dist.draw(rng, count or 1)
-        values[axis.key] = drawn if count is not None else drawn[0]
-    for axis in spec.axes:
-        value = values[axis.key]
-        count = _stars(axis.path, base)
-        if count is not None and axis.values is not None:
-            value = [value] * count
-        data = _assign(data, axis.path, value, spec.source, axis.key)
-        if count is None:
-            params[axis.key] = value
-        else:
-            params.update({_column(axis.key, i): v for i, v in enumerate(value)})
-    data = _place_sensors(data)
-    identity = {"scenario": data} if replica is None else {"scenario": data, "sample": replica}
-    mission_id = hashlib.sha256(_canonical(identity).encode()).hexdigest()[:16]
-    return SweepMission(index, mission_id, params, data)
+    discrete: Sequence[Axis],
+    draws: Callable[[np.random.Generator], dict[str, Any]],
+    planned: Callable[[int, dict[str, Any], dict[str, Any], Any], PlannedMission],
+) -> Iterator[PlannedMission]:
+    """Product mode, paired axes innermost: draws once per combination of the others."""
+    sizes = [len(a.values or ()) for a in discrete]
+    strides = [math.prod(sizes[i + 1 :]) for i in range(len(sizes))]
+    outer = [i for i, a in enumerate(discrete) if not a.paired]
+    inner = [i for i, a in enumerate(discrete) if a.paired]
+    inner_digits = list(_lazy_product([range(sizes[i]) for i in inner]))
+    for digits in _lazy_product([range(sizes[i]) for i in outer]):
+        combo: list[Any] = [None] * len(discrete)
+        start = 0
+        for i, d in zip(outer, digits, strict=True):
+            combo[i] = (discrete[i].values or ())[d]
+            start += d * strides[i]
+        drawn = draws(draw_seed(spec.seed, [combo[i] for i in outer])) if spec.drawn else {}
+        for paired_digits in inner_digits:
+            index = start
+            for i, d in zip(inner, paired_digits, strict=True):
+                combo[i] = (discrete[i].values or ())[d]
+                index += d * strides[i]
+            chosen = {a.key: v for a, v in zip(discrete, combo, strict=True)}
+            yield planned(index, chosen, drawn, tuple(combo))
 
 
 def iter_missions(spec: SweepSpec) -> Iterator[SweepMission]:
-    """Every mission of the sweep, in a fixed order (lazily: memory does not grow with it)."""
-    base = _base_dict(spec.base)
-    paired = [a for a in spec.discrete if a.paired]
-    unpaired = [a for a in spec.discrete if not a.paired]
-    paired_combos = list(itertools.product(*(a.values or () for a in paired)))
-    if spec.sample is None:
-        combos = itertools.product(*(a.values or () for a in spec.discrete))
-        for index, combo in enumerate(combos):
-            chosen = {a.key: v for a, v in zip(spec.discrete, combo, strict=True)}
-            key = [chosen[a.key] for a in unpaired]
-            yield _resolve(spec, base, chosen, _draw_seed(spec.seed, key), None, index)
-        return
-    for replica in range(spec.sample):
-        picks = np.random.default_rng([spec.seed, replica])
-        chosen = {
-            a.key: (a.values or ())[int(picks.integers(len(a.values or ())))] for a in unpaired
-        }
-        for p, combo in enumerate(paired_combos):
-            both = {**chosen, **{a.key: v for a, v in zip(paired, combo, strict=True)}}
-            rng = np.random.default_rng([spec.seed, replica, 1])
-            index = replica * len(paired_combos) + p
-            yield _resolve(spec, base, both, rng, replica, index)
+    """Every mission of the sweep, resolved, in a fixed order (lazily)."""
+    resolve = expansion(spec)
+    for mission in plan_missions(spec):
+        yield SweepMission(
+            mission.index,
+            mission.mission_id,
+            resolve.params(mission.values),
+            resolve.scenario(mission.values),
+        )
 
 
 def validate_mission(spec: SweepSpec, mission: SweepMission) -> Scenario:
@@ -505,7 +500,7 @@ def _check_axes(spec: SweepSpec) -> None:
     """Each axis alone, on the base: names the axis when a field is unknown or a value bad."""
     from skymule.policies import POLICIES, unknown_policies
 
-    base = _base_dict(spec.base)
+    base = base_dict(spec.base)
     for axis in spec.axes:
         if axis.key == "policy.name":
             unknown = unknown_policies([str(v) for v in axis.values or ()])
@@ -515,15 +510,17 @@ def _check_axes(spec: SweepSpec) -> None:
                     f"axes.policy.name value {unknown[0]!r} is not a policy; "
                     f"allowed: {', '.join(sorted(POLICIES))}",
                 )
-        count = _stars(axis.path, base)
-        candidates = (
-            list(axis.values) if axis.values is not None else [None]
-        )  # distributions: checked on their draws
+        count = stars(axis.path, base)
+        candidates: Iterable[Any] = [None]  # distributions: checked on their draws
+        if isinstance(axis.values, range):
+            candidates = {axis.values[0], axis.values[-1]}  # integers: the extremes suffice
+        elif axis.values is not None:
+            candidates = axis.values
         for value in candidates:
             if axis.dist is not None:
                 value = axis.dist.draw(np.random.default_rng(0), count or 1)
                 value = value if count is not None else value[0]
             elif count is not None:
                 value = [value] * count
-            data = _place_sensors(_assign(base, axis.path, value, spec.source, axis.key))
+            data = place_sensors(assign(base, axis.path, value, spec.source, axis.key))
             scenario_from_dict(data, f"{spec.source}: axes.{axis.key}", Path(spec.base.base_dir))

@@ -160,7 +160,7 @@ def test_sweep_folder_remembers_its_sweep_file(tmp_path: Path) -> None:
     again = run_cli("sweep", sweep, *args, check=True)
     assert "ran 0 of 4" in again.stdout  # resumed: nothing left to run
     sweep.write_text(SWEEP.format(n=3))
-    one_line_error(run_cli("sweep", sweep, *args), "different sweep file")
+    one_line_error(run_cli("sweep", sweep, *args), "holds the sweep")
     one_line_error(run_cli("sweep", sweep, *args, "--set", "mission.duration_s=100"))
     run_cli("sweep", sweep, *args, "--force", check=True)
     one_line_error(run_cli("run", "paper-sim-fixed", "--out", out), "a sweep")

@@ -2,22 +2,24 @@
 
 A non-empty ``--out`` is written to only when it already holds the same thing (a run of the
 same policy and scenario, a comparison of the same scenario and policies, a bound of the
-same scenario, a sweep of the same sweep file); anything else is one line and exit 2 unless
-``--force``. A sweep folder remembers its sweep file's SHA-256 (``sweep-source.json``).
+same scenario, a sweep); anything else is one line and exit 2 unless ``--force``. Which
+sweep a sweep folder holds is the store's business (``sweep.json``, see
+:mod:`skymule.experiments.store`): it refuses another sweep file, in one line.
 """
 
 from __future__ import annotations
 
 import csv
-import hashlib
 import json
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from skymule.errors import SkymuleError
 
-SWEEP_MARKER = "sweep-source.json"
+SWEEP_FILES = ("sweep.json", "results", "results.parquet", "summary.csv", ".lock")
+"""What a sweep folder holds (``skymule.experiments.store``)."""
 
 
 @dataclass(frozen=True)
@@ -27,7 +29,6 @@ class Holds:
     kind: str  # "empty", "run", "compare", "bound", "sweep" or "other"
     scenario: str | None = None
     policies: tuple[str, ...] = ()
-    sweep_sha256: str | None = None
 
     def describe(self) -> str:
         if self.kind == "run":
@@ -37,7 +38,7 @@ class Holds:
         if self.kind == "bound":
             return f"the bound of scenario {self.scenario!r}"
         if self.kind == "sweep":
-            return "a sweep of another sweep file" if self.sweep_sha256 else "a sweep"
+            return "a sweep"
         return "other files"
 
 
@@ -66,9 +67,8 @@ def inspect_folder(out: Path) -> Holds:
         return Holds("empty")
     if not out.is_dir():
         return Holds("other")
-    if (out / SWEEP_MARKER).exists() or (out / "results.parquet").exists():
-        marker = _read_json(out / SWEEP_MARKER)
-        return Holds("sweep", sweep_sha256=marker.get("sha256"))
+    if any((out / name).exists() for name in SWEEP_FILES):
+        return Holds("sweep")
     if (out / "comparison.csv").exists():
         scenario, policies = _comparison(out / "comparison.csv")
         return Holds("compare", scenario, policies)
@@ -120,24 +120,23 @@ def guard_bound(out: Path, scenario: str, force: bool) -> None:
     raise _refuse(out, holds, f"the bound of scenario {scenario!r}")
 
 
-def sweep_fingerprint(sweep_file: Path, overrides: list[str]) -> str:
-    """SHA-256 of the sweep file's bytes and the ``--set`` overrides applied to its base."""
-    digest = hashlib.sha256(sweep_file.read_bytes())
-    for override in overrides:
-        digest.update(b"\0" + override.encode())
-    return digest.hexdigest()
+def guard_sweep(out: Path, sweep_file: Path, force: bool) -> None:
+    """Refuse a folder that holds anything but a sweep; with ``--force``, clear it first.
 
-
-def guard_sweep(out: Path, sweep_file: Path, sha256: str, force: bool) -> None:
-    """Refuse a folder of another sweep (or anything else); remember this sweep's hash."""
+    A sweep folder of another sweep file is refused by the store itself (its ``sweep.json``),
+    unless ``--force`` cleared it here.
+    """
     holds = inspect_folder(out)
-    if not force and holds.kind not in ("empty", "sweep"):
-        raise _refuse(out, holds, f"a sweep of {sweep_file}")
-    if not force and holds.kind == "sweep" and holds.sweep_sha256 not in (None, sha256):
-        raise SkymuleError(
-            f"--out {out}: holds the results of a different sweep file (or --set); "
-            "resume it with the sweep it was made with, choose another folder, or add --force"
-        )
-    out.mkdir(parents=True, exist_ok=True)
-    record = {"sweep_file": str(sweep_file), "sha256": sha256}
-    (out / SWEEP_MARKER).write_text(json.dumps(record, indent=2) + "\n")
+    if holds.kind == "empty":
+        return
+    if not force:
+        if holds.kind != "sweep":
+            raise _refuse(out, holds, f"a sweep of {sweep_file}")
+        return
+    if holds.kind == "sweep":
+        for name in SWEEP_FILES:
+            path = out / name
+            if path.is_dir():
+                shutil.rmtree(path)
+            elif path.exists():
+                path.unlink()

@@ -280,14 +280,13 @@ def sweep(
     force: ForceOption = False,
 ) -> None:
     """Run many missions (resumable); results.parquet and summary.csv in --out."""
-    from skymule.cli.folders import sweep_fingerprint
     from skymule.experiments.run import run_sweep
     from skymule.experiments.sweep import load_sweep
 
     spec = load_sweep(sweep_file)
     if overrides:
         spec = _sweep_with_overrides(spec, overrides)
-    guard_sweep(out, sweep_file, sweep_fingerprint(sweep_file, overrides or []), force)
+    guard_sweep(out, sweep_file, force)
     try:
         outcome = run_sweep(
             spec,
@@ -324,6 +323,7 @@ def sweep(
 
 def _sweep_with_overrides(spec: Any, overrides: list[str]) -> Any:
     """The sweep with ``--set`` applied to its base scenario (validated like a file)."""
+    import hashlib
     from dataclasses import replace
 
     from skymule.overrides import apply_override
@@ -333,7 +333,9 @@ def _sweep_with_overrides(spec: Any, overrides: list[str]) -> Any:
     for override in overrides:
         data = apply_override(data, override)
     base = scenario_from_dict(data, f"{spec.source} (--set)", Path(spec.base.base_dir))
-    return replace(spec, base=base)
+    # the folder's sweep identity covers the overrides: resuming needs the same --set
+    digest = hashlib.sha256("\0".join([spec.digest, *overrides]).encode()).hexdigest()
+    return replace(spec, base=base, digest=digest)
 
 
 def _sweep_interrupted(out: Path, spec: Any, again: list[str]) -> None:

@@ -96,8 +96,12 @@ def run(
     policy: Annotated[str | None, typer.Option("--policy", help="Override the policy.")] = None,
 ) -> None:
     """Run one mission and print its summary."""
+    from skymule.fleet_cli import fleet_scenario, run_fleet_command
     from skymule.runner import simulate
     from skymule.scenario import load_scenario
+
+    if (fleet := fleet_scenario(scenario)) is not None:
+        return run_fleet_command(fleet, policy, out, console)
 
     result = simulate(load_scenario(scenario), policy)
     if out is not None:
@@ -127,12 +131,16 @@ def compare(
     """Run one scenario under several policies on identical signal draws."""
     import pandas as pd
 
+    from skymule.fleet_cli import check_policy_names, compare_fleet_command, fleet_scenario
     from skymule.policies import POLICIES, unknown_policies
     from skymule.runner import simulate
     from skymule.scenario import load_scenario
     from skymule.world import build_mission
 
     names = [p.strip() for p in policies.split(",") if p.strip()]
+    if sources is None and (fleet := fleet_scenario(scenario)) is not None:
+        check_policy_names(names, policies)
+        return compare_fleet_command(fleet, names, out, console)
     unknown = unknown_policies(names)
     if not names or unknown:
         raise SkymuleError(

@@ -180,6 +180,11 @@ class FleetFlight:
         """True once every slot has run."""
         return all(flight.done for flight in self.flights)
 
+    @property
+    def last_lost(self) -> np.ndarray:
+        """(K,) True where a UAV lost its chosen sensor to another in the last slot run."""
+        return self._lost[-1] if self._lost else np.zeros(len(self.flights), bool)
+
     def observe(self) -> tuple[Observation, ...]:
         """What every UAV sees at the start of the current slot."""
         return tuple(flight.observe() for flight in self.flights)

@@ -185,6 +185,14 @@ def test_fixed_fleet_runs_each_path(tmp_path: Path) -> None:
     summary = json.loads((tmp_path / "summary.json").read_text())
     parts = sum(u["total_downloaded_mbit"] for u in summary["uavs"])
     assert summary["total_downloaded_mbit"] == pytest.approx(parts)
+    # the run folder reads back and draws one trajectory figure for the fleet
+    from skymule.io.runs import read_run
+    from skymule.report.figures import plot_run
+
+    read_summary, slots = read_run(tmp_path)
+    assert sorted(set(slots["uav"])) == ["A", "B"]
+    (figure,) = plot_run(tmp_path, read_summary, slots)
+    assert figure.name == "trajectory.png" and figure.stat().st_size > 0
 
 
 def _write(tmp_path: Path, extra: str) -> Path:

@@ -87,6 +87,9 @@ def fleet_summary(fleet: Fleet, log: FleetLog, policy: str) -> dict[str, Any]:
         "per_sensor_downloaded_mbit": dict(
             zip(mission.sensor_names, (by_sensor / BITS_PER_MBIT).tolist(), strict=True)
         ),
+        "per_sensor_buffer_mbit": dict(
+            zip(mission.sensor_names, (mission.buffers_bit / BITS_PER_MBIT).tolist(), strict=True)
+        ),
         "completion": float(downloaded / total_buffer) if total_buffer > 0 else 1.0,
         "lost_slots": int(log.lost.sum()),
         "distance_m": float(sum(u["distance_m"] for u in per_uav)),

@@ -76,9 +76,9 @@ def main(argv: list[str] | None = None) -> np.ndarray:
     parser.add_argument("--uavs", type=int, default=2)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seed", type=int, default=SEED)
-    parser.add_argument("--tiny", action="store_true", help="3 small missions (smoke test)")
+    parser.add_argument("--tiny", action="store_true", help="<= 3 small missions (smoke test)")
     args = parser.parse_args(argv)
-    missions, ranges = (3, TINY) if args.tiny else (args.missions, RANGES)
+    missions, ranges = (min(args.missions, 3), TINY) if args.tiny else (args.missions, RANGES)
 
     base = load_scenario(PRESET)
     rng = np.random.default_rng(args.seed)

@@ -11,8 +11,8 @@ import pytest
 from conftest import run_cli
 from skymule.bounds.fleet import fleet_bound, fleet_time_sharing_lp
 from skymule.errors import ScenarioError, SkymuleError
-from skymule.flight.paths import Track
 from skymule.fleet_runner import make_fleet_policy, run_fleet, simulate_fleet
+from skymule.flight.paths import Track
 from skymule.policies.base import Action, MissionContext, Observation
 from skymule.policies.fleet import Independent, partition
 from skymule.runner import simulate
@@ -247,3 +247,19 @@ def test_fixed_fleet_needs_waypoints_per_uav() -> None:
     scenario = base.model_copy(update={"uavs": [UavSpec(name="A")]})
     with pytest.raises(ScenarioError, match=r"uavs\[0\] \(A\): waypoints is required"):
         build_fleet(scenario)
+
+
+def test_bench_fleet_tiny_mode_runs_and_respects_the_bound(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_fleet.py"
+    spec = importlib.util.spec_from_file_location("bench_fleet", path)
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    table = bench.main(["--tiny", "--missions", "2"])
+    assert table.shape == (2, 2 + len(bench.POLICIES))
+    assert np.all(table[:, 1:-1] <= table[:, [-1]] + 1e-6)  # every policy under the bound
+    assert "coordinated - independent hgad" in capsys.readouterr().out

@@ -108,12 +108,9 @@ def fleet_slots_frame(fleet: Fleet, log: FleetLog) -> pd.DataFrame:
         frame = slots_frame(uav_log, fleet.missions[index].frame)
         chosen = log.chosen[:, index]
         frame.insert(0, "uav", name)
-        frame.insert(
-            frame.columns.get_loc("served") + 1,
-            "chosen",
-            names[np.where(chosen < 0, n_sensors, chosen)],
-        )
-        frame.insert(frame.columns.get_loc("chosen") + 1, "lost", log.lost[:, index].astype(int))
+        after_served = list(frame.columns).index("served") + 1
+        frame.insert(after_served, "chosen", names[np.where(chosen < 0, n_sensors, chosen)])
+        frame.insert(after_served + 1, "lost", log.lost[:, index].astype(int))
         frames.append(frame)
     return pd.concat(frames, ignore_index=True)
 

@@ -207,9 +207,8 @@ def _write(tmp_path: Path, extra: str) -> Path:
 
 
 def test_cli_run_and_compare_on_a_fleet(tmp_path: Path) -> None:
-    scenario = _write(
-        tmp_path, '\n[[uavs]]\nname = "A"\n\n[[uavs]]\nname = "B"\nhome = [-200, -100]\n'
-    )
+    # the command of docs/fleet.md, on its example
+    scenario = Path(__file__).resolve().parents[1] / "examples" / "fleet-lake-wheeler.toml"
     out = tmp_path / "c"
     result = run_cli("compare", scenario, "--policies", "hgad,coordinated", "--out", out)
     assert result.returncode == 0, result.stderr

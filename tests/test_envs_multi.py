@@ -58,3 +58,15 @@ def test_action_out_of_range_is_one_clear_error() -> None:
     env.reset()
     with pytest.raises(SkymuleError, match=r"action for UAV 'B' = .*allowed: \[sensor 0..4"):
         env.step({"A": np.array([0, 0]), "B": np.array([9, 0])})
+
+
+def test_docs_example_runs_as_written() -> None:
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    text = (root / "docs" / "fleet.md").read_text()
+    (block,) = [b for b in re.findall(r"```python\n(.*?)```", text, flags=re.S) if "env" in b]
+    namespace: dict[str, object] = {}
+    exec(compile(block.replace("examples/", f"{root}/examples/"), "fleet.md", "exec"), namespace)
+    assert namespace["env"].agents == []  # type: ignore[attr-defined]

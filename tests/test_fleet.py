@@ -179,6 +179,10 @@ def test_fixed_fleet_runs_each_path(tmp_path: Path) -> None:
     assert isinstance(path, list)
     uavs = [UavSpec(name="A", waypoints=path), UavSpec(name="B", waypoints=path[::-1])]
     result = simulate_fleet(base.model_copy(update={"uavs": uavs}), "hgad")
+    # the K-UAV bound on fixed paths holds
+    assert (
+        result.summary["total_downloaded_mbit"] * MBIT <= fleet_bound(result.fleet).upper_bound_bit
+    )
     start_b = result.log.logs[1].position_m[0]
     assert np.allclose(start_b, path[-1])
     result.write(tmp_path)
@@ -262,3 +266,9 @@ def test_bench_fleet_tiny_mode_runs_and_respects_the_bound(
     assert table.shape == (2, 2 + len(bench.POLICIES))
     assert np.all(table[:, 1:-1] <= table[:, [-1]] + 1e-6)  # every policy under the bound
     assert "coordinated - independent hgad" in capsys.readouterr().out
+
+
+def test_single_uav_entry_points_refuse_a_fleet_scenario() -> None:
+    scenario = _two_uav_scenario()
+    with pytest.raises(ScenarioError, match=r"has \[\[uavs\]\] \(several UAVs\)"):
+        simulate(scenario, "hgad")

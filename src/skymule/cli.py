@@ -270,7 +270,14 @@ def bound(
     from skymule.scenario import load_scenario
     from skymule.world import build_mission
 
-    upper = mission_bound(build_mission(load_scenario(scenario)))
+    base = load_scenario(scenario)
+    if base.uavs:  # several UAVs: the K-UAV bound (docs/fleet.md)
+        from skymule.bounds.fleet import fleet_bound
+        from skymule.sim.fleet import build_fleet
+
+        upper = fleet_bound(build_fleet(base))
+    else:
+        upper = mission_bound(build_mission(base))
     record = upper.to_json_dict()
     rows = [{"quantity": k, "value": v} for k, v in record.items() if v is not None]
     console.print(_table(f"{record['scenario']}: upper bound", rows, ("quantity", "value")))

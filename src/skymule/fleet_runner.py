@@ -43,8 +43,8 @@ def make_fleet_policy(fleet: Fleet, name: str | None = None) -> FleetPolicy:
     ]
     if any(spec.name == COORDINATED for spec in specs):
         raise SkymuleError(
-            "policy.name = 'coordinated' decides for the whole fleet: give it in the scenario's "
-            "[policy], not in one UAV's [uavs.policy]"
+            "policy.name = 'coordinated' decides for the whole fleet: set it in the scenario's "
+            "[policy] (or --policy coordinated) with no other policy in any [uavs.policy]"
         )
     return Independent([make_policy(spec) for spec in specs])
 

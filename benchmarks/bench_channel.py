@@ -13,7 +13,8 @@ import numpy as np
 
 from skymule.geo import LocalFrame
 from skymule.radio.channel import signal_source
-from skymule.radio.radiomap import RadioMap, SensorSamples, fit_sensor_map, krige_dense
+from skymule.radio.kriging import krige_dense
+from skymule.radio.radiomap import RadioMap, SensorSamples, fit_sensor_map
 from skymule.radio.sources import PATHLOSS_BUILDERS
 from skymule.scenario import load_scenario
 

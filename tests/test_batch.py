@@ -46,14 +46,19 @@ def random_mission(base, rng: np.random.Generator, n_sensors: int):
     buffers = rng.choice([0.0, 1e5, 1e6, 3e6, 2e7], size=n_sensors) * rng.random(n_sensors)
     buffers[rng.random(n_sensors) < 0.3] = rng.choice([0.0, 1.4e6 * 2.41, 2.1e6])
     names = tuple(f"S{i}" for i in range(n_sensors))
+    n_slots = int(rng.integers(1, 60))
+    slot_s = float(rng.choice([1.0, 0.5, 2.0]))
+    # the AADM download window closing mid-mission (and mid-slot) in some missions
+    window_s = float(rng.uniform(0, n_slots + 1)) * slot_s if rng.random() < 0.3 else None
     return replace(
         base,
         sensor_names=names,
         sensor_m=np.zeros((n_sensors, 3)),
         buffers_bit=buffers,
-        n_slots=int(rng.integers(1, 60)),
-        slot_s=float(rng.choice([1.0, 0.5, 2.0])),
+        n_slots=n_slots,
+        slot_s=slot_s,
         track=track,
+        aadm_window_s=window_s,
     )
 
 

@@ -148,7 +148,7 @@ def test_coordinated_beats_independent_hgad_and_both_respect_the_k_uav_bound() -
     hgad = simulate_fleet(scenario, "hgad", fleet=fleet).summary
     coordinated = simulate_fleet(scenario, "coordinated", fleet=fleet).summary
     assert coordinated["total_downloaded_mbit"] > hgad["total_downloaded_mbit"]
-    assert all(uav["landed_at_home"] for uav in coordinated["uavs"])
+    assert all(uav["landed_within_5m"] for uav in coordinated["uavs"])
     owner = partition([mission_context(m) for m in fleet.missions])
     assert set(owner.tolist()) == {0, 1}  # both UAVs get sensors
     assert make_fleet_policy(fleet, "coordinated").name == "coordinated"

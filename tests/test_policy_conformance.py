@@ -205,3 +205,33 @@ def test_policies_cannot_write_into_the_engine(preset: str, missions: dict[str, 
     if mission.track is not None:
         with pytest.raises(ValueError):
             mission.track.position_m[0] = 0.0
+
+
+def _out_of_reach(preset: str) -> Mission:
+    """The preset with every sensor ~100 km away: every rate is 0 everywhere it can fly."""
+    scenario = load_scenario(preset)
+    far = [
+        sensor.model_copy(
+            update={"lat": None, "lon": None, "x_m": 100_000.0 + 50 * i, "y_m": 100_000.0}
+        )
+        for i, sensor in enumerate(scenario.sensors)
+    ]
+    return build_mission(scenario.model_copy(update={"sensors": far}))
+
+
+@pytest.mark.parametrize("policy_name", sorted(POLICIES))
+@pytest.mark.parametrize("preset", PRESETS)
+def test_every_policy_serves_nothing_and_ends_when_no_rate_is_usable(
+    policy_name: str, preset: str
+) -> None:
+    mission = _out_of_reach(preset)
+    spec = mission.scenario.policy.model_copy(update={"name": policy_name})
+    try:
+        log = run_mission(mission, make_policy(spec))
+    except SkymuleError as exc:  # a mode the policy does not support: one line
+        assert "\n" not in str(exc)
+        return
+    assert not log.rate_bps.any()
+    assert (log.served == NO_SENSOR).all()
+    assert not log.downloaded_bit.any()
+    assert_slot_contract(mission, log)

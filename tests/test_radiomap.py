@@ -11,19 +11,18 @@ import pytest
 from conftest import run_cli
 from skymule.geo import LocalFrame
 from skymule.io.traces import write_dt_export
-from skymule.radio import radiomap
-from skymule.radio.radiomap import (
+from skymule.radio import kriging
+from skymule.radio.kriging import (
     Variogram,
     far_kernel,
-    fit_radiomap,
     krige,
     krige_dense,
     krige_split,
     kriging_weights,
     near_kernel,
-    read_radiomap,
     split_error_bound_db,
 )
+from skymule.radio.radiomap import fit_radiomap, read_radiomap
 from skymule.radio.shadowing import shadowing_field
 from skymule.radio.sources import model_source
 from skymule.scenario import RadioSpec
@@ -155,7 +154,7 @@ def _synthetic_map() -> tuple[np.ndarray, np.ndarray, Variogram]:
 
 def test_kernel_split_is_exact_and_smooth() -> None:
     u = np.linspace(0.0, 10.0, 2001)
-    near = radiomap.SPLIT_NEAR_RANGES
+    near = kriging.SPLIT_NEAR_RANGES
     assert np.allclose(near_kernel(u, near) + far_kernel(u, near), np.exp(-u), atol=1e-15)
     assert np.all(near_kernel(u[u >= near], near) == 0.0)
     # the far part is C^1 across the split radius (no kink for the spline to smear)
@@ -176,7 +175,7 @@ def test_bulk_query_matches_dense_reference() -> None:
     flat = np.column_stack([rng.uniform(-600, 600, n), rng.uniform(-500, 450, n), np.full(n, 30.0)])
     assert krige_split(flat, train, weights, vario) is not None  # the fast path is taken
     dense = krige_dense(flat, train, weights, vario)
-    assert np.abs(krige(flat, train, weights, vario) - dense).max() < radiomap.SPLIT_TOLERANCE_DB
+    assert np.abs(krige(flat, train, weights, vario) - dense).max() < kriging.SPLIT_TOLERANCE_DB
     # varying heights, exactly on samples, and far away (beyond SPLIT_FAR_RANGES * L)
     m = 2 * n  # a 3-D grid needs more queries to pay off (P >= 4 x grid nodes)
     mixed = np.vstack(
@@ -187,7 +186,7 @@ def test_bulk_query_matches_dense_reference() -> None:
     fast = krige_split(mixed, train, weights, vario)
     assert fast is not None
     error = np.abs(fast - krige_dense(mixed, train, weights, vario))
-    assert error[:-2].max() < radiomap.SPLIT_TOLERANCE_DB
+    assert error[:-2].max() < kriging.SPLIT_TOLERANCE_DB
     assert error[-2:].max() <= split_error_bound_db(weights, vario) < 1e-4
     # small query sets take the dense path unchanged
     few = flat[:10]

@@ -129,7 +129,7 @@ def test_hover_segments_and_score_read_from_files(compare_dir: Path) -> None:
     assert score.completed_at_s is not None  # HGAD empties both buffers on this path
     left = run.slots[["remaining_mbit_LW1", "remaining_mbit_LW3"]].sum(axis=1).to_numpy()
     assert left[int(score.completed_at_s) - 1] == 0.0 < left[int(score.completed_at_s) - 2]
-    assert score.time_bonus == pytest.approx(600.0 - score.completed_at_s)
+    assert score.time_bonus == pytest.approx(500.0 - score.completed_at_s)  # AADM rule in force
     end = run.slots[["x_m", "y_m"]].to_numpy()[-1]
     assert score.end_distance_m == pytest.approx(
         run.summary.get("distance_to_home_m", np.hypot(*end)), abs=0.5
@@ -141,12 +141,19 @@ def test_hover_segments_and_score_read_from_files(compare_dir: Path) -> None:
 def test_score_time_bonus_when_everything_downloaded(tmp_path: Path, compare_dir: Path) -> None:
     run_dir = tmp_path / "done"
     shutil.copytree(compare_dir / "greedy", run_dir)
+    # a run folder without the score's parts: they are computed from slots.csv's downloads
+    summary = json.loads((run_dir / "summary.json").read_text())
+    for key in ("aadm_s1", "aadm_s2", "aadm_t1_s", "aadm_complete"):
+        summary.pop(key)
+    (run_dir / "summary.json").write_text(json.dumps(summary))
     slots = pd.read_csv(run_dir / "slots.csv")
-    slots.loc[slots.index >= 9, ["remaining_mbit_LW1", "remaining_mbit_LW3"]] = 0.0
+    before = slots.loc[slots.index < 9, "downloaded_mbit"].sum()
+    slots.loc[9, "downloaded_mbit"] = summary["total_buffer_mbit"] - before  # all by slot 9
+    slots.loc[slots.index > 9, "downloaded_mbit"] = 0.0
     slots.to_csv(run_dir / "slots.csv", index=False)
     score = score_breakdown(load_run(run_dir))
     assert score.completed_at_s == 10.0  # end of slot 9
-    assert score.time_bonus == pytest.approx(590.0)
+    assert score.time_bonus == pytest.approx(490.0)  # 500 - t1
 
 
 def test_not_a_run_folder_is_one_line_error(tmp_path: Path) -> None:

@@ -205,3 +205,17 @@ def test_policies_keep_no_state_between_missions() -> None:
     second = run_fixed(mission, policy)
     np.testing.assert_array_equal(first.served, second.served)
     np.testing.assert_array_equal(first.downloaded_bit, second.downloaded_bit)
+
+
+@pytest.mark.parametrize("preset", ["paper-sim-fixed", "paper-sim-autonomous"])
+def test_the_download_window_closes_like_the_aadm_controller(preset: str) -> None:
+    """``aadm_window_s``: slots that start at or after the window serve nothing."""
+    scenario = load_scenario(preset)
+    closed = scenario.model_copy(
+        update={"mission": scenario.mission.model_copy(update={"aadm_window_s": 100.5})}
+    )
+    open_log = simulate(scenario, "hgad").log
+    log = simulate(closed, "hgad").log
+    assert (log.served[101:] == NO_SENSOR).all() and not log.downloaded_bit[101:].any()
+    np.testing.assert_array_equal(log.downloaded_bit[:101], open_log.downloaded_bit[:101])
+    assert log.downloaded_bit.sum() < open_log.downloaded_bit.sum()

@@ -26,18 +26,29 @@ Download log format (CSV, header required, column names case-insensitive)::
 
 Several rows in one slot from the same tower add up; two towers in one slot is an error
 (one tower a slot, as in the challenge). Downloads beyond a tower's buffer are clipped.
+
+The AADM controller's own download log (``time,dl_lw1,...,dl_lwN``, cumulative Mbit per tower,
+one row a poll; :mod:`skymule.aadm.files`) is read too, detected from its header: row k is
+the k-th poll after the volumes were shared, i.e. trace slot (first row's slot) + k; rows
+past the end of the merged log are left out of the flight run.
+
+Scores (:mod:`skymule.aadm.score`, the rule in force): the flight is scored from its download
+log as the controller did (t1 from the log's first row); each replayed policy from the slot
+in which the recorded flight first climbed above 24 m.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
+from skymule.aadm import files as aadm_files
+from skymule.aadm.score import aadm_score_one, share_slot_from_altitude
 from skymule.errors import SkymuleError
 from skymule.geo import load_site
 from skymule.io.runs import slots_frame, write_run
@@ -214,6 +225,49 @@ def read_download_log(
     return DownloadLog(served=served, downloaded_bit=got)
 
 
+@dataclass(frozen=True)
+class ScoredDownloads:
+    """A download log mapped onto the trace's slots, with the flight's AADM score parts."""
+
+    downloads: DownloadLog
+    score: dict[str, float | bool]
+
+
+def read_aadm_download_log(
+    path: Path, log_path: Path, mission: Mission, share_slot: int
+) -> ScoredDownloads:
+    """The controller's ``time,dl_lw1,...`` log: one row a poll, scored as the controller did.
+
+    Row k lands in trace slot s0 + k, s0 the slot of the first row's timestamp in the merged
+    log (``share_slot`` for a log without timestamps).
+    """
+    log = aadm_files.read_download_log(path)
+    names = mission.sensor_names
+    if len(log.towers) != len(names):
+        raise SkymuleError(
+            f"{path}: {len(log.towers)} tower columns for the {len(names)} SNR columns "
+            f"({', '.join(names)}) of {log_path.name}"
+        )
+    steps_bit = np.diff(log.cumulative_mbit, axis=0, prepend=0.0) * BITS_PER_MBIT
+    start = _log_start(log_path)
+    first = share_slot
+    if start is not None:
+        first = math.floor((pd.Timestamp(log.start) - start).total_seconds() / mission.slot_s)
+    if not 0 <= first < mission.n_slots:
+        raise SkymuleError(
+            f"{path}: the first row ({log.start}) is outside the flight in {log_path.name}"
+        )
+    served = np.full(mission.n_slots, NO_SENSOR, dtype=int)
+    got = np.zeros(mission.n_slots)
+    rows = min(len(steps_bit), mission.n_slots - first)
+    per_row = steps_bit[:rows]
+    active = per_row.sum(axis=1) > 0
+    served[first : first + rows] = np.where(active, per_row.argmax(axis=1), NO_SENSOR)
+    got[first : first + rows] = per_row.sum(axis=1)
+    score = aadm_score_one(steps_bit.sum(axis=1), float(mission.buffers_bit.sum()), 1.0)
+    return ScoredDownloads(DownloadLog(served=served, downloaded_bit=got), score)
+
+
 def flight_log(mission: Mission, downloads: DownloadLog) -> MissionLog:
     """A MissionLog of what the flight really did (positions/SNR from the trace)."""
     assert mission.track is not None
@@ -278,17 +332,31 @@ def analyze_flight(
     trace = read_trace(log_path)
     scenario = analysis_scenario(trace, log_path, resolve_buffers(trace, volumes, buffers))
     mission = build_mission(scenario)
+    assert mission.track is not None
+    share = share_slot_from_altitude(mission.track.position_m[: mission.n_slots, 2])
+    total_bit = float(mission.buffers_bit.sum())
     rows = []
     for name in policies:
         result = simulate(scenario, name, mission=mission)
+        parts = aadm_score_one(
+            result.log.downloaded_bit, total_bit, mission.slot_s, share_slot=share
+        )
+        result = replace(result, summary={**result.summary, **parts})
         result.write(out_dir / name)
         rows.append(comparison_row(result.summary))
     if download_log is not None:
-        downloads = read_download_log(
-            download_log, log_path, mission.sensor_names, mission.n_slots, mission.slot_s
-        )
+        if aadm_files.is_aadm_download_log(download_log):
+            scored = read_aadm_download_log(download_log, log_path, mission, share)
+            downloads, parts = scored.downloads, scored.score
+        else:
+            downloads = read_download_log(
+                download_log, log_path, mission.sensor_names, mission.n_slots, mission.slot_s
+            )
+            parts = {}
         log = flight_log(mission, downloads)
-        summary = summarize(log, scenario.name)
+        if not parts:
+            parts = aadm_score_one(log.downloaded_bit, total_bit, mission.slot_s, share_slot=share)
+        summary = {**summarize(log, scenario.name), **parts}
         scenario_dict = scenario.to_toml_dict()
         scenario_dict["policy"] = {"name": FLIGHT_RUN, "download_log": str(download_log)}
         write_run(out_dir / FLIGHT_RUN, summary, slots_frame(log, mission.frame), scenario_dict)

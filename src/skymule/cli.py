@@ -16,6 +16,7 @@ from rich import box
 from rich.console import Console
 from rich.table import Table
 
+from skymule.aadm.cli import aadm_app
 from skymule.errors import SkymuleError
 from skymule.metrics import HEADLINE_METRICS
 
@@ -32,6 +33,7 @@ app = typer.Typer(
     no_args_is_help=True,
     help="UAV data-mule missions: simulate, replay, compare and plot.",
 )
+app.add_typer(aadm_app, name="aadm")
 # tables are wider than 80 columns: piped output keeps every digit
 console = Console(width=None if sys.stdout.isatty() else 120)
 

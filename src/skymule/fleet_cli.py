@@ -19,7 +19,7 @@ from skymule.errors import SkymuleError
 from skymule.scenario import Scenario, load_scenario
 
 #: Columns of the per-UAV and comparison tables.
-UAV_COLUMNS = ("uav", "total_downloaded_mbit", "lost_slots", "distance_m", "landed_at_home")
+UAV_COLUMNS = ("uav", "total_downloaded_mbit", "lost_slots", "distance_m", "landed_within_5m")
 COMPARE_COLUMNS = (
     "policy",
     "total_downloaded_mbit",

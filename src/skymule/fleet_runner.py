@@ -94,7 +94,7 @@ def fleet_summary(fleet: Fleet, log: FleetLog, policy: str) -> dict[str, Any]:
         "lost_slots": int(log.lost.sum()),
         "distance_m": float(sum(u["distance_m"] for u in per_uav)),
         "energy_kj": float(sum(u["energy_kj"] for u in per_uav)),
-        "landed_at_home": all(bool(u.get("landed_at_home", True)) for u in per_uav),
+        "landed_within_5m": all(bool(u.get("landed_within_5m", True)) for u in per_uav),
         "uavs": per_uav,
     }
 

@@ -3,7 +3,8 @@
 Every summary number (``summary.json``, sweep rows, comparison tables) comes from
 :func:`summaries` over a :class:`Flights`: the batched engine builds one from its arrays
 without any per-mission log, and :func:`summarize` is the one-mission case, built from a
-:class:`~skymule.sim.log.MissionLog`. The AADM score is computed here and nowhere else.
+:class:`~skymule.sim.log.MissionLog`. The AADM score comes from its one implementation,
+:func:`skymule.aadm.score.aadm_scores`, called here for every summary.
 
 Positions are given as tracks plus sample indices: mission b is at
 ``track_position_m[track_id[b], sample[b, t]]`` during slot t and ends at sample
@@ -20,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from skymule.aadm.score import AADM_WINDOW_S, AadmScore, aadm_scores
 from skymule.energy import propulsion_power_w
 from skymule.sim.log import NO_SENSOR, MissionLog
 
@@ -36,11 +38,9 @@ HEADLINE_METRICS = (
 )
 """The summary fields shown in tables and aggregated over sweeps."""
 
-#: AADM challenge scoring (AERPAW AADM rules): mission reference time [s], landing
-#: tolerance [m] and penalty per metre beyond it.
-AADM_REFERENCE_S = 600.0
-AADM_LANDING_TOLERANCE_M = 3.0
-AADM_PENALTY_PER_M = 20.0
+#: The AERPAW testbed requires landing within this distance of the launch point [m] (a check
+#: beside the AADM score, which has no landing term).
+LANDING_TOLERANCE_M = 5.0
 
 
 @dataclass(frozen=True)
@@ -68,6 +68,7 @@ class Flights:
         visit_radius_m: (B,) a sensor counts as visited within this distance [m].
         target: (B, T) autonomous: sensor the policy was heading for (NO_SENSOR: none), or
             None when no mission has targets.
+        aadm_window_s: (B,) the AADM download window the score counts downloads in [s].
     """
 
     n_run: np.ndarray
@@ -86,6 +87,7 @@ class Flights:
     hover_points_m: np.ndarray
     visit_radius_m: np.ndarray
     target: np.ndarray | None = None
+    aadm_window_s: np.ndarray | None = None
 
 
 def flights_from_log(log: MissionLog) -> Flights:
@@ -116,6 +118,7 @@ def flights_from_log(log: MissionLog) -> Flights:
         hover_points_m=hover,
         visit_radius_m=np.array([log.visit_radius_m], float),
         target=None if log.target is None else log.target[None, :],
+        aadm_window_s=np.array([log.aadm_window_s], float),
     )
 
 
@@ -214,27 +217,6 @@ def distance_to_home_m(flights: Flights) -> np.ndarray:
     return np.hypot(end_m[:, 0] - flights.home_m[:, 0], end_m[:, 1] - flights.home_m[:, 1])
 
 
-def aadm_parts(
-    percent: np.ndarray, done_s: np.ndarray, to_home_m: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """(B,) AADM time bonus and (B,) landing penalty (see :func:`aadm_scores`)."""
-    bonus = np.where(np.isnan(done_s), 0.0, np.maximum(0.0, AADM_REFERENCE_S - done_s))
-    over = AADM_PENALTY_PER_M * np.maximum(0.0, to_home_m - AADM_LANDING_TOLERANCE_M)
-    return bonus, np.where(np.isfinite(to_home_m), over, 0.0)
-
-
-def aadm_scores(percent: np.ndarray, done_s: np.ndarray, to_home_m: np.ndarray) -> np.ndarray:
-    """(B,) the AADM challenge score.
-
-    100 x downloaded / total (``percent``), plus max(0, 600 - t) when every buffer was emptied
-    by time t (``done_s``; NaN: never), minus 20 per metre the UAV ends more than 3 m from home
-    (``to_home_m``; NaN: no home, no penalty). The bonus is clipped at 0 so that finishing late
-    never scores below not finishing.
-    """
-    bonus, penalty = aadm_parts(percent, done_s, to_home_m)
-    return percent + bonus - penalty
-
-
 # --- visit order ------------------------------------------------------------------------------
 
 
@@ -254,7 +236,8 @@ def visit_order(flights: Flights) -> np.ndarray:
     first = _first_hover_slots(served, hovered, n_run, n_sensors)
     by_place = ~hovered.any(axis=1)
     if flights.target is not None:
-        by_target = n_run > 0
+        # all-NaN hover points: unknown (a log without them), so no target-based visits
+        by_target = (n_run > 0) & np.isfinite(flights.hover_points_m).any(axis=(1, 2))
         if by_target.any():
             rows = np.flatnonzero(by_target)
             first[rows] = _first_target_arrivals(flights, rows)
@@ -365,7 +348,7 @@ class Summaries:
         energy_j: (B,) propulsion energy [J].
         visit_order: (B, N) sensor indices in first-visit order, padded with NO_SENSOR.
         distance_to_home_m: (B,) horizontal end-to-home distance [m] (NaN: no home).
-        aadm_score: (B,) AADM challenge score.
+        aadm: the AADM challenge score and its parts (:mod:`skymule.aadm.score`).
     """
 
     slots: np.ndarray
@@ -380,7 +363,7 @@ class Summaries:
     energy_j: np.ndarray
     visit_order: np.ndarray
     distance_to_home_m: np.ndarray
-    aadm_score: np.ndarray
+    aadm: AadmScore
 
 
 def summaries(flights: Flights) -> Summaries:
@@ -405,10 +388,12 @@ def summaries(flights: Flights) -> Summaries:
         energy_j=row_sums(power, n_run) * slot_s,
         visit_order=visit_order(flights),
         distance_to_home_m=to_home,
-        aadm_score=aadm_scores(
-            np.where(has_buffer, 100.0 * total / safe_buffer, 100.0),
-            completion_times_s(flights),
-            to_home,
+        aadm=aadm_scores(
+            flights.downloaded_bit,
+            total_buffer,
+            n_run,
+            slot_s,
+            AADM_WINDOW_S if flights.aadm_window_s is None else flights.aadm_window_s,
         ),
     )
 
@@ -433,9 +418,11 @@ def summary_dicts(
     distance = summary.distance_m.tolist()
     energy = (summary.energy_j / 1e3).tolist()
     order = summary.visit_order.tolist()
-    landed = (summary.distance_to_home_m <= AADM_LANDING_TOLERANCE_M).tolist()
+    landed = (summary.distance_to_home_m <= LANDING_TOLERANCE_M).tolist()
     to_home = summary.distance_to_home_m.tolist()
-    score = summary.aadm_score.tolist()
+    aadm = summary.aadm
+    t1, s1, s2 = aadm.t1_s.tolist(), aadm.s1.tolist(), aadm.s2.tolist()
+    complete, score = aadm.complete.tolist(), aadm.score.tolist()
     rows = []
     for b, names in enumerate(sensor_names):
         rows.append(
@@ -455,9 +442,13 @@ def summary_dicts(
                 "distance_m": distance[b],
                 "energy_kj": energy[b],
                 "visit_order": [names[i] for i in order[b] if i != NO_SENSOR],
-                "landed_at_home": landed[b],
+                "landed_within_5m": landed[b],
                 "distance_to_home_m": to_home[b],
                 "aadm_score": score[b],
+                "aadm_t1_s": t1[b],
+                "aadm_s1": s1[b],
+                "aadm_s2": s2[b],
+                "aadm_complete": complete[b],
             }
         )
     return rows
@@ -501,5 +492,5 @@ def completion_time_s(log: MissionLog) -> float | None:
 
 
 def aadm_score(log: MissionLog) -> float:
-    """The AADM challenge score of one mission (see :func:`aadm_scores`)."""
-    return float(summaries(flights_from_log(log)).aadm_score[0])
+    """The AADM challenge score of one mission (:func:`skymule.aadm.score.aadm_scores`)."""
+    return float(summaries(flights_from_log(log)).aadm.score[0])

@@ -36,6 +36,9 @@ class MissionSpec(_Spec):
     """Mission time T*slot_s [s]; omitted for a trace source means the trace's length."""
     slot_s: PositiveFloat = 1.0
     """Slot length [s]."""
+    aadm_window_s: PositiveFloat | None = None
+    """Close the download window this long after the start [s], as the AADM controller does
+    at 500 s: later slots serve nothing. None: downloads count until the mission ends."""
 
 
 class SiteSpec(_Spec):

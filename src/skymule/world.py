@@ -15,10 +15,12 @@ from pathlib import Path
 import numpy as np
 from shapely.geometry import Point, Polygon, box
 
+from skymule.aadm.plan import is_plan, plan_waypoints_m, scenario_fence
+from skymule.aadm.score import AADM_WINDOW_S
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.flight.navigation import Navigator, hover_point
 from skymule.flight.paths import Track, path_length_m, read_waypoints_csv, sample_path
-from skymule.geo import LocalFrame, covers, load_geofence, sensor_positions_m
+from skymule.geo import LocalFrame, covers, sensor_positions_m
 from skymule.radio.channel import mission_fading_db, signal_source
 from skymule.radio.rates import RateTable, rate_bps, resolve_rate_table
 from skymule.radio.sources import SignalSource
@@ -63,6 +65,9 @@ class Mission:
         return_home: autonomous: the UAV must be home when the mission ends.
         navigator: autonomous: in-fence shortest paths (a very large square without a fence);
             None on fixed trajectories.
+        aadm_window_s: the AADM download window [s] (``mission.aadm_window_s``): slots that
+            start at or after it serve nothing; None: every slot may serve (the AADM score
+            still counts only the controller's 500 s).
 
     A Mission is immutable: its arrays are read-only (writing raises), so policies and
     engines can share one Mission across runs.
@@ -89,6 +94,7 @@ class Mission:
     max_speed_mps: float = 10.0
     return_home: bool = True
     navigator: Navigator | None = None
+    aadm_window_s: float | None = None
 
     def __post_init__(self) -> None:
         for item in fields(self):
@@ -98,6 +104,18 @@ class Mission:
         if self.track is not None:
             self.track.position_m.flags.writeable = False
             self.track.snr_db.flags.writeable = False
+
+    @property
+    def window_slots(self) -> int | None:
+        """Slots that start before the download window closes, or None (no window)."""
+        if self.aadm_window_s is None:
+            return None
+        return math.ceil(self.aadm_window_s / self.slot_s - 1e-9)
+
+    @property
+    def score_window_s(self) -> float:
+        """The window the AADM score counts downloads in [s]."""
+        return AADM_WINDOW_S if self.aadm_window_s is None else self.aadm_window_s
 
     @property
     def max_step_m(self) -> float:
@@ -233,7 +251,9 @@ def _waypoints(scenario: Scenario, frame: LocalFrame) -> np.ndarray:
     spec = scenario.trajectory.waypoints
     if spec is None:
         raise ScenarioError("trajectory.waypoints is required for mode = 'fixed' with a model")
-    if isinstance(spec, str):
+    if is_plan(spec):  # a QGroundControl .plan (skymule.aadm.plan)
+        waypoints = plan_waypoints_m(scenario.resolve_path(str(spec)), frame)
+    elif isinstance(spec, str):
         waypoints = read_waypoints_csv(scenario.resolve_path(spec), frame.to_local)
     else:
         if any(len(point) != 3 for point in spec):
@@ -297,9 +317,7 @@ def build_mission(scenario: Scenario) -> Mission:
         )
     frame = LocalFrame(scenario.site.origin.lat, scenario.site.origin.lon)
     base_dir = Path(scenario.base_dir)
-    fence = (
-        load_geofence(scenario.site.geofence, frame, base_dir) if scenario.site.geofence else None
-    )
+    fence = scenario_fence(scenario, frame)  # site.geofence, or a .plan's inclusion fence
     sensor_m = sensor_positions_m(scenario.sensors, frame)
     rate_table = resolve_rate_table(scenario.radio.rate_table, base_dir)
     slot_s = scenario.mission.slot_s
@@ -362,6 +380,7 @@ def build_mission(scenario: Scenario) -> Mission:
         max_speed_mps=trajectory.max_speed_mps,
         return_home=trajectory.return_home,
         navigator=Navigator(fence_or_box(fence)) if autonomous else None,
+        aadm_window_s=scenario.mission.aadm_window_s,
     )
     if autonomous:
         check_duration(mission)

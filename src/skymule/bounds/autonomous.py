@@ -1,6 +1,6 @@
 """An upper bound on what any autonomous policy can download (time-expanded reach LP).
 
-Setting (the slot contract of DESIGN.md and :mod:`skymule.sim.autonomous`)
+Setting (the slot contract of docs/contract.md and :mod:`skymule.sim.autonomous`)
 ------------------------------------------------------------------------------
 ``T`` slots of ``dt`` seconds; the UAV starts at home ``h``, flies at altitude ``z`` inside the
 geofence ``F`` and moves at most ``s = v_max dt`` metres per slot along an in-fence path. In

@@ -108,10 +108,12 @@ class HGADTour:
         if self._planned and self._plan:
             return self._plan.pop(0)
         self._planned = False
-        candidates = self._known & (remaining > 0) & ~self._hovered
+        # a hover point where the rate is 0 has nothing to give: never a target of a round
+        worth = self._known & (remaining > 0) & (self._peak_bps > 0)
+        candidates = worth & ~self._hovered
         if not candidates.any():
             self._hovered[:] = False  # every sensor with data hovered over once: new round
-            candidates = self._known & (remaining > 0)
+            candidates = worth
         if not candidates.any():
             return None
         return int(np.argmax(np.where(candidates, remaining, -np.inf)))
@@ -134,7 +136,8 @@ class HGADTour:
         if self._hovering and self._target is not None:
             return self._hover_slot(observation, self._target)
         position = _xy(observation.position_m)
-        while True:
+        # each pass either returns or retires a target: bounded by the plan plus two rounds
+        for _ in range(len(self._plan) + 2 * len(self._peak_bps) + 2):
             if self._target is None or (not self._planned and remaining[self._target] <= 0):
                 self._target = self._next_target(remaining)
             if self._target is None:
@@ -150,3 +153,4 @@ class HGADTour:
                 self._budget_s = min(remaining[target] / self._peak_bps[target], self._max_hover_s)
                 return self._hover_slot(observation, target)
             self._target = None
+        return Action(serve=en_route_serve, goto_m=_xy(self._home))

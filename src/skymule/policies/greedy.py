@@ -9,12 +9,13 @@ from skymule.policies.base import Action, MissionContext, Observation
 from skymule.sim import contract
 
 
-def greedy_choice(snr_db: np.ndarray, remaining_bit: np.ndarray) -> int | None:
-    """argmax SNR over sensors with Q_i > 0; ties go to the lowest index; None if all empty.
-
-    One mission of :func:`skymule.sim.contract.greedy_choice`.
-    """
-    choice = int(contract.greedy_choice(snr_db[:, None], remaining_bit[:, None] > 0)[0])
+def greedy_choice(
+    snr_db: np.ndarray, rate_bps: np.ndarray, remaining_bit: np.ndarray
+) -> int | None:
+    """argmax SNR over sensors with Q_i > 0 and R_i > 0; ties go to the lowest index; None if
+    no sensor is servable. One mission of :func:`skymule.sim.contract.greedy_choice`."""
+    usable = contract.servable(rate_bps[:, None], remaining_bit[:, None])
+    choice = int(contract.greedy_choice(snr_db[:, None], usable)[0])
     return None if choice == contract.NO_SENSOR else choice
 
 
@@ -35,7 +36,7 @@ class Greedy:
         self._tour = GreedyTour(context) if context.mode == "autonomous" else None
 
     def act(self, observation: Observation) -> Action:
-        serve = greedy_choice(observation.snr_db, observation.remaining_bit)
+        serve = greedy_choice(observation.snr_db, observation.rate_bps, observation.remaining_bit)
         if self._tour is None:
             return Action(serve=serve)
         goto_m, target = self._tour.steer(observation)

@@ -27,13 +27,13 @@ from skymule.sim import contract
 
 
 def hgad_choice(rate_bps: np.ndarray, snr_db: np.ndarray, remaining_bit: np.ndarray) -> int | None:
-    """argmax rate over sensors with data; ties: higher SNR, then lowest index.
+    """argmax rate over sensors with data and R > 0; ties: higher SNR, then lowest index.
 
     One mission of :func:`skymule.sim.contract.hgad_choice`.
     """
-    choice = int(
-        contract.hgad_choice(rate_bps[:, None], snr_db[:, None], remaining_bit[:, None] > 0)[0]
-    )
+    rate = rate_bps[:, None]
+    usable = contract.servable(rate, remaining_bit[:, None])
+    choice = int(contract.hgad_choice(rate, snr_db[:, None], usable)[0])
     return None if choice == contract.NO_SENSOR else choice
 
 
@@ -76,15 +76,19 @@ class HGAD:
         # one mission as a batch of one: (N, 1) arrays through the contract
         rate = observation.rate_bps[:, None]
         remaining = observation.remaining_bit[:, None]
-        choice = contract.hgad_choice(rate, observation.snr_db[:, None], remaining > 0)
+        usable = contract.servable(rate, remaining)
+        choice = contract.hgad_choice(rate, observation.snr_db[:, None], usable)
         sensor = contract.hover_sensor_or(self._state, choice)
         cell = contract.cells(sensor)
         left = remaining.reshape(-1).take(cell)
-        bits = contract.served_bits(rate.reshape(-1).take(cell), left, self._slot_s)
+        rate_served = rate.reshape(-1).take(cell)
+        bits = contract.served_bits(rate_served, left, self._slot_s)
         hover = contract.hgad_update(
             self._state,
             sensor=sensor,
+            cell=cell,
             rate_bps=rate,
+            rate_served_bps=rate_served,
             left_after_bit=left - bits,
             threshold_bps=self._threshold_bps,
             peak_rate_bps=self._peak_bps,

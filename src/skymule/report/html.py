@@ -116,7 +116,7 @@ SUMMARY_FIELDS: tuple[tuple[str, str, str], ...] = (
     ("distance_m", "distance [m]", "{:.0f}"),
     ("mission_time_s", "mission time [s]", "{:.0f}"),
     ("energy_kj", "energy [kJ]", "{:.1f}"),
-    ("landed_at_home", "landed at home", "{}"),
+    ("landed_within_5m", "landed within 5 m of home", "{}"),
     ("distance_to_home_m", "end distance to home [m]", "{:.1f}"),
     ("aadm_score", "AADM score (run)", "{:.1f}"),
 )
@@ -175,14 +175,16 @@ def sensor_table(runs: tuple[RunData, ...]) -> str:
 
 def score_table(runs: tuple[RunData, ...], scores: list[ScoreBreakdown]) -> str:
     rows = [
-        ["100 x completion", *(f"{s.download_points:.1f}" for s in scores)],
+        ["S2 = 100 x downloaded / total", *(f"{s.download_points:.1f}" for s in scores)],
         [
             "all data by [s]",
             *("-" if s.completed_at_s is None else f"{s.completed_at_s:.0f}" for s in scores),
         ],
-        ["time bonus (600 - t)", *(f"{s.time_bonus:.1f}" for s in scores)],
-        ["end distance to home [m]", *(f"{s.end_distance_m:.1f}" for s in scores)],
-        ["landing penalty (20/m beyond 3 m)", *(f"{s.landing_penalty:.1f}" for s in scores)],
+        ["S1 = 500 - t1 if all downloaded", *(f"{s.time_bonus:.1f}" for s in scores)],
+        [
+            "end distance to home [m] (testbed: land within 5 m)",
+            *(f"{s.end_distance_m:.1f}" for s in scores),
+        ],
         ["score", *(f"<b>{s.total:.1f}</b>" for s in scores)],
     ]
     if any(s.reported is not None for s in scores):

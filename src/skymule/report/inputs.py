@@ -15,9 +15,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from skymule.aadm.score import aadm_score_one
 from skymule.errors import SkymuleError
 from skymule.io.runs import SCENARIO_FILE, is_run_dir, read_run, sensor_names_of
-from skymule.metrics import aadm_parts
 from skymule.report.site import SiteGeometry, site_geometry
 
 COMPARISON_FILE = "comparison.csv"
@@ -160,14 +160,16 @@ def hover_segments(slots: pd.DataFrame, slot_s: float) -> list[HoverSegment]:
 
 @dataclass(frozen=True)
 class ScoreBreakdown:
-    """AADM challenge score of a run: 100 x completion + time bonus - landing penalty.
+    """AADM challenge score of a run (the rule in force): S = S1 + S2.
 
     Attributes:
-        download_points: 100 x downloaded / total.
-        time_bonus: (600 - t) if every buffer was empty by time t [s], else 0.
-        landing_penalty: 20 per metre the UAV ends more than 3 m from home.
-        completed_at_s: t (end of the slot that emptied the last buffer), or None.
-        end_distance_m: horizontal distance from home at the end [m].
+        download_points: S2 = 100 x downloaded / total.
+        time_bonus: S1 = max(0, window - t1) if everything was downloaded, else 0.
+        landing_penalty: always 0 (the rule in force has no landing term; kept for the
+            score figure's stacked bars).
+        completed_at_s: t1 when everything was downloaded, else None.
+        end_distance_m: horizontal distance from home at the end [m] (the testbed requires
+            landing within 5 m; not part of the score).
         reported: ``aadm_score`` from summary.json when the run wrote one.
     """
 
@@ -184,18 +186,14 @@ class ScoreBreakdown:
 
 
 def score_breakdown(run: RunData) -> ScoreBreakdown:
-    """The AADM score's parts, read off the run's files."""
+    """The AADM score's parts: from summary.json, or computed from slots.csv's downloads."""
     summary, slots = run.summary, run.slots
-    total = float(summary.get("total_buffer_mbit", 0.0))
-    got = float(summary.get("total_downloaded_mbit", slots["downloaded_mbit"].sum()))
-    completion = got / total if total > 0 else 1.0
-    remaining_cols = [f"remaining_mbit_{n}" for n in run.sensor_names]
-    completed_at = None
-    if remaining_cols and all(c in slots for c in remaining_cols):
-        left = slots[remaining_cols].to_numpy(float).sum(axis=1)
-        done = np.flatnonzero(left <= 0)
-        if done.size:
-            completed_at = float(slots["t_s"].iloc[done[0]]) + run.slot_s
+    if all(key in summary for key in ("aadm_s1", "aadm_s2", "aadm_t1_s", "aadm_complete")):
+        parts = {key: summary[key] for key in ("aadm_s1", "aadm_s2", "aadm_t1_s", "aadm_complete")}
+    else:
+        total = float(summary.get("total_buffer_mbit", 0.0)) * 1e6
+        per_slot = slots["downloaded_mbit"].to_numpy(float) * 1e6
+        parts = dict(aadm_score_one(per_slot, total, run.slot_s))
     if "distance_to_home_m" in summary:
         end_distance = float(summary["distance_to_home_m"])
     elif slots.empty:
@@ -203,20 +201,12 @@ def score_breakdown(run: RunData) -> ScoreBreakdown:
     else:
         last = slots[["x_m", "y_m"]].to_numpy(float)[-1]
         end_distance = float(np.hypot(*(last - run.site.home_xy_m)))
-    bonus, penalty = (
-        float(part[0])
-        for part in aadm_parts(
-            np.array([100.0 * completion]),
-            np.array([np.nan if completed_at is None else completed_at]),
-            np.array([end_distance]),
-        )
-    )
     reported = summary.get("aadm_score")
     return ScoreBreakdown(
-        download_points=100.0 * completion,
-        time_bonus=bonus,
-        landing_penalty=penalty,
-        completed_at_s=completed_at,
+        download_points=float(parts["aadm_s2"]),
+        time_bonus=float(parts["aadm_s1"]),
+        landing_penalty=0.0,
+        completed_at_s=float(parts["aadm_t1_s"]) if parts["aadm_complete"] else None,
         end_distance_m=end_distance,
         reported=float(reported) if isinstance(reported, int | float) else None,
     )

@@ -58,7 +58,7 @@ SUMMARY_KEYS = {
     "distance_m",
     "energy_kj",
     "visit_order",
-    "landed_at_home",
+    "landed_within_5m",
     "distance_to_home_m",
     "aadm_score",
 }

@@ -52,6 +52,28 @@ def legal_goal(navigator: Navigator, goal: XY) -> XY:
     return hover_point(fence, goal, margin_m=0.0)
 
 
+def next_position(mission: Mission, position: XY, goto_m: XY | None, slot: int) -> tuple[XY, bool]:
+    """Where the engine moves the UAV during slot ``slot``, and whether it overrode the goal.
+
+    At most ``max_step_m`` along the in-fence shortest path toward ``goto_m`` (made legal:
+    the nearest fence point for a goal outside; staying put for None); with ``return_home``,
+    toward home instead whenever the goal would leave too little time to get back.
+    """
+    nav, step_m = mission.navigator, mission.max_step_m
+    assert nav is not None and mission.home_m is not None
+    home = (float(mission.home_m[0]), float(mission.home_m[1]))
+    goal = position if goto_m is None else legal_goal(nav, goto_m)
+    moved = nav.step(position, goal, step_m)
+    if mission.return_home:
+        budget_m = (mission.n_slots - slot - 1) * step_m + FEASIBILITY_SLACK_M
+        # d_home(moved) <= d_home(position) + step: test exactly only when it may bind
+        if nav.travel_distance(position, home) + step_m > budget_m and (
+            nav.travel_distance(moved, home) > budget_m
+        ):
+            return nav.step(position, home, step_m), True
+    return moved, False
+
+
 class AutonomousFlight:
     """One autonomous mission in progress: the policy steers, the engine keeps it legal.
 
@@ -65,14 +87,13 @@ class AutonomousFlight:
         if mission.source is None or mission.navigator is None or mission.home_m is None:
             raise SkymuleError("autonomous missions need signal.source = 'model' or 'radiomap'")
         self.mission = mission
-        self._navigator = mission.navigator
-        self._home: XY = (float(mission.home_m[0]), float(mission.home_m[1]))
+        home: XY = (float(mission.home_m[0]), float(mission.home_m[1]))
         # buffers_bit: a (N,) array shared with other UAVs (sim.fleet), updated in place
         self._remaining = (
             np.array(mission.buffers_bit, float) if buffers_bit is None else buffers_bit
         )
         self.slot = 0
-        self.position: XY = self._home
+        self.position: XY = home
         self._snr = np.zeros(mission.n_sensors)
         self._rates = np.zeros(mission.n_sensors)
         self._positions: list[XY] = []
@@ -112,18 +133,7 @@ class AutonomousFlight:
         )
 
     def _move(self, goto_m: XY | None) -> tuple[XY, bool]:
-        """Where the UAV ends this slot and whether the engine overrode the policy's goal."""
-        nav, step_m, position = self._navigator, self.mission.max_step_m, self.position
-        goal = position if goto_m is None else legal_goal(nav, goto_m)
-        moved = nav.step(position, goal, step_m)
-        if self.mission.return_home:
-            budget_m = (self.mission.n_slots - self.slot - 1) * step_m + FEASIBILITY_SLACK_M
-            # d_home(moved) <= d_home(position) + step: test exactly only when it may bind
-            if nav.travel_distance(position, self._home) + step_m > budget_m and (
-                nav.travel_distance(moved, self._home) > budget_m
-            ):
-                return nav.step(position, self._home, step_m), True
-        return moved, False
+        return next_position(self.mission, self.position, goto_m, self.slot)
 
     @property
     def rate_bps(self) -> np.ndarray:
@@ -133,10 +143,16 @@ class AutonomousFlight:
     def apply(self, action: Action, who: str = "policy") -> float:
         """Apply ``action`` to the slot last observed; returns the bits downloaded."""
         sensor = check_serve(action.serve, self.mission.n_sensors, who)
+        sensor = self.windowed(sensor)
         served = np.array([sensor])
         bits = contract.take_bits(self._remaining, served, self._rates[None], self.mission.slot_s)
         self.record(action, sensor, float(bits[0]))
         return float(bits[0])
+
+    def windowed(self, sensor: int) -> int:
+        """``sensor``, or NO_SENSOR once the download window has closed."""
+        window = self.mission.window_slots
+        return NO_SENSOR if window is not None and self.slot >= window else sensor
 
     def record(self, action: Action, sensor: int, bits: float) -> None:
         """Log the slot (``sensor`` served, ``bits`` already taken) and fly toward the goal."""
@@ -175,6 +191,7 @@ class AutonomousFlight:
             hover_points_m=mission.hover_points_m.copy(),
             visit_radius_m=mission.visit_radius_m,
             target=np.asarray(self._targets, int),
+            aadm_window_s=mission.score_window_s,
         )
 
 

@@ -81,6 +81,8 @@ class Batch:
         n_samples: (U,) track lengths K.
         hold_at_end: (U,) True: hold at the last sample; False: a trace that runs out.
         n_slots: (B,) slots per mission T.
+        window_slots: (B,) slot from which nothing is served (the download window closed);
+            n_slots where there is no window.
         slot_s: (B,) slot length [s].
         buffers_bit: (B, N) initial buffers [bit].
         hgad: (B,) True for HGAD missions, False for Greedy.
@@ -102,6 +104,7 @@ class Batch:
     n_samples: np.ndarray
     hold_at_end: np.ndarray
     n_slots: np.ndarray
+    window_slots: np.ndarray
     slot_s: np.ndarray
     buffers_bit: np.ndarray
     hgad: np.ndarray
@@ -202,6 +205,9 @@ def stack_missions(missions: Sequence[Mission], specs: Sequence[PolicySpec]) -> 
         n_samples=np.array([t.n_samples for t in tracks], np.int64),
         hold_at_end=np.array([t.hold_at_end for t in tracks], bool),
         n_slots=np.array([m.n_slots for m in missions], np.int64),
+        window_slots=np.array(
+            [m.n_slots if m.window_slots is None else m.window_slots for m in missions], np.int64
+        ),
         slot_s=np.array([m.slot_s for m in missions], float),
         buffers_bit=np.array([m.buffers_bit for m in missions], float).reshape(-1, n),
         hgad=np.array([p.hgad for p in params], bool),
@@ -266,6 +272,9 @@ def run_batch(batch: Batch) -> BatchResult:
     n_missions, n_sensors = batch.buffers_bit.shape
     k_rows = batch.rate_bps.shape[1]
     t_max = int(batch.n_slots.max())
+    columns = np.arange(n_missions)
+    # slot at which each mission's download window closes (the AADM controller's 500 s)
+    window = batch.window_slots
     # one (2N, U*K) table [rate ; snr seen]: a single column gather per slot; a trace that
     # ran out points one sample past its end, which is padding (the mission is over)
     table = np.ascontiguousarray(
@@ -306,7 +315,7 @@ def run_batch(batch: Batch) -> BatchResult:
         snr = observed[n_sensors:]
         if any_fading:
             _apply_fading(batch, slot, rate, snr)
-        has_data = remaining > 0
+        has_data = contract.servable(rate, remaining)
         if any_hgad and any_greedy:
             choice = np.where(
                 is_hgad,
@@ -319,17 +328,25 @@ def run_batch(batch: Batch) -> BatchResult:
             choice = contract.greedy_choice(snr, has_data)
         sensor = contract.hover_sensor_or(state, choice) if any_hgad else choice
         sensor[~active] = NO_SENSOR
-        cell = contract.cells(sensor)
+        cell = contract.cells(sensor, columns)
         left = remaining_flat.take(cell)
-        bits = contract.served_bits(rate.reshape(-1).take(cell), left, dt)
+        rate_served = rate.reshape(-1).take(cell)
+        bits = contract.served_bits(rate_served, left, dt)
         bits[sensor < 0] = 0.0
-        left_after = left - bits
-        remaining_flat[cell] = left_after
+        left_after = left - bits  # what the policy expects after this slot
+        served = sensor
+        closed = slot >= window
+        if closed.any():  # the download window has closed: the choice delivers nothing
+            served = np.where(closed, NO_SENSOR, sensor)
+            bits = np.where(closed, 0.0, bits)
+        remaining_flat[cell] = left - bits
         if any_hgad:
             hover_flag = contract.hgad_update(
                 state,
                 sensor=sensor,
+                cell=cell,
                 rate_bps=rate,
+                rate_served_bps=rate_served,
                 left_after_bit=left_after,
                 threshold_bps=threshold,
                 peak_rate_bps=peak,
@@ -340,7 +357,7 @@ def run_batch(batch: Batch) -> BatchResult:
             )
         else:
             hover_flag = np.zeros(n_missions, bool)
-        served_log[slot] = sensor
+        served_log[slot] = served
         downloaded_log[slot] = bits
         remaining_log[slot] = remaining
         hovering_log[slot] = hover_flag
@@ -387,6 +404,7 @@ def mission_log(
         home_m=mission.home_m,
         hover_points_m=mission.hover_points_m,
         visit_radius_m=mission.visit_radius_m,
+        aadm_window_s=mission.score_window_s,
     )
 
 
@@ -451,6 +469,7 @@ def batch_flights(batch: Batch, result: BatchResult, missions: Sequence[Mission]
         home_m=home,
         hover_points_m=hover,
         visit_radius_m=np.array([m.visit_radius_m for m in missions], float),
+        aadm_window_s=np.array([m.score_window_s for m in missions], float),
     )
 
 

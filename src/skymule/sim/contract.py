@@ -84,6 +84,15 @@ def take_bits(
     return bits
 
 
+def servable(rate_bps: np.ndarray, remaining_bit: np.ndarray) -> np.ndarray:
+    """True where a sensor can be served: it has data left and a usable link (R > 0).
+
+    A policy whose every sensor is unservable serves nothing (rather than a sensor that would
+    deliver 0 bits).
+    """
+    return (remaining_bit > 0) & (rate_bps > 0)
+
+
 def first_true(mask: np.ndarray) -> np.ndarray:
     """(B,) index of the first True down each column of ``mask`` (N, B); 0 where none."""
     index = np.zeros(mask.shape[1], np.int64)
@@ -94,14 +103,14 @@ def first_true(mask: np.ndarray) -> np.ndarray:
 
 
 def greedy_choice(snr_db: np.ndarray, has_data: np.ndarray) -> np.ndarray:
-    """(B,) Greedy's sensor: argmax SNR among sensors with data, ties to the lowest index.
+    """(B,) Greedy's sensor: argmax SNR among servable sensors, ties to the lowest index.
 
     Args:
         snr_db: (N, B) SNR the UAV observes [dB] (-inf: no link).
-        has_data: (N, B) True where the buffer is not empty.
+        has_data: (N, B) :func:`servable`: data left and a usable link.
 
     Returns:
-        (B,) sensor index, or NO_SENSOR where every buffer is empty.
+        (B,) sensor index, or NO_SENSOR where no sensor is servable.
     """
     masked = np.where(has_data, snr_db, -np.inf)
     choice = first_true(masked == masked.max(axis=0))
@@ -110,15 +119,15 @@ def greedy_choice(snr_db: np.ndarray, has_data: np.ndarray) -> np.ndarray:
 
 
 def hgad_choice(rate_bps: np.ndarray, snr_db: np.ndarray, has_data: np.ndarray) -> np.ndarray:
-    """(B,) HGAD's sensor: argmax rate among sensors with data; ties: higher SNR, lowest index.
+    """(B,) HGAD's sensor: argmax rate among servable sensors; ties: higher SNR, lowest index.
 
     Args:
         rate_bps: (N, B) rate to each sensor [bit/s].
         snr_db: (N, B) SNR the UAV observes [dB] (-inf: no link).
-        has_data: (N, B) True where the buffer is not empty.
+        has_data: (N, B) :func:`servable`: data left and a usable link.
 
     Returns:
-        (B,) sensor index, or NO_SENSOR where every buffer is empty.
+        (B,) sensor index, or NO_SENSOR where no sensor is servable.
     """
     masked_rate = np.where(has_data, rate_bps, -np.inf)
     best = masked_rate == masked_rate.max(axis=0)
@@ -129,9 +138,13 @@ def hgad_choice(rate_bps: np.ndarray, snr_db: np.ndarray, has_data: np.ndarray) 
     return choice
 
 
-def cells(sensor: np.ndarray) -> np.ndarray:
-    """(B,) flat index of (sensor[b], b) into a C-ordered (N, B) array (NO_SENSOR -> row 0)."""
-    return np.maximum(sensor, 0) * sensor.shape[0] + np.arange(sensor.shape[0])
+def cells(sensor: np.ndarray, columns: np.ndarray | None = None) -> np.ndarray:
+    """(B,) flat index of (sensor[b], b) into a C-ordered (N, B) array (NO_SENSOR -> row 0).
+
+    ``columns`` is ``np.arange(B)``, passed in by callers that step many slots.
+    """
+    columns = np.arange(sensor.shape[0]) if columns is None else columns
+    return np.maximum(sensor, 0) * sensor.shape[0] + columns
 
 
 @dataclass(frozen=True)
@@ -168,7 +181,9 @@ def hgad_update(
     state: HoverState,
     *,
     sensor: np.ndarray,
+    cell: np.ndarray,
     rate_bps: np.ndarray,
+    rate_served_bps: np.ndarray,
     left_after_bit: np.ndarray,
     threshold_bps: np.ndarray,
     peak_rate_bps: np.ndarray,
@@ -189,7 +204,9 @@ def hgad_update(
     Args:
         state: updated in place.
         sensor: (B,) sensor served this slot (:func:`hover_sensor_or`), or NO_SENSOR.
+        cell: (B,) :func:`cells` of ``sensor``.
         rate_bps: (N, B) rate to each sensor this slot [bit/s] (C order).
+        rate_served_bps: (B,) rate of the served sensor [bit/s] (``rate_bps`` at ``cell``).
         left_after_bit: (B,) the served sensor's buffer after this slot's download [bit].
         threshold_bps: (N * B,) flat (N, B) trigger thresholds gamma_i [bit/s].
         peak_rate_bps: (N * B,) flat (N, B) peak rates R*_i [bit/s].
@@ -198,9 +215,8 @@ def hgad_update(
         enabled: (B,) False for missions whose policy never hovers (mixed batches).
         active: (B,) False for missions that are over (their state is left alone).
     """
-    cell = cells(sensor)
     serving = sensor >= 0
-    rate_served = rate_bps.reshape(-1).take(cell)
+    rate_served = rate_served_bps
     hover_flag = (state.sensor >= 0) & active
     np.logical_and(state.cooling, ~(rate_bps.reshape(-1) < threshold_bps), out=state.cooling)
     np.subtract(state.budget_s, slot_s, out=state.budget_s, where=hover_flag)

@@ -106,12 +106,18 @@ class FixedFlight:
     def apply(self, action: Action, who: str = "policy") -> float:
         """Apply ``action`` to the slot last observed; returns the bits downloaded."""
         sensor = check_serve(action.serve, self.mission.n_sensors, who)
+        sensor = self.windowed(sensor)
         served = np.array([sensor])
         bits = contract.take_bits(
             self._remaining, served, self._rate_now[None], self.mission.slot_s
         )
         self.record(action, sensor, float(bits[0]))
         return float(bits[0])
+
+    def windowed(self, sensor: int) -> int:
+        """``sensor``, or NO_SENSOR once the download window has closed."""
+        window = self.mission.window_slots
+        return NO_SENSOR if window is not None and self.slot >= window else sensor
 
     def record(self, action: Action, sensor: int, bits: float) -> None:
         """Log the slot (``sensor`` served, ``bits`` already taken) and move on the track."""
@@ -152,6 +158,7 @@ class FixedFlight:
             home_m=mission.home_m,
             hover_points_m=mission.hover_points_m,
             visit_radius_m=mission.visit_radius_m,
+            aadm_window_s=mission.score_window_s,
         )
 
 

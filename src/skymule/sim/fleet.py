@@ -193,7 +193,10 @@ class FleetFlight:
         """Apply one action per UAV to the slot last observed; (K,) bits each downloaded."""
         n_sensors = self.fleet.missions[0].n_sensors
         chosen = np.array(
-            [check_serve(a.serve, n_sensors, w) for a, w in zip(actions, who, strict=True)],
+            [
+                flight.windowed(check_serve(a.serve, n_sensors, w))
+                for flight, a, w in zip(self.flights, actions, who, strict=True)
+            ],
             np.int64,
         )
         rates = np.stack([flight.rate_bps for flight in self.flights])

@@ -5,13 +5,28 @@ Engines write it; metrics, run folders and figures read it. It is immutable.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
 from skymule.sim.contract import NO_SENSOR
 
 __all__ = ["NO_SENSOR", "MissionLog"]
+
+_ARRAY_FIELDS = (
+    "buffers_bit",
+    "position_m",
+    "end_position_m",
+    "snr_db",
+    "rate_bps",
+    "served",
+    "downloaded_bit",
+    "remaining_bit",
+    "hovering",
+    "home_m",
+    "hover_points_m",
+    "target",
+)
 
 
 @dataclass(frozen=True)
@@ -37,6 +52,7 @@ class MissionLog:
         visit_radius_m: a sensor counts as visited within this distance of its hover point [m].
         target: autonomous: (T',) sensor the policy was heading for in each slot, or
             NO_SENSOR; None on fixed trajectories.
+        aadm_window_s: the AADM download window the score counts downloads in [s].
     """
 
     policy: str
@@ -55,13 +71,14 @@ class MissionLog:
     hover_points_m: np.ndarray | None = None
     visit_radius_m: float = 50.0
     target: np.ndarray | None = None
+    aadm_window_s: float = 500.0
 
     @property
     def n_slots(self) -> int:
         return int(self.served.shape[0])
 
     def __post_init__(self) -> None:
-        for item in fields(self):
-            value = getattr(self, item.name)
+        for name in _ARRAY_FIELDS:
+            value = getattr(self, name)
             if isinstance(value, np.ndarray):
                 value.flags.writeable = False

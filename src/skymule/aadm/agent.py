@@ -1,0 +1,338 @@
+"""Any skymule policy as the AADM UAV-side agent.
+
+:class:`AadmAgent` is the plain Python entry point: call ``step(snr_db, downloaded_mbit,
+position_m)`` once a second (e.g. from your own aerpawlib state machine) and get the tower to
+name and the point to fly to. It builds the policy's MissionContext exactly as the engine does
+(:func:`policy_context`), turns what the controller reported into an
+:class:`~skymule.policies.base.Observation` (rates from the scenario's rate table, data left
+= volume - downloaded) and applies the engine's motion rules to the policy's ``goto_m``:
+a goal outside the geofence becomes the nearest fence point, and with ``return_home`` the goal
+becomes home whenever flying on would leave too little time to get back (the invariant of
+:mod:`skymule.sim.autonomous`). On a fixed trajectory it flies the scenario's path one sample
+a slot, holding where the policy hovers.
+
+Two transports drive it with a :class:`~skymule.aadm.vehicle.Vehicle`: the TCP comm protocol
+(:func:`fly_tcp`) and the challenge's agent<->comm files (:func:`run_file_agent`).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from skymule.aadm import files
+from skymule.aadm.controller import poll_once
+from skymule.aadm.protocol import NOT_HEARD_DB, Reply
+from skymule.aadm.score import UNREADABLE_SNR_DB
+from skymule.aadm.vehicle import Vehicle
+from skymule.errors import SkymuleError
+from skymule.policies.base import MissionContext, Observation, Policy
+from skymule.sim.autonomous import next_position
+from skymule.sim.context import mission_context
+from skymule.sim.engine import check_serve
+from skymule.world import BITS_PER_MBIT, Mission
+
+log = logging.getLogger("skymule.aadm.agent")
+
+#: The UAV is "at home" within this distance before it lands [m].
+HOME_TOLERANCE_M = 0.5
+
+
+def policy_context(mission: Mission) -> MissionContext:
+    """The MissionContext the engine gives a policy for ``mission``."""
+    return mission_context(mission)
+
+
+@dataclass(frozen=True)
+class AgentStep:
+    """One decision: the tower to name (1..N), where to fly, and the policy's own choice."""
+
+    tower_id: int
+    goto_m: tuple[float, float] | None
+    serve: int | None
+
+
+class AadmAgent:
+    """A skymule policy behind the challenge's once-a-second interface."""
+
+    def __init__(self, mission: Mission, policy: Policy) -> None:
+        self.mission = mission
+        self.policy = policy
+        self.autonomous = mission.mode == "autonomous"
+        self.context = policy_context(mission)
+        self.volumes_bit: np.ndarray | None = None
+        self.slot = 0
+        self._track_sample = 0
+
+    @property
+    def n_towers(self) -> int:
+        return self.mission.n_sensors
+
+    @property
+    def finished(self) -> bool:
+        """True once the mission's slots are used up."""
+        return self.slot >= self.context.n_slots
+
+    def home_xy(self) -> tuple[float, float]:
+        home = self.mission.home_m if self.autonomous else None
+        home = np.zeros(2) if home is None else home
+        return float(home[0]), float(home[1])
+
+    def start(self, volumes_mbit: np.ndarray) -> None:
+        """Reset the policy for the volumes the controller shared (slot 0 is the next step)."""
+        volumes = np.asarray(volumes_mbit, float)
+        if volumes.shape != (self.n_towers,):
+            raise SkymuleError(
+                f"volumes: {volumes.size} values for the scenario's {self.n_towers} towers"
+            )
+        self.volumes_bit = volumes * BITS_PER_MBIT
+        self.policy.reset(replace(self.context, buffers_bit=self.volumes_bit.copy()))
+        self.slot, self._track_sample = 0, 0
+
+    def step(
+        self,
+        snr_db: np.ndarray,
+        downloaded_mbit: np.ndarray,
+        position_m: np.ndarray,
+        volumes_mbit: np.ndarray | None = None,
+    ) -> AgentStep:
+        """One slot: SNR per tower [dB] (-99: not heard; NaN: unreadable, 0 dB), cumulative
+        Mbit downloaded per tower, UAV position [m] -> tower id and goal.
+
+        The first call starts the mission with ``volumes_mbit`` (default: the scenario's
+        buffers) unless :meth:`start` was called.
+        """
+        if self.volumes_bit is None:
+            default = self.mission.buffers_bit / BITS_PER_MBIT
+            self.start(default if volumes_mbit is None else volumes_mbit)
+        assert self.volumes_bit is not None
+        snr = np.asarray(snr_db, float).reshape(self.n_towers)
+        heard = np.where(np.isnan(snr), UNREADABLE_SNR_DB, snr)
+        seen = np.where(heard <= NOT_HEARD_DB, -np.inf, heard)
+        remaining = np.maximum(
+            self.volumes_bit - np.asarray(downloaded_mbit, float) * BITS_PER_MBIT, 0.0
+        )
+        position = np.asarray(position_m, float).reshape(3)
+        action = self.policy.act(
+            Observation(
+                slot=self.slot,
+                position_m=position,
+                snr_db=seen,
+                rate_bps=self.mission.rate_bps(seen),
+                remaining_bit=remaining,
+            )
+        )
+        serve = check_serve(action.serve, self.n_towers, self.policy.name)
+        goto = self._goal(action.goto_m, bool(action.hover), position)
+        self.slot += 1
+        tower = serve if serve >= 0 else self._idle_tower(remaining, seen)
+        return AgentStep(tower + 1, goto, None if serve < 0 else serve)
+
+    def _idle_tower(self, remaining: np.ndarray, snr: np.ndarray) -> int:
+        # the protocol needs a tower every poll: name an empty one, so that nothing is
+        # downloaded when the policy serves nobody (as in the engine); else the weakest link
+        empty = np.flatnonzero(remaining <= 0)
+        return int(empty[0]) if empty.size else int(np.argmin(snr))
+
+    def _goal(
+        self, goto_m: tuple[float, float] | None, hover: bool, position: np.ndarray
+    ) -> tuple[float, float] | None:
+        if not self.autonomous:
+            track = self.mission.track
+            if track is None:
+                return None
+            if not hover:
+                self._track_sample = min(self._track_sample + 1, track.n_samples - 1)
+            target = track.position_m[self._track_sample]
+            return float(target[0]), float(target[1])
+        # the engine's own motion rule (fence, speed cap, return home): one step ahead
+        here = (float(position[0]), float(position[1]))
+        return next_position(self.mission, here, goto_m, self.slot)[0]
+
+
+# ---------------------------------------------------------------------------
+# Driving a vehicle
+# ---------------------------------------------------------------------------
+
+
+@dataclass
+class FlightRecord:
+    """What an agent run did, poll by poll."""
+
+    positions_m: list[np.ndarray] = field(default_factory=list)
+    towers: list[int] = field(default_factory=list)
+    reports: list[str] = field(default_factory=list)
+    polls: int = 0
+    share_poll: int | None = None
+
+    def end_distance_to(self, home_xy: tuple[float, float]) -> float:
+        last = self.positions_m[-1] if self.positions_m else np.zeros(3)
+        return float(np.hypot(last[0] - home_xy[0], last[1] - home_xy[1]))
+
+
+class _Pilot:
+    """Take-off, the mission, return to launch and landing, shared by both transports."""
+
+    def __init__(self, agent: AadmAgent, vehicle: Vehicle, altitude_m: float) -> None:
+        self.agent, self.vehicle = agent, vehicle
+        self.altitude_m = altitude_m
+        self.done = False  # mission over: fly home and land
+        self.record = FlightRecord()
+
+    def decide(
+        self, kind: str, snr: np.ndarray, volumes: np.ndarray | None, downloaded: np.ndarray
+    ) -> int:
+        position = self.vehicle.position_m()
+        goto: tuple[float, float] | None = None
+        if kind in ("wait", "") or self.done:
+            tower = int(np.nanargmax(snr)) + 1  # not served: any tower will do
+        else:
+            if self.agent.volumes_bit is None:
+                self.record.share_poll = self.record.polls
+                if volumes is None:
+                    raise SkymuleError("the controller never shared the volumes")
+                self.agent.start(volumes)
+            step = self.agent.step(snr, downloaded, position)
+            tower, goto = step.tower_id, step.goto_m
+            if kind == "download_complete" or self.agent.finished:
+                self.done = True
+        if self.done:
+            goto = self.agent.home_xy()
+        if goto is not None:
+            self.vehicle.goto(goto)
+        self.record.positions_m.append(position)
+        self.record.towers.append(tower)
+        return tower
+
+    def advance(self, dt_s: float) -> bool:
+        """Let ``dt_s`` pass; True once the vehicle has landed and disarmed after the mission."""
+        self.record.polls += 1
+        if self.done and self.vehicle.armed:
+            here = self.vehicle.position_m()
+            home = self.agent.home_xy()
+            if np.hypot(here[0] - home[0], here[1] - home[1]) <= HOME_TOLERANCE_M:
+                self.vehicle.land()
+        self.vehicle.tick(dt_s)
+        return self.done and not self.vehicle.armed
+
+
+def fly_tcp(
+    agent: AadmAgent,
+    vehicle: Vehicle,
+    host: str,
+    port: int,
+    *,
+    poll_s: float = 1.0,
+    pace_s: float | None = None,
+    altitude_m: float = 25.0,
+    max_polls: int = 100_000,
+) -> FlightRecord:
+    """Fly a mission against a controller over TCP: take off, poll, decide, fly, land.
+
+    ``poll_s`` is the time each poll stands for (the vehicle advances that much); the loop
+    waits ``pace_s`` of wall time between polls (default ``poll_s``; 0 = as fast as possible).
+    The UAV's position and armed state go with every request (``pos``/``armed``).
+    """
+    if poll_s <= 0:
+        raise SkymuleError(f"poll_s = {poll_s:g}: each poll must stand for > 0 s")
+    pilot = _Pilot(agent, vehicle, altitude_m)
+    vehicle.takeoff(altitude_m)
+    state: dict[str, np.ndarray | None] = {"volumes": None}
+
+    def choose(reply: Reply) -> int:
+        assert reply.snr_db is not None
+        if reply.kind == "vol":
+            state["volumes"] = reply.values
+        volumes = state["volumes"]
+        if reply.kind == "download" and reply.values is not None:
+            downloaded = reply.values
+        elif reply.kind == "download_complete" and volumes is not None:
+            downloaded = volumes
+        else:
+            downloaded = np.zeros(agent.n_towers)
+        return pilot.decide(reply.kind, reply.snr_db, volumes, downloaded)
+
+    wait_s = poll_s if pace_s is None else pace_s
+    for _ in range(max_polls):
+        started = time.monotonic()
+        try:
+            reply, report = poll_once(host, port, choose, vehicle.position_m(), armed=vehicle.armed)
+        except OSError as exc:
+            if not pilot.done:
+                why = "no controller listening" if isinstance(exc, ConnectionRefusedError) else exc
+                raise SkymuleError(f"controller {host}:{port}: {why}") from None
+            # the mission is over: fly home and land even if the controller went away
+            reply, report = Reply("download_complete", None, None), ""
+            vehicle.goto(agent.home_xy())
+        if reply.kind == "error":
+            raise SkymuleError(f"controller {host}:{port} refused the poll: {reply.text}")
+        pilot.record.reports.append(report)
+        if pilot.advance(poll_s):
+            try:  # tell the controller the UAV disarmed: the session is over
+                poll_once(host, port, lambda _: 1, vehicle.position_m(), armed=False)
+            except OSError:
+                log.info("controller gone before the final poll")
+            break
+        time.sleep(max(0.0, wait_s - (time.monotonic() - started)))
+    return pilot.record
+
+
+def run_file_agent(
+    agent: AadmAgent,
+    vehicle: Vehicle,
+    folder: Path,
+    *,
+    poll_s: float = 1.0,
+    pace_s: float | None = None,
+    altitude_m: float = 25.0,
+    max_polls: int = 100_000,
+    should_stop: Callable[[], bool] = lambda: False,
+) -> FlightRecord:
+    """Beside the challenge's comm process: read ss/dv/dd/tn.txt, write bc.txt, each poll.
+
+    Each poll is one slot of ``poll_s`` for the vehicle; the loop waits ``pace_s`` of wall
+    time between polls (default ``poll_s``; 0 = as fast as possible).
+    """
+    if poll_s <= 0:
+        raise SkymuleError(f"poll_s = {poll_s:g}: each poll must stand for > 0 s")
+    pilot = _Pilot(agent, vehicle, altitude_m)
+    vehicle.takeoff(altitude_m)
+    n_towers = agent.n_towers
+    for _ in range(max_polls):
+        if should_stop():
+            break
+        started = time.monotonic()
+        try:
+            snr = files.read_tower_file(folder / files.SNR_FILE, n_towers)
+        except SkymuleError as exc:
+            log.info("no SNR yet: %s", exc)
+            snr = None
+        if snr is not None:
+            volumes = _optional(lambda: files.read_tower_file(folder / files.VOLUME_FILE, n_towers))
+            done = bool(_optional(lambda: files.read_done_file(folder / files.DONE_FILE)))
+            got = _optional(lambda: files.read_tower_file(folder / files.DOWNLOADED_FILE, n_towers))
+            kind = "wait" if volumes is None else ("download_complete" if done else "download")
+            downloaded = got if got is not None else np.zeros(n_towers)
+            if done and volumes is not None:
+                downloaded = volumes
+            tower = pilot.decide(kind, snr, volumes, downloaded)
+            files.write_choice_file(folder / files.CHOICE_FILE, tower)
+        if pilot.advance(poll_s):
+            break
+        wait_s = poll_s if pace_s is None else pace_s
+        time.sleep(max(0.0, wait_s - (time.monotonic() - started)))
+    return pilot.record
+
+
+def _optional(read: Callable[[], object]) -> np.ndarray | None:
+    """A comm file's value, or None while the comm process has not written it (yet)."""
+    try:
+        value = read()
+    except SkymuleError:
+        return None
+    return None if value is None else np.asarray(value)

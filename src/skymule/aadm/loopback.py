@@ -1,0 +1,100 @@
+"""One offline AADM flight: the emulated controller, the agent and the kinematic vehicle.
+
+:func:`fly_loopback` serves the controller on a loopback port (port 0: any free port), flies
+the scenario's policy as the agent with a :class:`~skymule.aadm.vehicle.KinematicVehicle`
+over the TCP protocol, then runs the same scenario and policy through the engine
+(``skymule run``) and scores both by the rule in force.
+
+Why they may differ: the engine starts at slot 0 already at altitude; the flight takes off
+from the ground at 2.5 m/s and the volumes are shared (t1 = 0, slot 0 of the policy) at the
+first poll above 24 m, at home but a few metres lower than the engine's altitude; and the
+vehicle finishes its climb during the first slots. Everything else (one poll = one 1-s slot,
+the slot contract, the fence and return-home rules) is the same.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from skymule.aadm.agent import AadmAgent, fly_tcp
+from skymule.aadm.controller import ControllerCore, serve_controller
+from skymule.aadm.score import aadm_score_one
+from skymule.aadm.vehicle import TAKEOFF_ALTITUDE_M, KinematicVehicle
+from skymule.flight.navigation import Navigator
+from skymule.policies import make_policy
+from skymule.scenario import Scenario
+from skymule.world import BITS_PER_MBIT, build_mission, fence_or_box
+
+
+@dataclass(frozen=True)
+class LoopbackResult:
+    """The flight and the engine's run of the same scenario, side by side.
+
+    ``engine_mbit`` counts the engine's downloads inside the controller's window (what the
+    controller would have credited); ``engine_mission_mbit`` is its whole mission's total.
+    """
+
+    policy: str
+    flight_mbit: np.ndarray
+    flight_score: dict[str, Any]
+    engine_mbit: np.ndarray
+    engine_mission_mbit: float
+    engine_score: dict[str, Any]
+    polls: int
+    share_poll: int
+    landed_distance_m: float
+    sensor_names: tuple[str, ...]
+
+
+def kinematic_vehicle(agent: AadmAgent) -> KinematicVehicle:
+    """A kinematic vehicle at the agent's launch point, inside the mission's fence."""
+    mission = agent.mission
+    navigator = mission.navigator or Navigator(fence_or_box(mission.fence))
+    return KinematicVehicle(navigator, agent.home_xy())
+
+
+def fly_loopback(
+    scenario: Scenario,
+    policy: str | None = None,
+    *,
+    poll_s: float = 0.0,
+    log_path: Path | None = None,
+) -> LoopbackResult:
+    """Fly ``scenario`` on loopback (pacing ``poll_s`` of wall time a poll) and run the engine."""
+    from skymule.runner import simulate
+
+    if policy is not None:
+        scenario = scenario.with_policy(policy)
+    mission = build_mission(scenario)
+    agent = AadmAgent(mission, make_policy(scenario.policy))
+    vehicle = kinematic_vehicle(agent)
+    altitude = TAKEOFF_ALTITUDE_M
+    if scenario.trajectory.mode == "autonomous":
+        altitude = scenario.trajectory.altitude_m
+    elif mission.track is not None:  # climb to the path's own altitude, if it is above 24 m
+        altitude = max(TAKEOFF_ALTITUDE_M, float(mission.track.position_m[0, 2]))
+    core = ControllerCore(mission, log_path=log_path)
+    with serve_controller(core) as server:
+        record = fly_tcp(
+            agent, vehicle, server.host, server.port, pace_s=poll_s, altitude_m=altitude
+        )
+    engine = simulate(scenario, mission=mission)
+    total = float(mission.buffers_bit.sum())
+    in_window = min(engine.log.n_slots, round(core.window_s / mission.slot_s))
+    left = engine.log.remaining_bit[in_window - 1] if in_window else mission.buffers_bit
+    return LoopbackResult(
+        policy=scenario.policy.name,
+        flight_mbit=core.received_mbit(),
+        flight_score=core.score(),
+        engine_mbit=(mission.buffers_bit - left) / BITS_PER_MBIT,
+        engine_mission_mbit=float(engine.log.downloaded_bit.sum()) / BITS_PER_MBIT,
+        engine_score=aadm_score_one(engine.log.downloaded_bit, total, mission.slot_s),
+        polls=record.polls,
+        share_poll=record.share_poll if record.share_poll is not None else -1,
+        landed_distance_m=record.end_distance_to(agent.home_xy()),
+        sensor_names=mission.sensor_names,
+    )

@@ -1,0 +1,179 @@
+"""The AADM score in force, as the challenge controller computes it, vectorised over missions.
+
+Rules (issue "AADM for real", ``shared/data/README.md``):
+
+* downloads count from the slot in which the volumes were shared with the UAV (the first
+  poll above 24 m on a flight; slot 0 in a simulation), and the timer t1 starts there;
+* the controller stops serving when the window closes: slot k (0-based since sharing) is
+  served while its start ``k * slot_s`` is before ``window_s`` (a 500-s simulation with 1-s
+  slots is 500 served slots);
+* t1 is the end of the slot in which the last bit arrived, since sharing, when everything
+  was downloaded; otherwise the time the window closed or the mission ended, whichever came
+  first;
+* ``S = max(0, (window_s - t1) * complete) + 100 * D_down / D_tot``; there is no landing
+  term (the testbed checks landing separately).
+
+Downloads are given per slot, (B, T) padded with zeros past each mission's ``n_slots``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from skymule.radio.rates import BUILTIN_RATE_TABLES
+
+#: The challenge's download window since the volumes were shared [s].
+AADM_WINDOW_S = 500.0
+
+#: The controller's channel bandwidth [Hz] and nominal poll length [s].
+AADM_BANDWIDTH_HZ = 1.4e6
+AADM_POLL_S = 1.0
+
+#: SNR the controller uses for a tower whose SNR cannot be read [dB].
+UNREADABLE_SNR_DB = 0.0
+
+#: The controller shares the volumes (and starts t1) at the first poll above this height [m].
+SHARE_ALTITUDE_M = 24.0
+
+#: Relative tolerance under which a buffer counts as emptied (float round-off of Mbit sums).
+COMPLETE_RTOL = 1e-9
+
+
+@dataclass(frozen=True)
+class AadmScore:
+    """Per-mission parts of the AADM score, each (B,).
+
+    Attributes:
+        t1_s: completion time since sharing, or when the window closed / the mission ended.
+        s1: completion bonus, max(0, window_s - t1) if everything was downloaded, else 0.
+        s2: 100 * downloaded / total (100 when there was nothing to download).
+        complete: whether every buffered bit was downloaded within the window.
+        downloaded_bit: bits that counted (after sharing, inside the window).
+        score: s1 + s2.
+    """
+
+    t1_s: np.ndarray
+    s1: np.ndarray
+    s2: np.ndarray
+    complete: np.ndarray
+    downloaded_bit: np.ndarray
+    score: np.ndarray
+
+
+def aadm_scores(
+    downloaded_bit: np.ndarray,
+    total_bit: np.ndarray,
+    n_slots: np.ndarray,
+    slot_s: float | np.ndarray,
+    window_s: float | np.ndarray = AADM_WINDOW_S,
+    share_slot: np.ndarray | None = None,
+) -> AadmScore:
+    """The AADM score of B missions.
+
+    Args:
+        downloaded_bit: (B, T) bits downloaded in each slot (any tower), zero-padded.
+        total_bit: (B,) total buffered bits D_tot.
+        n_slots: (B,) slots each mission ran (slots at or past it are ignored).
+        slot_s: slot length [s] (the controller's nominal 1 s per poll); scalar or (B,).
+        window_s: download window since sharing [s]; scalar or (B,).
+        share_slot: (B,) slot in which the volumes were shared (default 0).
+    """
+    # C order: row sums then take numpy's pairwise order whatever the caller's layout, so one
+    # mission scores bit for bit the same alone or inside a batch
+    down = np.ascontiguousarray(np.atleast_2d(np.asarray(downloaded_bit, float)))
+    if down.shape[1] == 0:  # missions that ran no slot: one empty slot keeps argmax defined
+        down = np.zeros((down.shape[0], 1))
+    n_missions, width = down.shape
+    total = np.asarray(total_bit, float).reshape(n_missions)
+    ran = np.asarray(n_slots, int).reshape(n_missions)
+    share = (
+        np.zeros(n_missions, int)
+        if share_slot is None
+        else np.asarray(share_slot, int).reshape(n_missions)
+    )
+    slot = np.broadcast_to(np.asarray(slot_s, float), (n_missions,))
+    window = np.broadcast_to(np.asarray(window_s, float), (n_missions,))
+    slots = np.arange(width)[None, :]
+    since = slots - share[:, None]  # slot index since sharing
+    counted = (
+        (since >= 0) & (slots < ran[:, None]) & (since * slot[:, None] < window[:, None] - 1e-9)
+    )
+    got = np.where(counted, down, 0.0)
+    cumulative = np.cumsum(got, axis=1)
+    reached = counted & (cumulative >= total[:, None] * (1.0 - COMPLETE_RTOL))
+    nothing = total <= 0
+    complete = reached.any(axis=1) | nothing
+    first = np.where(reached.any(axis=1), reached.argmax(axis=1), 0)
+    served_s = np.maximum(ran - share, 0) * slot
+    t1 = np.where(
+        nothing,
+        0.0,
+        np.where(complete, (first - share + 1) * slot, np.minimum(window, served_s)),
+    )
+    # the running sum (not a pairwise row sum): trailing padding adds exact zeros, so a mission
+    # scores bit for bit the same alone or inside a padded batch
+    downloaded = np.minimum(cumulative[:, -1], total)
+    s1 = np.where(complete, np.maximum(0.0, window - t1), 0.0)
+    s2 = np.where(nothing, 100.0, 100.0 * downloaded / np.where(nothing, 1.0, total))
+    return AadmScore(
+        t1_s=t1.astype(float),
+        s1=s1,
+        s2=s2,
+        complete=complete,
+        downloaded_bit=downloaded,
+        score=s1 + s2,
+    )
+
+
+def aadm_score_one(
+    downloaded_bit: np.ndarray,
+    total_bit: float,
+    slot_s: float,
+    window_s: float = AADM_WINDOW_S,
+    share_slot: int = 0,
+) -> dict[str, float | bool]:
+    """One mission's score parts as plain values (``aadm_t1_s``, ``aadm_s1`` ...).
+
+    ``downloaded_bit`` is (T,) bits per slot; the mission ran T slots.
+    """
+    per_slot = np.asarray(downloaded_bit, float).reshape(1, -1)
+    parts = aadm_scores(
+        per_slot,
+        np.array([total_bit]),
+        np.array([per_slot.shape[1]]),
+        slot_s,
+        window_s,
+        np.array([share_slot]),
+    )
+    return {
+        "aadm_t1_s": float(parts.t1_s[0]),
+        "aadm_s1": float(parts.s1[0]),
+        "aadm_s2": float(parts.s2[0]),
+        "aadm_complete": bool(parts.complete[0]),
+        "aadm_score": float(parts.score[0]),
+    }
+
+
+def poll_download_bit(
+    snr_db: np.ndarray,
+    left_bit: np.ndarray,
+    poll_s: float = AADM_POLL_S,
+    bandwidth_hz: float = AADM_BANDWIDTH_HZ,
+) -> np.ndarray:
+    """Bits the controller credits a served tower for one poll (any shape, elementwise).
+
+    Efficiency of the served tower's SNR in the AADM CQI table x bandwidth x the nominal poll
+    length, clipped to the data the tower has left. NaN means "SNR could not be read" and
+    counts as 0 dB (the controller's rule); a tower not heard from reports -99 dB (rate 0).
+    """
+    snr = np.where(np.isnan(np.asarray(snr_db, float)), UNREADABLE_SNR_DB, snr_db)
+    offered = BUILTIN_RATE_TABLES["aadm-lte-cqi"].efficiency(snr) * bandwidth_hz * poll_s
+    return np.minimum(offered, np.maximum(np.asarray(left_bit, float), 0.0))
+
+
+def share_slot_from_altitude(altitude_m: np.ndarray) -> int:
+    """Slot of the first sample above :data:`SHARE_ALTITUDE_M` (len(altitude_m) if never)."""
+    above = np.asarray(altitude_m, float) > SHARE_ALTITUDE_M
+    return int(np.argmax(above)) if above.any() else int(above.size)

@@ -1,0 +1,202 @@
+"""The vehicle the agent flies: a small interface and two implementations.
+
+* :class:`KinematicVehicle`: inside skymule, for offline runs. Time advances only when the
+  agent calls ``tick(dt)`` (lock-step with the emulated controller clock): it climbs at
+  ``climb_mps``, flies at most ``max_speed_mps`` along the shortest path inside the geofence
+  (:class:`~skymule.flight.navigation.Navigator`), descends at ``descent_mps`` and disarms on
+  touching down.
+* :class:`MavsdkVehicle`: a real vehicle or SITL through MAVSDK (``pip install 'skymule[fly]'``),
+  GUIDED-style ``goto_location``; time is real time and ``tick`` does nothing. It is written
+  against the MAVSDK-Python API but has not been run against SITL here.
+
+Positions are local metres of the scenario's frame: x east, y north, z above the launch point.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import importlib
+import threading
+from collections.abc import Coroutine
+from typing import Any, Protocol
+
+import numpy as np
+
+from skymule.errors import SkymuleError
+from skymule.flight.navigation import Navigator, hover_point
+from skymule.geo import LocalFrame
+
+#: AADM: take off to 25 m, fly at <= 10 m/s.
+TAKEOFF_ALTITUDE_M = 25.0
+MAX_SPEED_MPS = 10.0
+#: ArduCopter defaults: WPNAV_SPEED_UP 2.5 m/s; landing descent about 1.5 m/s above 10 m.
+CLIMB_MPS = 2.5
+DESCENT_MPS = 1.5
+
+
+class Vehicle(Protocol):
+    """What the agent needs from a vehicle."""
+
+    def position_m(self) -> np.ndarray: ...
+
+    @property
+    def armed(self) -> bool: ...
+
+    def takeoff(self, altitude_m: float) -> None: ...
+
+    def goto(self, xy_m: tuple[float, float]) -> None: ...
+
+    def land(self) -> None: ...
+
+    def tick(self, dt_s: float) -> None: ...
+
+
+class KinematicVehicle:
+    """A point mass with a speed cap, a geofence and take-off/landing (see module docstring)."""
+
+    def __init__(
+        self,
+        navigator: Navigator,
+        home_xy_m: tuple[float, float],
+        *,
+        max_speed_mps: float = MAX_SPEED_MPS,
+        climb_mps: float = CLIMB_MPS,
+        descent_mps: float = DESCENT_MPS,
+    ) -> None:
+        self.navigator = navigator
+        self._xy = (float(home_xy_m[0]), float(home_xy_m[1]))
+        self._z = 0.0
+        self._goal = self._xy
+        self._target_z = 0.0
+        self._armed = False
+        self._landing = False
+        self.max_speed_mps = max_speed_mps
+        self.climb_mps = climb_mps
+        self.descent_mps = descent_mps
+        self.distance_m = 0.0
+
+    def position_m(self) -> np.ndarray:
+        return np.array([self._xy[0], self._xy[1], self._z])
+
+    @property
+    def armed(self) -> bool:
+        return self._armed
+
+    @property
+    def airborne(self) -> bool:
+        return self._z > 0.0
+
+    def takeoff(self, altitude_m: float = TAKEOFF_ALTITUDE_M) -> None:
+        self._armed, self._landing, self._target_z = True, False, float(altitude_m)
+
+    def goto(self, xy_m: tuple[float, float]) -> None:
+        """Fly toward ``xy_m`` (a goal outside the fence becomes the nearest fence point)."""
+        goal = (float(xy_m[0]), float(xy_m[1]))
+        fence = self.navigator.fence
+        if not fence.buffer(1e-6).covers(_point(goal)):
+            goal = hover_point(fence, goal, margin_m=0.0)
+        self._goal = goal
+
+    def land(self) -> None:
+        self._landing, self._target_z = True, 0.0
+
+    def tick(self, dt_s: float) -> None:
+        """Advance ``dt_s`` seconds: climb first, then fly; land where it is."""
+        if not self._armed:
+            return
+        if not self._landing and self._z >= self._target_z - 1e-9:
+            moved = self.navigator.step(self._xy, self._goal, self.max_speed_mps * dt_s)
+            self.distance_m += float(np.hypot(moved[0] - self._xy[0], moved[1] - self._xy[1]))
+            self._xy = moved
+        rate = self.descent_mps if self._landing else self.climb_mps
+        change = float(np.clip(self._target_z - self._z, -rate * dt_s, rate * dt_s))
+        self._z += change
+        if self._landing and self._z <= 0.0:
+            self._z, self._armed = 0.0, False
+
+
+def _point(xy: tuple[float, float]) -> Any:
+    from shapely.geometry import Point
+
+    return Point(xy)
+
+
+class MavsdkVehicle:
+    """MAVSDK-Python behind the :class:`Vehicle` interface (optional extra ``fly``).
+
+    A private asyncio loop in a background thread runs MAVSDK; every method blocks until
+    MAVSDK acknowledged the command. Not tested against SITL in this repository.
+    """
+
+    def __init__(self, address: str, frame: LocalFrame, timeout_s: float = 30.0) -> None:
+        try:
+            system_module = importlib.import_module("mavsdk")
+        except ImportError:
+            raise SkymuleError(
+                "--vehicle mavsdk needs the MAVSDK package: pip install 'skymule[fly]'"
+            ) from None
+        self.frame = frame
+        self.timeout_s = timeout_s
+        self._loop = asyncio.new_event_loop()
+        self._thread = threading.Thread(target=self._loop.run_forever, daemon=True)
+        self._thread.start()
+        self._drone: Any = system_module.System()
+        self._home_amsl_m = 0.0
+        self._run(self._connect(address))
+
+    def _run(self, coroutine: Coroutine[Any, Any, Any]) -> Any:
+        return asyncio.run_coroutine_threadsafe(coroutine, self._loop).result(self.timeout_s)
+
+    async def _connect(self, address: str) -> None:
+        await self._drone.connect(system_address=address)
+        async for state in self._drone.core.connection_state():
+            if state.is_connected:
+                break
+        async for home in self._drone.telemetry.home():
+            self._home_amsl_m = float(home.absolute_altitude_m)
+            break
+
+    async def _position(self) -> np.ndarray:
+        async for where in self._drone.telemetry.position():
+            x_m, y_m = self.frame.to_local(where.latitude_deg, where.longitude_deg)
+            return np.array([float(x_m), float(y_m), float(where.relative_altitude_m)])
+        raise SkymuleError("MAVSDK: no position telemetry")
+
+    async def _armed(self) -> bool:
+        async for armed in self._drone.telemetry.armed():
+            return bool(armed)
+        return False
+
+    async def _takeoff(self, altitude_m: float) -> None:
+        await self._drone.action.set_takeoff_altitude(altitude_m)
+        await self._drone.action.arm()
+        await self._drone.action.takeoff()
+
+    async def _goto(self, xy_m: tuple[float, float], altitude_m: float) -> None:
+        lat, lon = self.frame.to_latlon(xy_m[0], xy_m[1])
+        amsl = self._home_amsl_m + altitude_m
+        await self._drone.action.goto_location(float(lat), float(lon), amsl, float("nan"))
+
+    def position_m(self) -> np.ndarray:
+        return np.asarray(self._run(self._position()))
+
+    @property
+    def armed(self) -> bool:
+        return bool(self._run(self._armed()))
+
+    def takeoff(self, altitude_m: float = TAKEOFF_ALTITUDE_M) -> None:
+        self._altitude_m = altitude_m
+        self._run(self._takeoff(altitude_m))
+
+    def goto(self, xy_m: tuple[float, float]) -> None:
+        self._run(self._goto(xy_m, getattr(self, "_altitude_m", TAKEOFF_ALTITUDE_M)))
+
+    def land(self) -> None:
+        self._run(self._drone.action.land())
+
+    def tick(self, dt_s: float) -> None:
+        """Real time: the agent's own pacing lets the vehicle fly."""
+
+    def close(self) -> None:
+        self._loop.call_soon_threadsafe(self._loop.stop)
+        self._thread.join(timeout=5)

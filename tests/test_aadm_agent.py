@@ -1,0 +1,268 @@
+"""The agent: any policy as the UAV side, over TCP (loopback flight) and over the files."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import run_cli
+from skymule.aadm import files
+from skymule.aadm.agent import AadmAgent
+from skymule.aadm.comm import run_comm
+from skymule.aadm.controller import ControllerCore, serve_controller
+from skymule.aadm.loopback import fly_loopback
+from skymule.policies import Greedy
+from skymule.scenario import load_scenario
+from skymule.world import build_mission
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+
+SMALL = """
+name = "aadm-small"
+[mission]
+duration_s = 60
+[site]
+origin = {{ lat = 35.7274824, lon = -78.6962749 }}
+geofence = "lake-wheeler"
+[[sensors]]
+name = "LW1"
+lat = 35.727451
+lon = -78.695974
+height_m = 10.0
+buffer_mbit = {lw1}
+[[sensors]]
+name = "LW3"
+lat = 35.724933
+lon = -78.691912
+height_m = -0.23
+buffer_mbit = {lw3}
+[trajectory]
+mode = "autonomous"
+altitude_m = 30.0
+max_speed_mps = 10.0
+[policy]
+name = "hgad"
+"""
+
+
+@pytest.fixture
+def small(tmp_path: Path) -> Path:
+    path = tmp_path / "small.toml"
+    path.write_text(SMALL.format(lw1=60, lw3=40))
+    return path
+
+
+@pytest.fixture(autouse=True)
+def _no_server_left_behind() -> Iterator[None]:
+    yield
+    assert not [t for t in threading.enumerate() if t.name == "aadm-controller"]
+
+
+@pytest.mark.parametrize("preset", ["paper-sim-autonomous", "aadm-default"])
+def test_loopback_flight_of_hgad_matches_skymule_run(preset: str) -> None:
+    # autonomous (HGAD steers) and fixed path (aadm-default: 600 s, cut by the 500-s window)
+    result = fly_loopback(load_scenario(preset), "hgad", poll_s=0.0)
+    # the volumes are shared at the first poll above 24 m: 10 polls of climbing at 2.5 m/s
+    assert result.share_poll == 10
+    # one poll = one slot, in lock step: the controller credits what the engine downloads
+    np.testing.assert_allclose(result.flight_mbit, result.engine_mbit, atol=1e-6)
+    assert result.flight_score == pytest.approx(result.engine_score)
+    assert result.landed_distance_m <= 5.0  # the testbed's landing rule
+
+
+def test_plain_step_entry_point() -> None:
+    mission = build_mission(load_scenario("paper-sim-autonomous"))
+    agent = AadmAgent(mission, Greedy())
+    here = np.array([0.0, 0.0, 25.0])
+    step = agent.step(np.array([20.0, -99.0, 5.0, np.nan]), np.zeros(4), here)
+    assert step.tower_id == 1 and step.serve == 0  # Greedy: best SNR with data
+    assert agent.slot == 1 and step.goto_m is not None
+    # a tower whose data is all downloaded is skipped; NaN (unreadable) counts as 0 dB
+    step = agent.step(np.array([20.0, -99.0, -5.0, np.nan]), np.array([500.0, 0, 0, 0]), here)
+    assert step.tower_id == 4
+
+
+AGENT_SCRIPT = """
+import sys, time, os
+folder = sys.argv[1]
+def read(name):
+    try:
+        with open(os.path.join(folder, name)) as f:
+            return dict((int(k), float(v)) for k, v in
+                        (p.split(':') for p in f.read().strip().split(',') if p.strip()))
+    except (OSError, ValueError):
+        return None
+deadline = time.time() + 20
+while time.time() < deadline:
+    try:
+        if open(os.path.join(folder, 'tn.txt')).read().strip() == '-1':
+            break
+    except OSError:
+        pass
+    snr, vol, got = read('ss.txt'), read('dv.txt'), read('dd.txt')
+    if snr:
+        left = {k: vol[k] - (got or {}).get(k, 0) for k in vol} if vol else {k: 1 for k in snr}
+        best = max((k for k in snr if left.get(k, 0) > 0), key=lambda k: snr[k], default=1)
+        with open(os.path.join(folder, 'bc.tmp'), 'w') as f:
+            f.write(str(best))
+        os.replace(os.path.join(folder, 'bc.tmp'), os.path.join(folder, 'bc.txt'))
+    time.sleep(0.02)
+"""
+
+
+def test_plain_script_agent_through_the_files(small: Path, tmp_path: Path) -> None:
+    # the UAV hovers between LW1 and LW3 at 30 m; its position reaches the emulator in-process
+    mission = build_mission(load_scenario(str(small)))
+    where = np.array([150.0, -150.0, 30.0])
+    core = ControllerCore(
+        mission, log_path=tmp_path / "dl.csv", position_source=lambda: (where, True)
+    )
+    folder = tmp_path / "agent"
+    folder.mkdir()
+    script = tmp_path / "agent.py"
+    script.write_text(AGENT_SCRIPT)
+    stop = threading.Event()
+    process = subprocess.Popen([sys.executable, str(script), str(folder)])
+    try:
+        with serve_controller(core) as server:
+            comm = threading.Thread(
+                target=run_comm,
+                args=(folder, server.host, server.port),
+                kwargs={"poll_s": 0.03, "max_polls": 2000, "should_stop": stop.is_set},
+            )
+            comm.start()
+            try:
+                process.wait(timeout=25)
+            finally:
+                stop.set()
+                comm.join(timeout=10)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert files.read_done_file(folder / "tn.txt")
+    np.testing.assert_allclose(core.received_mbit(), [60.0, 40.0])
+    np.testing.assert_allclose(files.read_tower_file(folder / "dd.txt", 2), [60.0, 40.0])
+    log = files.read_download_log(tmp_path / "dl.csv")
+    assert log.cumulative_mbit[-1].tolist() == [60.0, 40.0]
+    # the script's choices reached the controller: both towers served
+    assert (np.diff(log.cumulative_mbit, axis=0, prepend=0) > 0).any(axis=0).all()
+
+
+def test_skymule_agent_through_the_files(small: Path, tmp_path: Path) -> None:
+    from skymule.aadm.agent import run_file_agent
+    from skymule.aadm.loopback import kinematic_vehicle
+    from skymule.policies import make_policy
+
+    scenario = load_scenario(str(small))
+    mission = build_mission(scenario)
+    agent = AadmAgent(mission, make_policy(scenario.policy))
+    vehicle = kinematic_vehicle(agent)
+    core = ControllerCore(mission, position_source=lambda: (vehicle.position_m(), vehicle.armed))
+    folder = tmp_path / "agent"
+    stop = threading.Event()
+    with serve_controller(core) as server:
+        comm = threading.Thread(
+            target=run_comm,
+            args=(folder, server.host, server.port),
+            kwargs={"poll_s": 0.01, "max_polls": 3000, "should_stop": stop.is_set},
+        )
+        comm.start()
+        try:
+            record = run_file_agent(agent, vehicle, folder, pace_s=0.01, max_polls=3000)
+        finally:
+            stop.set()
+            comm.join(timeout=10)
+    assert core.received_mbit().sum() > 0
+    assert record.end_distance_to(agent.home_xy()) <= 5.0 and not vehicle.armed
+
+
+def test_controller_and_agent_as_separate_processes(small: Path, tmp_path: Path) -> None:
+    env = {**os.environ, "PYTHONPATH": str(SRC)}
+    command = [sys.executable, "-c", "from skymule.cli import main; main()", "aadm"]
+    controller = subprocess.Popen(
+        [*command, "controller", str(small), "--port", "0", "--exit-on-disarm", "--log", "dl.csv"],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert controller.stdout is not None
+        line = controller.stdout.readline()
+        match = re.match(r"listening on 127\.0\.0\.1:(\d+)", line)
+        assert match, line
+        done = subprocess.run(
+            [
+                *command,
+                "agent",
+                str(small),
+                "--policy",
+                "hgad",
+                "--port",
+                match.group(1),
+                "--poll-s",
+                "0",
+            ],
+            cwd=tmp_path,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert done.returncode == 0, done.stderr
+        assert "landed 0.0 m from the launch point" in done.stdout
+        out, _ = controller.communicate(timeout=30)
+    finally:
+        if controller.poll() is None:
+            controller.kill()
+            controller.communicate()
+    assert controller.returncode == 0
+    assert "downloaded 100.0 Mbit" in out
+    assert files.read_download_log(tmp_path / "dl.csv").cumulative_mbit[-1].tolist() == [60, 40]
+
+
+def test_cli_fly_prints_the_comparison(small: Path) -> None:
+    done = run_cli("aadm", "fly", str(small), "--poll-s", "0")
+    assert done.returncode == 0, done.stderr
+    assert re.search(r"total \[Mbit\]\s+100\.0\s+100\.0\s+0\.0", done.stdout), done.stdout
+    assert "AADM score" in done.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "problem"),
+    [
+        (["aadm", "fly", "no-such-preset"], "no-such-preset"),
+        (["aadm", "fly", "{small}", "--policy", "nope"], "policy.name = 'nope' is not allowed"),
+        (["aadm", "controller", "{small}", "--volumes", "{vol}"], "3 volume line(s) for 2 towers"),
+        (["aadm", "agent", "{small}", "--policy", "hgad", "--port", "{port}"], "no controller"),
+        (["aadm", "agent", "{small}", "--policy", "hgad", "--vehicle", "mavsdk"], "skymule[fly]"),
+        (
+            ["aadm", "agent", "{small}", "--policy", "hgad", "--vehicle", "boat"],
+            "kinematic, mavsdk",
+        ),
+        (["aadm", "agent", "{small}", "--policy", "hgad", "--files", "nowhere"], "no such folder"),
+    ],
+)
+def test_cli_bad_input_is_one_line_and_exit_2(
+    small: Path, tmp_path: Path, args: list[str], problem: str
+) -> None:
+    (tmp_path / "vol.txt").write_text("10\n30\n90\n")
+    with __import__("socket").socket() as probe:  # a port nobody listens on
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    filled = [a.format(small=small, vol=tmp_path / "vol.txt", port=port) for a in args]
+    done = run_cli(*filled, cwd=tmp_path)
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert problem in done.stderr
+    assert "Traceback" not in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1

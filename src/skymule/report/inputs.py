@@ -71,6 +71,11 @@ def read_scenario(run_dir: Path) -> dict[str, Any]:
 def load_run(run_dir: Path, label: str | None = None) -> RunData:
     """Read a run folder (clear one-line error if it is not one)."""
     summary, slots = read_run(run_dir)
+    if "uav" in slots.columns:  # several UAVs: the report's panels are one UAV's (docs/fleet.md)
+        raise SkymuleError(
+            f"{run_dir}: a run of several UAVs (slots.csv has a uav column); the HTML report "
+            "covers one UAV: use `skymule plot` for the fleet's trajectory figure"
+        )
     missing = [c for c in ("t_s", "x_m", "y_m", "served", "downloaded_mbit") if c not in slots]
     if missing:
         raise SkymuleError(

@@ -123,7 +123,13 @@ def mission_bound_or_note(mission: Mission) -> tuple[MissionBound | None, str | 
 
 
 def scenario_bound(scenario: Scenario) -> MissionBound:
-    """The upper bound on what any policy can download in ``scenario`` (one-line error if none)."""
+    """The upper bound on what any policy can download in ``scenario`` (one-line error if none);
+    with ``[[uavs]]``, the K-UAV bound (``docs/fleet.md``)."""
+    if scenario.uavs:
+        from skymule.bounds.fleet import fleet_bound
+        from skymule.sim.fleet import build_fleet
+
+        return fleet_bound(build_fleet(scenario))
     from skymule.bounds.mission import mission_bound
 
     return mission_bound(build_mission(scenario))

@@ -321,6 +321,22 @@ class FaultSpec(_Spec):
         return self
 
 
+class UavSpec(_Spec):
+    """One UAV of a fleet (``[[uavs]]``); unset fields come from ``[trajectory]``/``[policy]``."""
+
+    name: Annotated[str, Field(min_length=1)]
+    home: LatLon | list[float] | None = None
+    """Home point, lat/lon or [x, y] metres (default: ``trajectory.home``)."""
+    altitude_m: PositiveFloat | None = None
+    """Autonomous flight altitude [m] (default: ``trajectory.altitude_m``)."""
+    max_speed_mps: PositiveFloat | None = None
+    """Speed cap (autonomous) or speed along the path (fixed) [m/s]."""
+    waypoints: list[list[float]] | str | None = None
+    """Fixed path of this UAV (as ``trajectory.waypoints``)."""
+    policy: PolicySpec | None = None
+    """This UAV's own policy (default: the scenario's ``[policy]``)."""
+
+
 class Scenario(_Spec):
     name: str = "scenario"
     seed: Annotated[int, Field(ge=0, lt=2**63)] = 0
@@ -334,6 +350,8 @@ class Scenario(_Spec):
     policy: PolicySpec = PolicySpec()
     faults: list[FaultSpec] | None = None
     """Faults injected into the mission (none by default); see docs/faults.md."""
+    uavs: list[UavSpec] | None = None
+    """Several UAVs sharing the sensors' buffers (``docs/fleet.md``); None: one UAV."""
     base_dir: str = Field(default=".", exclude=True)
     """Folder that relative paths in the scenario are resolved against (not serialised)."""
 
@@ -343,6 +361,12 @@ class Scenario(_Spec):
         duplicates = sorted({n for n in names if names.count(n) > 1})
         if duplicates:
             raise ValueError(f"sensor names must be unique; repeated: {', '.join(duplicates)}")
+        uavs = [u.name for u in self.uavs or []]
+        repeated = sorted({n for n in uavs if uavs.count(n) > 1})
+        if repeated:
+            raise ValueError(f"uavs: names must be unique; repeated: {', '.join(repeated)}")
+        if self.uavs is not None and not self.uavs:
+            raise ValueError("uavs = []: give at least one [[uavs]] table, or leave it out")
         return self
 
     @model_validator(mode="after")

@@ -309,6 +309,12 @@ def _trace_track(scenario: Scenario, frame: LocalFrame) -> Track:
 
 def build_mission(scenario: Scenario) -> Mission:
     """Resolve a scenario into a :class:`Mission` (raises ScenarioError on user mistakes)."""
+    if scenario.uavs:
+        # one Mission is one UAV: a fleet is built per UAV by skymule.sim.fleet.build_fleet
+        raise ScenarioError(
+            f"scenario {scenario.name!r} has [[uavs]] (several UAVs): this command runs one "
+            "UAV; use skymule run / compare / bound, or skymule.sim.fleet.build_fleet"
+        )
     frame = LocalFrame(scenario.site.origin.lat, scenario.site.origin.lon)
     base_dir = Path(scenario.base_dir)
     fence = scenario_fence(scenario, frame)  # site.geofence, or a .plan's inclusion fence

@@ -88,6 +88,12 @@ def run(
     from skymule.runner import simulate
 
     spec = load(scenario, overrides)
+    if spec.uavs:  # several UAVs (docs/fleet.md)
+        from skymule.fleet_cli import run_fleet_command
+
+        if out is not None:
+            guard_run(out, spec.name, policy or spec.policy.name, force)
+        return run_fleet_command(spec, policy, out, output.console)
     if policy is not None:
         spec = spec.with_policy(policy)
     if out is not None:
@@ -134,8 +140,16 @@ def compare(
     from skymule.compare import compare_policies, compare_sources, parse_sources, write_compare
     from skymule.policies import check_policies
 
-    names = check_policies(_names(policies))
     base = load(scenario, overrides)
+    if sources is None and base.uavs:  # several UAVs (docs/fleet.md)
+        from skymule.fleet_cli import check_policy_names, compare_fleet_command
+
+        fleet_names = _names(policies)
+        check_policy_names(fleet_names, policies)
+        if out is not None:
+            guard_compare(out, base.name, fleet_names, force)
+        return compare_fleet_command(base, fleet_names, out, output.console)
+    names = check_policies(_names(policies))
     source_specs = parse_sources(sources) if sources is not None else None
     if out is not None:
         guard_compare(out, base.name, names, force)

@@ -145,7 +145,8 @@ def claim(out: Path, digest: str, source: str) -> None:
         if held != digest:
             raise SkymuleError(
                 f"--out {out} holds the sweep {held_source} (sha256 {held[:12]}), not "
-                f"{source} (sha256 {digest[:12]}); use another --out folder (or --force to start over)"
+                f"{source} (sha256 {digest[:12]}); use another --out folder "
+                "(or --force to start over)"
             )
         if scheme != ID_SCHEME:
             raise SkymuleError(f"--out {out}: mission ids v{scheme}, need v{ID_SCHEME}")

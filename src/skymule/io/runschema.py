@@ -161,7 +161,10 @@ def check_slots(slots: pd.DataFrame, summary: dict[str, Any], path: str) -> pd.D
     Returns the table with ``served`` as strings (empty: no sensor served).
     """
     names = _check_column_set(slots, summary, path)
-    expected_rows = int(summary["slots"])
+    # several UAVs (docs/fleet.md): one row per UAV and slot, each UAV's rows in time order
+    uavs = slots["uav"].astype(str) if "uav" in slots.columns else None
+    n_uavs = 1 if uavs is None else max(uavs.nunique(), 1)
+    expected_rows = int(summary["slots"]) * n_uavs
     if slots.empty:
         raise SkymuleError(
             f"{path}: header only, no slot rows (summary.json says slots = {expected_rows}); "
@@ -200,9 +203,12 @@ def check_slots(slots: pd.DataFrame, summary: dict[str, Any], path: str) -> pd.D
             path, "served", index, served.iloc[index], f"empty or one of {', '.join(names)}"
         )
     t_s = slots["t_s"].to_numpy(dtype=float)
-    if (np.diff(t_s) <= 0).any():
-        index = int(np.argmax(np.diff(t_s) <= 0)) + 1
-        raise _cell_problem(
-            path, "t_s", index, t_s[index], "a time after the previous row's (increasing)"
-        )
+    groups = [np.arange(len(t_s))] if uavs is None else list(slots.groupby(uavs).indices.values())
+    for rows in groups:
+        later = np.diff(t_s[rows]) <= 0
+        if later.any():
+            index = int(rows[int(np.argmax(later)) + 1])
+            raise _cell_problem(
+                path, "t_s", index, t_s[index], "a time after the previous row's (increasing)"
+            )
     return slots.assign(served=served)

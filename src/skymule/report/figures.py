@@ -98,6 +98,10 @@ def plot_run(
     ``download`` and ``snr_cdf`` always, ``trajectory`` when the run has its scenario.json
     (the map needs the site). Same panels, size and style as ``skymule report``.
     """
+    if "uav" in slots.columns:  # several UAVs: one map, one colour per UAV (docs/fleet.md)
+        from skymule.report.fleet import plot_fleet_run
+
+        return plot_fleet_run(run_dir, summary, slots)
     from skymule.io.runs import SCENARIO_FILE
     from skymule.report.html import PER_RUN_PANELS, render_panel
     from skymule.report.inputs import RunData, read_scenario

@@ -76,15 +76,20 @@ class AutonomousFlight:
     """One autonomous mission in progress: the policy steers, the engine keeps it legal.
 
     Call :meth:`observe`, then :meth:`apply` with the action, until :attr:`done`; then
-    :meth:`log`. The Mission is only read.
+    :meth:`log`. The Mission is only read. ``buffers_bit`` lets several flights share one
+    (N,) buffer array (:mod:`skymule.sim.fleet`); each then calls :meth:`record` after the
+    fleet's downloads instead of :meth:`apply`.
     """
 
-    def __init__(self, mission: Mission) -> None:
+    def __init__(self, mission: Mission, buffers_bit: np.ndarray | None = None) -> None:
         if mission.source is None or mission.navigator is None or mission.home_m is None:
             raise SkymuleError("autonomous missions need signal.source = 'model' or 'radiomap'")
         self.mission = mission
         home: XY = (float(mission.home_m[0]), float(mission.home_m[1]))
-        self._remaining = np.array(mission.buffers_bit, float)
+        # buffers_bit: a (N,) array shared with other UAVs (sim.fleet), updated in place
+        self._remaining = (
+            np.array(mission.buffers_bit, float) if buffers_bit is None else buffers_bit
+        )
         self.slot = 0
         self.position: XY = home
         self._snr = np.zeros(mission.n_sensors)
@@ -128,20 +133,27 @@ class AutonomousFlight:
     def _move(self, goto_m: XY | None) -> tuple[XY, bool]:
         return next_position(self.mission, self.position, goto_m, self.slot)
 
+    @property
+    def rate_bps(self) -> np.ndarray:
+        """(N,) rates [bit/s] observed at the start of the current slot."""
+        return self._rates
+
     def apply(self, action: Action, who: str = "policy") -> float:
         """Apply ``action`` to the slot last observed; returns the bits downloaded."""
         sensor = check_serve(action.serve, self.mission.n_sensors, who)
+        sensor = self.windowed(sensor)
+        served = np.array([sensor])
+        bits = contract.take_bits(self._remaining, served, self._rates[None], self.mission.slot_s)
+        self.record(action, sensor, float(bits[0]))
+        return float(bits[0])
+
+    def windowed(self, sensor: int) -> int:
+        """``sensor``, or NO_SENSOR once the download window has closed."""
         window = self.mission.window_slots
-        if window is not None and self.slot >= window:
-            sensor = NO_SENSOR  # the download window has closed
-        bits = 0.0
-        if sensor != NO_SENSOR:
-            bits = float(
-                contract.served_bits(
-                    self._rates[sensor], self._remaining[sensor], self.mission.slot_s
-                )
-            )
-            self._remaining[sensor] -= bits
+        return NO_SENSOR if window is not None and self.slot >= window else sensor
+
+    def record(self, action: Action, sensor: int, bits: float) -> None:
+        """Log the slot (``sensor`` served, ``bits`` already taken) and fly toward the goal."""
         moved, overridden = self._move(action.goto_m)
         self._positions.append(self.position)
         self._snr_log.append(self._snr)
@@ -153,7 +165,6 @@ class AutonomousFlight:
         self._targets.append(NO_SENSOR if action.target is None else int(action.target))
         self.position = moved
         self.slot += 1
-        return bits
 
     def log(self, policy: str) -> MissionLog:
         """The mission log of the slots run so far."""

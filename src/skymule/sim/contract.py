@@ -11,7 +11,10 @@ a rule cannot drift between them.
 * :func:`greedy_choice` -- argmax SNR among sensors with data (ties: lowest index);
 * :func:`hgad_choice` -- argmax rate among sensors with data (ties: higher SNR, lowest index);
 * :class:`HoverState`, :func:`hover_sensor_or`, :func:`hgad_update` -- HGAD's hover state
-  machine on fixed trajectories (cooldown, trigger, budget).
+  machine on fixed trajectories (cooldown, trigger, budget);
+* :func:`fleet_served` -- several UAVs: each sensor serves at most one UAV per slot (the
+  higher rate wins a conflict, ties to the lower UAV index);
+* :func:`take_bits` -- the one place a slot's downloads leave the buffers (one UAV or many).
 """
 
 from __future__ import annotations
@@ -37,6 +40,48 @@ def served_bits(rate_bps: Any, remaining_bit: Any, slot_s: Any) -> Any:
         slot_s: slot length dt [s].
     """
     return np.minimum(rate_bps * slot_s, remaining_bit)
+
+
+def fleet_served(choice: np.ndarray, chosen_rate_bps: np.ndarray) -> np.ndarray:
+    """(K, B) the sensor each of K UAVs serves this slot, given what each chose.
+
+    Every UAV serves at most one sensor (its choice) and every sensor serves at most one UAV:
+    when several UAVs choose the same sensor, the one with the highest rate to it gets it, ties
+    to the lowest UAV index; the others serve nothing this slot (NO_SENSOR).
+
+    Args:
+        choice: (K, B) sensor each UAV chose, or NO_SENSOR.
+        chosen_rate_bps: (K, B) each UAV's rate to the sensor it chose [bit/s] (any value
+            where it chose none).
+    """
+    uav = np.arange(choice.shape[0])[:, None, None]
+    # [k, j, b]: UAV j chose the same sensor as UAV k and beats it
+    same = (choice[:, None, :] == choice[None, :, :]) & (choice[:, None, :] >= 0)
+    rate_k, rate_j = chosen_rate_bps[:, None, :], chosen_rate_bps[None, :, :]
+    beats = (rate_j > rate_k) | ((rate_j == rate_k) & (uav.transpose(1, 0, 2) < uav))
+    lost = (same & beats).any(axis=1)
+    return np.where(lost, NO_SENSOR, choice)
+
+
+def take_bits(
+    remaining_bit: np.ndarray, served: np.ndarray, rate_bps: np.ndarray, slot_s: float
+) -> np.ndarray:
+    """Download one slot from shared buffers; (K,) bits each UAV got (buffers updated in place).
+
+    Args:
+        remaining_bit: (N,) buffers at the start of the slot [bit]; updated in place.
+        served: (K,) sensor each UAV serves (:func:`fleet_served`: no sensor twice), or
+            NO_SENSOR.
+        rate_bps: (K, N) each UAV's rate to each sensor this slot [bit/s].
+        slot_s: slot length dt [s].
+    """
+    serving = served >= 0
+    bits = np.zeros(served.shape[0])
+    sensors = served[serving]
+    rows = rate_bps[serving, sensors] if sensors.size else np.zeros(0)
+    bits[serving] = served_bits(rows, remaining_bit[sensors], slot_s)
+    remaining_bit[sensors] -= bits[serving]
+    return bits
 
 
 def servable(rate_bps: np.ndarray, remaining_bit: np.ndarray) -> np.ndarray:

@@ -56,7 +56,7 @@ class FixedFlight:
     :meth:`log`. The Mission is only read.
     """
 
-    def __init__(self, mission: Mission) -> None:
+    def __init__(self, mission: Mission, buffers_bit: np.ndarray | None = None) -> None:
         track = mission.track
         if track is None:
             raise SkymuleError("run_fixed needs a fixed trajectory (trajectory.mode = 'fixed')")
@@ -65,7 +65,10 @@ class FixedFlight:
         # SNR and rates for every track sample, computed once
         self._rates = _frozen(mission.rate_bps(track.snr_db))
         self._snr_seen = _frozen(np.nan_to_num(track.snr_db, nan=-np.inf))
-        self._remaining = np.array(mission.buffers_bit, float)
+        # buffers_bit: a (N,) array shared with other UAVs (sim.fleet), updated in place
+        self._remaining = (
+            np.array(mission.buffers_bit, float) if buffers_bit is None else buffers_bit
+        )
         self.slot = 0
         self._sample = 0
         self._rate_now = self._rates[0]
@@ -95,20 +98,29 @@ class FixedFlight:
             remaining_bit=self._remaining.copy(),
         )
 
+    @property
+    def rate_bps(self) -> np.ndarray:
+        """(N,) rates [bit/s] observed at the start of the current slot."""
+        return self._rate_now
+
     def apply(self, action: Action, who: str = "policy") -> float:
         """Apply ``action`` to the slot last observed; returns the bits downloaded."""
         sensor = check_serve(action.serve, self.mission.n_sensors, who)
+        sensor = self.windowed(sensor)
+        served = np.array([sensor])
+        bits = contract.take_bits(
+            self._remaining, served, self._rate_now[None], self.mission.slot_s
+        )
+        self.record(action, sensor, float(bits[0]))
+        return float(bits[0])
+
+    def windowed(self, sensor: int) -> int:
+        """``sensor``, or NO_SENSOR once the download window has closed."""
         window = self.mission.window_slots
-        if window is not None and self.slot >= window:
-            sensor = NO_SENSOR  # the download window has closed
-        bits = 0.0
-        if sensor != NO_SENSOR:
-            bits = float(
-                contract.served_bits(
-                    self._rate_now[sensor], self._remaining[sensor], self.mission.slot_s
-                )
-            )
-            self._remaining[sensor] -= bits
+        return NO_SENSOR if window is not None and self.slot >= window else sensor
+
+    def record(self, action: Action, sensor: int, bits: float) -> None:
+        """Log the slot (``sensor`` served, ``bits`` already taken) and move on the track."""
         self._samples.append(self._sample)
         self._served.append(sensor)
         self._downloaded.append(bits)
@@ -120,7 +132,6 @@ class FixedFlight:
                 min(self._sample + 1, last) if self._track.hold_at_end else (self._sample + 1)
             )
         self.slot += 1
-        return bits
 
     def log(self, policy: str) -> MissionLog:
         """The mission log of the slots run so far."""

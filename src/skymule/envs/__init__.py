@@ -1,0 +1,1 @@
+"""Learning environments over the skymule engine (optional extras)."""

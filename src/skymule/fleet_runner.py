@@ -1,0 +1,146 @@
+"""Several UAVs from scenario to results: build the fleet, run its policy, summarise, write.
+
+The fleet counterpart of :mod:`skymule.runner`. ``summary.json`` of a fleet run holds the
+fleet totals at the top level (the keys of a single-UAV summary that make sense for a fleet:
+downloads, completion, per-sensor downloads) plus ``uavs``: one single-UAV summary per UAV
+(its own downloads, distance, energy, landing) with ``lost_slots``, the slots in which it
+chose a sensor another UAV won. ``slots.csv`` has one row per UAV per slot: a ``uav`` column,
+the single-UAV columns, ``chosen`` (the sensor its policy asked for) and ``lost`` (1 where
+another UAV won it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from skymule.errors import SkymuleError
+from skymule.io.runs import slots_frame, write_run
+from skymule.metrics import BITS_PER_MBIT, summarize
+from skymule.policies import make_policy
+from skymule.policies.fleet import COORDINATED, Coordinated, FleetPolicy, Independent
+from skymule.scenario import Scenario
+from skymule.sim.context import mission_context
+from skymule.sim.contract import NO_SENSOR
+from skymule.sim.fleet import Fleet, FleetFlight, FleetLog, build_fleet
+
+FLEET_POLICIES = (COORDINATED,)
+"""Policies that decide for the whole fleet (any single-UAV policy runs independently)."""
+
+
+def make_fleet_policy(fleet: Fleet, name: str | None = None) -> FleetPolicy:
+    """``coordinated``, or each UAV's own policy run independently (``name`` overrides all)."""
+    if (name or fleet.policies[0].name) == COORDINATED and (
+        name is not None or all(spec.name == COORDINATED for spec in fleet.policies)
+    ):
+        return Coordinated()
+    specs = [
+        spec if name is None else spec.model_copy(update={"name": name}) for spec in fleet.policies
+    ]
+    if any(spec.name == COORDINATED for spec in specs):
+        raise SkymuleError(
+            "policy.name = 'coordinated' decides for the whole fleet: set it in the scenario's "
+            "[policy] (or --policy coordinated) with no other policy in any [uavs.policy]"
+        )
+    return Independent([make_policy(spec) for spec in specs])
+
+
+def run_fleet(fleet: Fleet, policy: FleetPolicy) -> FleetLog:
+    """Run a fleet mission under ``policy`` (every UAV decides every slot)."""
+    flight = FleetFlight(fleet)
+    policy.reset([mission_context(m) for m in fleet.missions])
+    names = policy.names()
+    who = [f"{p} ({u})" for p, u in zip(names, fleet.names, strict=True)]
+    while not flight.done:
+        flight.apply(policy.act(flight.observe()), who)
+    return flight.log(names)
+
+
+def fleet_summary(fleet: Fleet, log: FleetLog, policy: str) -> dict[str, Any]:
+    """``summary.json`` of a fleet run (module docstring)."""
+    mission = fleet.missions[0]
+    per_uav = []
+    for name, uav_log, lost in zip(log.names, log.logs, log.lost.T, strict=True):
+        part = summarize(uav_log, fleet.scenario.name)
+        per_uav.append({"uav": name, **part, "lost_slots": int(lost.sum())})
+    by_sensor = np.zeros(mission.n_sensors)
+    for uav_log in log.logs:
+        served = uav_log.served
+        np.add.at(
+            by_sensor, served[served != NO_SENSOR], uav_log.downloaded_bit[served != NO_SENSOR]
+        )
+    downloaded = float(by_sensor.sum()) / BITS_PER_MBIT
+    total_buffer = float(mission.buffers_bit.sum()) / BITS_PER_MBIT
+    return {
+        "scenario": fleet.scenario.name,
+        "policy": policy,
+        "n_uavs": fleet.size,
+        "mission_time_s": mission.n_slots * mission.slot_s,
+        "slots": int(log.logs[0].n_slots),
+        "slot_s": mission.slot_s,
+        "total_downloaded_mbit": float(downloaded),
+        "total_buffer_mbit": total_buffer,
+        "per_sensor_downloaded_mbit": dict(
+            zip(mission.sensor_names, (by_sensor / BITS_PER_MBIT).tolist(), strict=True)
+        ),
+        "per_sensor_buffer_mbit": dict(
+            zip(mission.sensor_names, (mission.buffers_bit / BITS_PER_MBIT).tolist(), strict=True)
+        ),
+        "completion": float(downloaded / total_buffer) if total_buffer > 0 else 1.0,
+        "lost_slots": int(log.lost.sum()),
+        "distance_m": float(sum(u["distance_m"] for u in per_uav)),
+        "energy_kj": float(sum(u["energy_kj"] for u in per_uav)),
+        "landed_within_5m": all(bool(u.get("landed_within_5m", True)) for u in per_uav),
+        "uavs": per_uav,
+    }
+
+
+def fleet_slots_frame(fleet: Fleet, log: FleetLog) -> pd.DataFrame:
+    """``slots.csv`` of a fleet run: one row per UAV per slot (module docstring)."""
+    names = np.array([*fleet.missions[0].sensor_names, ""], dtype=object)
+    n_sensors = fleet.missions[0].n_sensors
+    frames = []
+    for index, (name, uav_log) in enumerate(zip(log.names, log.logs, strict=True)):
+        frame = slots_frame(uav_log, fleet.missions[index].frame)
+        chosen = log.chosen[:, index]
+        frame.insert(0, "uav", name)
+        after_served = list(frame.columns).index("served") + 1
+        frame.insert(after_served, "chosen", names[np.where(chosen < 0, n_sensors, chosen)])
+        frame.insert(after_served + 1, "lost", log.lost[:, index].astype(int))
+        frames.append(frame)
+    return pd.concat(frames, ignore_index=True)
+
+
+@dataclass(frozen=True)
+class FleetResult:
+    """A finished fleet mission: what was run, what happened, and its summary."""
+
+    fleet: Fleet
+    log: FleetLog
+    summary: dict[str, Any]
+
+    def write(self, out_dir: Path) -> None:
+        """Write the run folder (summary.json, slots.csv with a uav column, scenario.json)."""
+        write_run(
+            out_dir,
+            self.summary,
+            fleet_slots_frame(self.fleet, self.log),
+            self.fleet.scenario.to_toml_dict(),
+        )
+
+
+def simulate_fleet(
+    scenario: Scenario, policy: str | None = None, fleet: Fleet | None = None
+) -> FleetResult:
+    """Run ``scenario``'s fleet under its policies, or every UAV under ``policy``.
+
+    Pass a prebuilt ``fleet`` to compare several policies on identical signal draws.
+    """
+    fleet = build_fleet(scenario) if fleet is None else fleet
+    chosen = make_fleet_policy(fleet, policy)
+    log = run_fleet(fleet, chosen)
+    return FleetResult(fleet, log, fleet_summary(fleet, log, chosen.name))

@@ -1,0 +1,127 @@
+"""The trajectory figure of a run of several UAVs (``docs/fleet.md``): one colour per UAV.
+
+Reads the run folder's files only (slots.csv with a ``uav`` column, summary.json,
+scenario.json), like every figure.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from skymule.report.style import OKABE_ITO
+
+
+def _site_geometry(scenario: dict[str, Any]) -> dict[str, Any]:
+    """Geofence ring, sensor and home positions [m] from a run's scenario.json (via geo)."""
+    from skymule.errors import SkymuleError
+    from skymule.geo import LocalFrame, load_geofence
+
+    site = scenario.get("site", {})
+    origin = site.get("origin", {"lat": 35.7274824, "lon": -78.6962749})
+    frame = LocalFrame(float(origin["lat"]), float(origin["lon"]))
+    fence = None
+    if site.get("geofence"):
+        try:
+            polygon = load_geofence(site["geofence"], frame, Path(scenario.get("base_dir", ".")))
+            fence = np.asarray(polygon.exterior.coords)[:, :2]
+        except SkymuleError:
+            fence = None  # a relative fence file that did not travel with the run folder
+    sensors: dict[str, tuple[float, float]] = {}
+    for sensor in scenario.get("sensors", []):
+        if sensor.get("lat") is not None and sensor.get("lon") is not None:
+            x_m, y_m = frame.to_local(sensor["lat"], sensor["lon"])
+            sensors[sensor["name"]] = (float(x_m), float(y_m))
+        elif sensor.get("x_m") is not None and sensor.get("y_m") is not None:
+            sensors[sensor["name"]] = (float(sensor["x_m"]), float(sensor["y_m"]))
+    home = scenario.get("trajectory", {}).get("home")
+    if isinstance(home, dict):
+        x_m, y_m = frame.to_local(home["lat"], home["lon"])
+        home_m = (float(x_m), float(y_m))
+    elif isinstance(home, list) and len(home) == 2:
+        home_m = (float(home[0]), float(home[1]))
+    else:
+        home_m = (0.0, 0.0)
+    return {"fence": fence, "sensors": sensors, "home": home_m}
+
+
+def _save(fig: Figure, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+    return path
+
+
+def _xy(point: Any, frame: Any) -> tuple[float, float] | None:
+    """A scenario point (lat/lon table or [x, y] metres) in local metres, or None."""
+    if isinstance(point, dict):
+        x_m, y_m = frame.to_local(point["lat"], point["lon"])
+        return (float(x_m), float(y_m))
+    if isinstance(point, list) and len(point) == 2:
+        return (float(point[0]), float(point[1]))
+    return None
+
+
+def draw_fleet_trajectory(
+    ax: Axes, slots: pd.DataFrame, summary: dict[str, Any], scenario_json: dict[str, Any]
+) -> Axes:
+    """Several UAVs (slots.csv with a ``uav`` column): one colour per UAV, its home a star.
+
+    Geofence and towers as :func:`draw_trajectory`; thick where the UAV served a sensor, thin
+    where it served none; crosses where it lost a sensor to another UAV.
+    """
+    from skymule.geo import LocalFrame
+
+    geometry = _site_geometry(scenario_json)
+    origin = scenario_json.get("site", {}).get("origin", {"lat": 35.7274824, "lon": -78.6962749})
+    frame = LocalFrame(float(origin["lat"]), float(origin["lon"]))
+    if geometry["fence"] is not None:
+        fence = geometry["fence"]
+        ax.fill(fence[:, 0], fence[:, 1], color="#F0E442", alpha=0.15, lw=0)
+        ax.plot(fence[:, 0], fence[:, 1], color="#B8A800", lw=1.2, label="geofence")
+    homes = {u["name"]: _xy(u.get("home"), frame) for u in scenario_json.get("uavs") or []}
+    uavs = list(dict.fromkeys(slots["uav"].astype(str)))
+    colours = {name: OKABE_ITO[i % len(OKABE_ITO)] for i, name in enumerate(uavs)}
+    for name in uavs:
+        rows = slots[slots["uav"].astype(str) == name]
+        colour = colours[name]
+        ax.plot(rows["x_m"], rows["y_m"], color=colour, lw=0.8, alpha=0.6)
+        serving = rows["served"] != ""
+        ax.scatter(rows["x_m"][serving], rows["y_m"][serving], s=6, color=colour, label=name)
+        if "lost" in rows:
+            lost = rows[rows["lost"] == 1]
+            ax.scatter(lost["x_m"], lost["y_m"], marker="x", s=20, color=colour, zorder=5)
+        home = homes.get(name) or geometry["home"]
+        ax.scatter(
+            [home[0]], [home[1]], marker="*", s=200, color=colour, edgecolor="black", zorder=6
+        )
+    for sensor, (x_m, y_m) in geometry["sensors"].items():
+        ax.scatter([x_m], [y_m], marker="^", s=90, color="0.5", edgecolor="black", zorder=4)
+        ax.annotate(sensor, (x_m, y_m), textcoords="offset points", xytext=(5, 5), fontsize=8)
+    ax.scatter([], [], marker="*", color="0.5", edgecolor="black", label="home")
+    ax.scatter([], [], marker="x", color="0.3", label="lost to another UAV")
+    ax.set_title(f"{summary.get('scenario', '')} - {summary.get('policy', '')}", fontsize=9)
+    ax.set_xlabel("x east [m]")
+    ax.set_ylabel("y north [m]")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.autoscale_view()
+    ax.legend(fontsize=7, loc="best")
+    ax.grid(alpha=0.3)
+    return ax
+
+
+def plot_fleet_run(run_dir: Path, summary: dict[str, Any], slots: pd.DataFrame) -> list[Path]:
+    """The trajectory figure of a fleet run (one colour per UAV); returns the paths."""
+    import json
+
+    scenario_file = run_dir / "scenario.json"
+    scenario_json = json.loads(scenario_file.read_text()) if scenario_file.is_file() else {}
+    fig, ax = plt.subplots(figsize=(6.5, 6.5))
+    draw_fleet_trajectory(ax, slots, summary, scenario_json)
+    return [_save(fig, run_dir / "trajectory.png")]

@@ -149,7 +149,7 @@ def compare(
     for name in names:
         result = simulate(base, name, mission=mission)
         if out is not None:
-            result.write(out / name)
+            result.write(out / name.replace("/", "_"))  # rl:dir/model.zip: one folder
         rows.append(_with_gap(_flat(result.summary), upper))
     table = pd.DataFrame(rows)
     if out is not None:

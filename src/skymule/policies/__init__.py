@@ -81,6 +81,8 @@ def resolve_policy(name: str) -> PolicyFactory:
     factory = POLICIES.get(name)
     if factory is not None:
         return factory
+    if name.startswith("rl:"):  # learned models, rl:path/to/model.zip (skymule.policies.rl)
+        return lambda spec: importlib.import_module("skymule.policies.rl").RLPolicy(spec)
     if ":" in name:
         return _imported_factory(name)
     raise SkymuleError(

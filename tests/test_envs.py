@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from shapely.geometry import Point
 
 gymnasium = pytest.importorskip("gymnasium")
 
@@ -109,8 +110,6 @@ def test_the_autonomous_episode_ends_at_home_and_the_engine_enforces_the_fence()
     assert np.allclose(log.end_position_m[:2], env.mission.home_m, atol=1e-6)
     fence = env.mission.fence
     assert fence is not None
-    from shapely.geometry import Point
-
     assert all(fence.buffer(1e-3).covers(Point(p[:2])) for p in log.position_m)
 
 

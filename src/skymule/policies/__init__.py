@@ -122,6 +122,10 @@ def _import_target(name: str) -> Any:
     return target
 
 
+LEARNED_PREFIX = "rl:"
+"""Policy names ``rl:path/to/model.zip``: a model trained in skymule's environments."""
+
+
 def _params_of(target: Any) -> type[BaseModel] | None:
     params = getattr(target, "Params", None)
     return params if isinstance(params, type) and issubclass(params, BaseModel) else None
@@ -133,6 +137,8 @@ def policy_params_model(name: str) -> type[BaseModel] | None:
     Raises the one-line :class:`SkymuleError` for an unknown name or a plug-in that fails to
     import.
     """
+    if name.startswith(LEARNED_PREFIX):  # rl:path/to/model.zip: the model is the parameter
+        return None
     if ":" in name:
         return _params_of(_import_target(name))
     params: type[BaseModel] = POLICIES.meta(name, "params", NoParams)
@@ -168,6 +174,9 @@ def _takes_argument(target: Any) -> bool:
 
 def make_policy(spec: PolicySpec) -> Policy:
     """A fresh policy instance for one mission, with its parameters from ``spec``."""
+    if spec.name.startswith(LEARNED_PREFIX):  # a trained model (skymule.policies.rl, extra rl)
+        learned: Policy = importlib.import_module("skymule.policies.rl").RLPolicy(spec)
+        return learned
     if ":" not in spec.name:
         return POLICIES.get(spec.name)(spec.policy_params())
     target = _import_target(spec.name)

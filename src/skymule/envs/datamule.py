@@ -1,0 +1,270 @@
+"""``skymule/DataMule-v0``: one data-mule mission as a Gymnasium environment.
+
+The environment drives the one engine core: :class:`~skymule.sim.autonomous.AutonomousFlight`
+(autonomous scenarios) or :class:`~skymule.sim.engine.FixedFlight` (fixed paths and recorded
+traces), through their ``observe`` / ``apply`` interface. Each ``step`` is one slot: the action
+becomes an :class:`~skymule.policies.base.Action`, the engine applies the slot contract, the
+geofence, the speed cap and the return home. Nothing here re-implements a rule.
+
+* observation and action: :mod:`skymule.envs.observation` (shapes and units);
+* reward (``reward="mbit"``, default): Mbit downloaded this slot. ``reward="aadm"``: the AADM
+  score in force spread over the episode (:mod:`skymule.aadm.score`): 100 x bits / total
+  buffered each slot inside the download window, plus the bonus max(0, window - t1) in the
+  slot that completes the download, so the episode's return equals ``aadm_score`` of its log;
+* the episode ends (``terminated``) when the mission's time is up (with ``return_home`` the
+  engine has landed the UAV at home by then) or a recorded trace is used up;
+* ``reset(seed=s)`` reproduces the episode: the scenario's seed (shadowing, fading) and, with
+  a scenario generator, the drawn scenario come from the environment's seeded generator.
+
+``scenario`` is a preset name, a TOML path, a :class:`~skymule.scenario.Scenario`, or a
+callable ``rng -> Scenario`` that draws a new mission at every reset (randomised training, e.g.
+:func:`skymule.experiments.layouts.random_autonomous_scenario`); every drawn scenario must have
+the same number of sensors.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+import skymule.envs.observation as enc
+from skymule.aadm.score import COMPLETE_RTOL
+from skymule.errors import SkymuleError
+from skymule.policies.base import Action, Observation
+from skymule.scenario import Scenario, load_scenario
+from skymule.sim.autonomous import AutonomousFlight
+from skymule.sim.engine import FixedFlight
+from skymule.sim.log import MissionLog
+from skymule.world import Mission, build_mission
+
+ScenarioLike = str | Path | Scenario | Mission | Callable[[np.random.Generator], Scenario]
+
+REWARDS = ("mbit", "aadm")
+
+#: Policy name written into the logs of environment episodes.
+ENV_POLICY_NAME = "env"
+
+
+def uses_randomness(scenario: Scenario) -> bool:
+    """True when the scenario's seed changes the mission (shadowing or fading)."""
+    radio = scenario.radio
+    return radio.shadowing_std_db > 0 or radio.fading != "none"
+
+
+def anchors_m(mission: Mission) -> np.ndarray:
+    """(N, 2) where each sensor is served from: hover points (autonomous) or sensor positions."""
+    if mission.mode == "autonomous" and mission.hover_points_m is not None:
+        return np.asarray(mission.hover_points_m, float)
+    return np.asarray(mission.sensor_m, float)[:, :2]
+
+
+def observation_vector(
+    mission: Mission, observation: Observation, position_m: np.ndarray | None = None
+) -> np.ndarray:
+    """(3 + 5N,) float32 encoding of an engine Observation (``position_m`` overrides)."""
+    position = observation.position_m[:2] if position_m is None else position_m[:2]
+    time_left = (mission.n_slots - observation.slot) * mission.slot_s
+    return enc.encode(
+        np.asarray(position, float)[None],
+        np.array([time_left]),
+        observation.snr_db[None],
+        observation.rate_bps[None],
+        observation.remaining_bit[None],
+        anchors_m(mission)[None],
+    )[0]
+
+
+def check_choice(serve: Any, heading: Any, n_sensors: int) -> tuple[int, int]:
+    """(serve, heading) as ints; SkymuleError naming the value and what is allowed."""
+    ok = all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in (serve, heading))
+    if not ok or not (0 <= serve <= n_sensors and 0 <= heading < enc.N_HEADINGS):
+        raise SkymuleError(
+            f"action (serve={serve!r}, heading={heading!r}) is not allowed; allowed: serve "
+            f"0 (none) or 1..{n_sensors} (sensor index + 1), heading 0 (stay) or "
+            f"1..{enc.N_HEADINGS - 1}"
+        )
+    return int(serve), int(heading)
+
+
+class DataMuleEnv(gym.Env[np.ndarray, Any]):
+    """One data-mule mission per episode, on the engine core (see the module docstring).
+
+    Args:
+        scenario: preset name, TOML path, Scenario, or ``rng -> Scenario`` generator.
+        move: "headings" (MultiDiscrete [N + 1, 9]) or "velocity" (Dict serve + velocity).
+        reward: "mbit" (Mbit downloaded this slot) or "aadm" (AADM-score shaping).
+        scaled: divide the observation by :func:`~skymule.envs.observation.scale_vector`
+            (fields of order 1, for neural networks; ``rl:`` policies expect it).
+    """
+
+    metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 (gymnasium's attribute)
+
+    def __init__(
+        self, scenario: ScenarioLike = "paper-sim-autonomous", *, move: str = "headings",
+        reward: str = "mbit", scaled: bool = False,
+    ) -> None:  # fmt: skip
+        if move not in enc.MOVES:
+            raise SkymuleError(f"move = {move!r} is not allowed; allowed: {', '.join(enc.MOVES)}")
+        if reward not in REWARDS:
+            raise SkymuleError(f"reward = {reward!r} is not allowed; allowed: {', '.join(REWARDS)}")
+        self.move, self.reward_mode = move, reward
+        self._generator = (
+            None if isinstance(scenario, Mission) or not callable(scenario) else scenario
+        )
+        self._scenario: Scenario | None = None
+        if isinstance(scenario, Mission):  # a built mission is used as it is (no reseeding)
+            self._scenario, self._fixed_mission = None, scenario
+            self.mission = scenario
+        elif not callable(scenario):
+            self._scenario = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+            self._fixed_mission = build_mission(self._scenario)
+            self.mission = self._fixed_mission
+        else:
+            self.mission = build_mission(scenario(np.random.default_rng(0)))
+        self.n_sensors = self.mission.n_sensors
+        low, high = enc.observation_bounds(self.n_sensors)
+        self._scale = enc.scale_vector(self.n_sensors) if scaled else np.ones_like(low)
+        self.observation_space = spaces.Box(low / self._scale, high / self._scale, dtype=np.float32)
+        if move == "headings":
+            self.action_space: spaces.Space[Any] = spaces.MultiDiscrete(
+                [self.n_sensors + 1, enc.N_HEADINGS]
+            )
+        else:
+            self.action_space = spaces.Dict(
+                {
+                    "serve": spaces.Discrete(self.n_sensors + 1),
+                    "velocity": spaces.Box(-1.0, 1.0, (2,), np.float32),
+                }
+            )
+        self._flight: AutonomousFlight | FixedFlight | None = None
+        self._last: Observation | None = None
+        self._remaining = np.zeros(self.n_sensors)
+        self._completed = False
+        self._counted_bit = 0.0
+
+    # --- episode ------------------------------------------------------------------------------
+
+    def _draw_mission(self) -> Mission:
+        if self._generator is not None:
+            scenario = self._generator(self.np_random)
+        else:
+            if self._scenario is None or not uses_randomness(self._scenario):
+                return self._fixed_mission
+            scenario = self._scenario
+        if uses_randomness(scenario):
+            seed = int(self.np_random.integers(2**62))
+            scenario = scenario.model_copy(update={"seed": seed})
+        mission = build_mission(scenario)
+        if mission.n_sensors != self.n_sensors:
+            raise SkymuleError(
+                f"scenario {scenario.name!r} has {mission.n_sensors} sensors; this environment "
+                f"was built for {self.n_sensors} (every drawn scenario needs the same number)"
+            )
+        return mission
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        self.mission = self._draw_mission()
+        autonomous = self.mission.mode == "autonomous"
+        self._flight = AutonomousFlight(self.mission) if autonomous else FixedFlight(self.mission)
+        self._last = self._flight.observe()
+        self._remaining = np.array(self.mission.buffers_bit, float)
+        self._completed = False
+        self._counted_bit = 0.0
+        return observation_vector(self.mission, self._last) / self._scale, {"slot": 0}
+
+    def _decode(self, action: Any) -> tuple[int, np.ndarray]:
+        """(served sensor index or NO_SENSOR, (2,) displacement [m]) of a valid action."""
+        step_m = self.mission.max_step_m
+        if self.move == "headings":
+            values = np.asarray(action).reshape(-1)
+            if values.shape != (2,) or values.dtype.kind not in "iu":
+                raise SkymuleError(
+                    f"action {action!r} is not allowed; allowed: two integers (serve 0.."
+                    f"{self.n_sensors}, heading 0..{enc.N_HEADINGS - 1})"
+                )
+            serve, heading = check_choice(values[0], values[1], self.n_sensors)
+            return enc.serve_index(serve), enc.heading_step_m(np.array([heading]), step_m)[0]
+        if not isinstance(action, dict) or set(action) != {"serve", "velocity"}:
+            raise SkymuleError(
+                f"action {action!r} is not allowed; allowed: {{'serve': 0..{self.n_sensors}, "
+                "'velocity': (vx, vy) in [-1, 1]}"
+            )
+        velocity = np.asarray(action["velocity"], float)
+        if velocity.shape != (2,) or not np.all(np.abs(velocity) <= 1.0):
+            raise SkymuleError(
+                f"action velocity {action['velocity']!r} is not allowed; allowed: (vx, vy) "
+                "with each component in [-1, 1] (fractions of max_speed_mps)"
+            )
+        serve, _ = check_choice(np.asarray(action["serve"]).item(), 0, self.n_sensors)
+        return enc.serve_index(serve), enc.velocity_step_m(velocity, step_m)
+
+    def _running(self) -> tuple[AutonomousFlight | FixedFlight, Observation]:
+        flight, last = self._flight, self._last
+        if flight is None or last is None or flight.done:
+            raise SkymuleError("step() called before reset() or after the episode ended")
+        return flight, last
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        flight, last = self._running()
+        sensor, move_m = self._decode(action)
+        serve = None if sensor < 0 else sensor
+        stay = not np.any(move_m)
+        if self.mission.mode == "autonomous":
+            x_m, y_m = float(last.position_m[0]), float(last.position_m[1])
+            goto = None if stay else (x_m + float(move_m[0]), y_m + float(move_m[1]))
+            bits = flight.apply(Action(serve=serve, goto_m=goto), ENV_POLICY_NAME)
+        else:
+            bits = flight.apply(Action(serve=serve, hover=stay), ENV_POLICY_NAME)
+        if sensor >= 0:
+            self._remaining[sensor] -= bits
+        reward = self._reward(bits, flight.slot)
+        done = flight.done
+        if done:
+            observation = self._terminal_observation()
+        else:
+            self._last = flight.observe()
+            observation = observation_vector(self.mission, self._last)
+        info = {"slot": flight.slot, "served": sensor, "downloaded_mbit": bits / enc.BITS_PER_MBIT}
+        return observation / self._scale, reward, done, False, info
+
+    def _reward(self, bits: float, slots_run: int) -> float:
+        if self.reward_mode == "mbit":
+            return bits / enc.BITS_PER_MBIT
+        mission = self.mission
+        total, window = float(mission.buffers_bit.sum()), mission.score_window_s
+        if total <= 0:  # nothing to download: complete at once, S = 100 + window
+            return 100.0 + window if slots_run == 1 else 0.0
+        if (slots_run - 1) * mission.slot_s >= window - 1e-9:
+            return 0.0  # the download window has closed: nothing counts
+        self._counted_bit += bits
+        reward = 100.0 * bits / total
+        if not self._completed and self._counted_bit >= total * (1.0 - COMPLETE_RTOL):
+            self._completed = True
+            reward += max(0.0, window - slots_run * mission.slot_s)
+        return reward
+
+    def _terminal_observation(self) -> np.ndarray:
+        """The observation after the last slot: where the UAV ended, no time left."""
+        assert self._flight is not None and self._last is not None
+        mission, last = self.mission, self._last
+        end = self._flight.log(ENV_POLICY_NAME).end_position_m
+        snr, rate = last.snr_db, last.rate_bps
+        if mission.mode == "autonomous" and mission.source is not None:
+            snr = mission.source.snr_db(end[None])[0]  # no fading: there is no slot T
+            rate = mission.rate_bps(snr)
+        final = Observation(mission.n_slots, end, snr, rate, self._remaining.copy())
+        return observation_vector(mission, final)
+
+    def log(self) -> MissionLog:
+        """The engine's mission log of the current episode (slots run so far)."""
+        if self._flight is None:
+            raise SkymuleError("log() called before reset()")
+        return self._flight.log(ENV_POLICY_NAME)

@@ -17,6 +17,7 @@ import argparse
 import time
 
 import numpy as np
+from _sizes import size
 
 from skymule.envs.datamule import DataMuleEnv
 from skymule.envs.vector import DataMuleVectorEnv
@@ -78,7 +79,9 @@ def main() -> None:
     parser.add_argument("--batch", type=int, default=1024, help="missions in the vector env")
     parser.add_argument("--steps", type=int, default=200, help="vector steps")
     parser.add_argument("--single-steps", type=int, default=3000, help="single-env steps")
-    parser.add_argument("--tiny", action="store_true", help="smoke test: a few steps")
+    parser.add_argument(
+        "--tiny", action="store_true", default=size(False, True), help="smoke test: a few steps"
+    )
     args = parser.parse_args()
     if args.tiny:
         args.batch, args.steps, args.single_steps = 16, 5, 20
@@ -87,7 +90,7 @@ def main() -> None:
     print(f"{N_SENSORS} sensors, random Lake Wheeler layouts (convex hull of the fence)")
     print(f"vector env ({args.batch} missions): {vector:,.0f} env steps/s")
     print(f"single envs (engine core):      {single:,.0f} env steps/s")
-    print(f"ratio: {vector / single:,.0f}x")
+    print(f"ratio: {vector / single:,.1f}x")
 
 
 if __name__ == "__main__":

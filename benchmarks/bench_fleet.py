@@ -20,6 +20,7 @@ import math
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
+from _sizes import size
 from shapely.geometry import Point
 
 from skymule.bounds.fleet import fleet_bound
@@ -76,7 +77,12 @@ def main(argv: list[str] | None = None) -> np.ndarray:
     parser.add_argument("--uavs", type=int, default=2)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seed", type=int, default=SEED)
-    parser.add_argument("--tiny", action="store_true", help="<= 3 small missions (smoke test)")
+    parser.add_argument(
+        "--tiny",
+        action="store_true",
+        default=size(False, True),
+        help="<= 3 small missions (smoke test)",
+    )
     args = parser.parse_args(argv)
     missions, ranges = (min(args.missions, 3), TINY) if args.tiny else (args.missions, RANGES)
 

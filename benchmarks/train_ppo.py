@@ -20,6 +20,7 @@ Smoke test: python benchmarks/train_ppo.py --tiny --out /tmp/ppo_tiny.zip
 from __future__ import annotations
 
 import argparse
+import tempfile
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
@@ -27,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from _sizes import size
 
 from skymule.bounds.autonomous import autonomous_bound
 from skymule.envs.datamule import DataMuleEnv
@@ -121,7 +123,12 @@ def mean_ci(values: np.ndarray) -> tuple[float, float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--out", default="models/ppo_lake_wheeler.zip")
+    parser.add_argument(
+        "--out",  # the tiny smoke run never writes over the committed model
+        default=size(
+            "models/ppo_lake_wheeler.zip", str(Path(tempfile.gettempdir()) / "ppo_tiny.zip")
+        ),
+    )
     parser.add_argument("--minutes", type=float, default=25.0, help="wall-time training budget")
     parser.add_argument("--timesteps", type=int, default=5_000_000)
     parser.add_argument("--envs", type=int, default=4)
@@ -129,7 +136,12 @@ def main() -> None:
     parser.add_argument("--gamma", type=float, default=0.995)
     parser.add_argument("--missions", type=int, default=200, help="held-out missions")
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--tiny", action="store_true", help="smoke test: seconds, 4 missions")
+    parser.add_argument(
+        "--tiny",
+        action="store_true",
+        default=size(False, True),
+        help="smoke test: seconds, 4 missions",
+    )
     args: Any = parser.parse_args()
     if args.tiny:
         args.minutes, args.timesteps, args.missions, args.n_steps = 0.2, 1024, 4, 128

@@ -24,20 +24,29 @@ EXPECTED = {
     "bench_channel.py": ["fspl", "fspl + shadowing", "radio map: query", "dense reference"],
     "bench_compilers.py": ["numba (skymule compiled loop)", "mission-slots/CPU-s"],
     "bench_engine.py": ["single (2 missions)", "numpy + summaries", "memory bandwidth"],
+    "bench_envs.py": ["vector env", "single envs", "ratio"],
+    "bench_fleet.py": ["coordinated", "bound", "coordinated - independent hgad"],
     "bench_planner.py": ["planner gain over hgad", "mean gap to bound", "above the bound: 0"],
     "bench_single.py": ["paper-sim-fixed", "aadm-default", "slots/s"],
     "bench_sweep.py": ["sample-10k", "us CPU/mission", "process executor", "seed axis"],
+    "train_ppo.py": ["hgad", "bound", "PPO - HGAD"],
 }
+
+NEEDS = {"train_ppo.py": "stable_baselines3"}
+"""Benchmarks of an optional extra (``skymule[rl]``): skipped where it is not installed."""
 
 
 def test_every_benchmark_is_smoke_tested() -> None:
-    assert sorted(p.name for p in BENCHMARKS.glob("bench_*.py")) == sorted(EXPECTED)
+    scripts = [*BENCHMARKS.glob("bench_*.py"), *BENCHMARKS.glob("train_*.py")]
+    assert sorted(p.name for p in scripts) == sorted(EXPECTED)
 
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_benchmark_runs_at_tiny_size(
     name: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    if name in NEEDS:
+        pytest.importorskip(NEEDS[name])
     monkeypatch.setenv("SKYMULE_BENCH_TINY", "1")
     monkeypatch.syspath_prepend(str(BENCHMARKS))  # as `python benchmarks/X.py` has it
     monkeypatch.setattr(sys, "argv", [str(BENCHMARKS / name)])

@@ -17,6 +17,7 @@ in the docs that is neither runnable nor listed fails the test.
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import re
 import shlex
@@ -38,6 +39,8 @@ SAMPLES_README = ROOT / "examples" / "samples" / "README.md"
 NOT_RUN = {
     "pip install -e '.[test,dask,browser]'": "installs the package",
     "pip install -e .": "installs the package",
+    "pip install torch==2.13.0": "installs the rl extra's CPU torch",
+    "pip install -e '.[rl]'": "installs the rl extra",
     "python -m pytest -q": "runs this suite",
 }
 """Commands the docs show that this test does not run, and why."""
@@ -117,6 +120,8 @@ def dask_scheduler() -> Iterator[str]:
 def clone_layout(folder: Path) -> None:
     """The parts of a clone the docs' commands read, in ``folder``; the sweep made small."""
     shutil.copytree(ROOT / "examples", folder / "examples")
+    if (ROOT / "models").is_dir():
+        shutil.copytree(ROOT / "models", folder / "models")
     for name in ("benchmarks", "scripts"):  # copies: scripts write next to themselves
         shutil.copytree(ROOT / name, folder / name, ignore=shutil.ignore_patterns("__pycache__"))
     sweep = folder / "examples" / "sweep-paper.toml"
@@ -143,6 +148,9 @@ def run(command: Command, folder: Path, scheduler: str) -> None:
     words = [w.replace("tcp://HOST:8786", scheduler) for w in command.words]
     if command.text in NOT_RUN or command.text.startswith(tuple(NOT_RUN_PREFIXES)):
         return
+    learned = "train_ppo" in command.text or "rl:" in command.text
+    if learned and importlib.util.find_spec("stable_baselines3") is None:
+        return  # the rl extra is not installed here (docs/learning.md says how)
     redirect = None
     if ">" in words:  # `command > file`: the command's standard output saved in the folder
         redirect, words = folder / words[words.index(">") + 1], words[: words.index(">")]

@@ -20,9 +20,10 @@ from PIL import Image
 from conftest import run_cli
 from skymule.errors import SkymuleError
 from skymule.report.channel import plot_snr_cdf_by_source
-from skymule.report.figures import draw_snr_cdf, plot_run
+from skymule.report.figures import draw_snr_cdf
 from skymule.report.inputs import load_run, score_breakdown
 from skymule.report.panels import draw_flight_map, draw_score
+from skymule.report.plot import plot_run
 from skymule.report.style import (
     DISTANCE_STYLE,
     NEUTRAL,

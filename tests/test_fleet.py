@@ -187,7 +187,7 @@ def test_fixed_fleet_runs_each_path(tmp_path: Path) -> None:
     assert summary["total_downloaded_mbit"] == pytest.approx(parts)
     # the run folder reads back and draws one trajectory figure for the fleet
     from skymule.io.runs import read_run
-    from skymule.report.figures import plot_run
+    from skymule.report.plot import plot_run
 
     read_summary, slots = read_run(tmp_path)
     assert sorted(set(slots["uav"])) == ["A", "B"]

@@ -18,7 +18,7 @@ def plot(
 ) -> None:
     """Draw a run's figures from its files (never re-simulates)."""
     from skymule.io.runs import is_run_dir, read_run
-    from skymule.report.figures import plot_run
+    from skymule.report.plot import plot_run
 
     folders = (
         [run_dir]

@@ -8,16 +8,12 @@ the same from either command.
 
 from __future__ import annotations
 
-from pathlib import Path
-from typing import Any
-
 import numpy as np
 import pandas as pd
 from matplotlib.axes import Axes
 
 from skymule.io.runs import sensor_names_of
 from skymule.report.style import (
-    DEFAULT_DPI,
     DISTANCE_STYLE,
     OKABE_ITO,
     TOTAL_STYLE,
@@ -29,7 +25,6 @@ __all__ = [
     "cumulative_download_mbit",
     "draw_cumulative_download",
     "draw_snr_cdf",
-    "plot_run",
     "sensor_colours",
 ]
 
@@ -82,46 +77,3 @@ def draw_snr_cdf(ax: Axes, slots: pd.DataFrame, title: str = "") -> Axes:
 
 
 #: ``skymule plot``'s files: report panel key -> file stem next to the run's files.
-PLOT_FILES = {"download": "download", "snr-cdf": "snr_cdf", "trajectory": "trajectory"}
-
-
-def plot_run(
-    run_dir: Path,
-    summary: dict[str, Any],
-    slots: pd.DataFrame,
-    *,
-    formats: tuple[str, ...] = ("png",),
-    dpi: int = DEFAULT_DPI,
-) -> list[Path]:
-    """Write the run's figures next to its files, in each of ``formats``; returns the paths.
-
-    ``download`` and ``snr_cdf`` always, ``trajectory`` when the run has its scenario.json
-    (the map needs the site). Same panels, size and style as ``skymule report``.
-    """
-    if "uav" in slots.columns:  # several UAVs: one map, one colour per UAV (docs/fleet.md)
-        from skymule.report.fleet import plot_fleet_run
-
-        return plot_fleet_run(run_dir, summary, slots)
-    from skymule.io.runs import SCENARIO_FILE
-    from skymule.report.html import PER_RUN_PANELS, render_panel
-    from skymule.report.inputs import RunData, read_scenario
-    from skymule.report.site import site_geometry
-
-    scenario = read_scenario(run_dir)
-    run = RunData(
-        path=run_dir,
-        label=str(summary.get("policy", run_dir.name)),
-        summary=summary,
-        slots=slots,
-        scenario=scenario,
-        site=site_geometry(scenario, run_dir),
-    )
-    has_site = (run_dir / SCENARIO_FILE).is_file()
-    written: list[Path] = []
-    for spec in PER_RUN_PANELS:
-        stem = PLOT_FILES.get(spec.key)
-        if stem is None or (spec.key == "trajectory" and not has_site):
-            continue
-        paths = render_panel(spec, (run,), run_dir, formats=formats, dpi=dpi, stem=stem)
-        written += list(paths.values())
-    return written

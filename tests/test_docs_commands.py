@@ -37,7 +37,7 @@ DOCUMENTS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 SAMPLES_README = ROOT / "examples" / "samples" / "README.md"
 
 NOT_RUN = {
-    "pip install -e '.[test,dask,browser]'": "installs the package",
+    "pip install -e '.[test,dask,browser,fast]'": "installs the package",
     "pip install -e .": "installs the package",
     "pip install torch==2.13.0": "installs the rl extra's CPU torch",
     "pip install -e '.[rl]'": "installs the rl extra",

@@ -26,7 +26,7 @@ def test_readme_python_blocks_run() -> None:
 
 def test_readme_states_the_two_setup_commands() -> None:
     text = README.read_text()
-    assert "pip install -e '.[test,dask,browser]'" in text
+    assert "pip install -e '.[test,dask,browser,fast]'" in text
     assert "python -m pytest -q" in text
     ci = (README.parent / ".ci" / "run").read_text()
-    assert "pip install -q -e '.[test,dask,browser]'" in ci and "python -m pytest -q" in ci
+    assert "pip install -q -e '.[test,dask,browser,fast]'" in ci and "python -m pytest -q" in ci

@@ -198,7 +198,12 @@ def stack_missions(missions: Sequence[Mission], specs: Sequence[PolicySpec]) -> 
         snr_seen[u, :k] = np.nan_to_num(track.snr_db, nan=-np.inf)
         position[u, :k] = track.position_m
         peak[u] = mission.peak_rate_bps()
-    params = [policy_params(spec) for spec in specs]
+    # one lookup per distinct spec object: sweeps and comparisons repeat a few specs many times
+    by_spec: dict[int, PolicyParams] = {}
+    for spec in specs:
+        if id(spec) not in by_spec:
+            by_spec[id(spec)] = policy_params(spec)
+    params = [by_spec[id(spec)] for spec in specs]
     thresholds = np.array([p.hover_threshold for p in params])
     fading_index, fading, rate_model, rate_models = stack_fading(missions, n)
     return Batch(

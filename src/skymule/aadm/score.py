@@ -96,16 +96,28 @@ def aadm_scores(
     slot = np.broadcast_to(np.asarray(slot_s, float), (n_missions,))
     window = np.broadcast_to(np.asarray(window_s, float), (n_missions,))
     slots = np.arange(width)[None, :]
-    since = slots - share[:, None]  # slot index since sharing
-    counted = (
-        (since >= 0) & (slots < ran[:, None]) & (since * slot[:, None] < window[:, None] - 1e-9)
-    )
-    got = np.where(counted, down, 0.0)
+    window_slots = np.ceil((window - 1e-9) / slot)  # slots k with k * slot < window - 1e-9
+    if share.any() or (window_slots < width).any():
+        since = slots - share[:, None]  # slot index since sharing
+        counted = (
+            (since >= 0) & (slots < ran[:, None]) & (since * slot[:, None] < window[:, None] - 1e-9)
+        )
+        got = np.where(counted, down, 0.0)
+    else:  # every slot counts (shared at once, window past the end; padding holds zeros)
+        counted, got = None, down
     cumulative = np.cumsum(got, axis=1)
-    reached = counted & (cumulative >= total[:, None] * (1.0 - COMPLETE_RTOL))
+    threshold = total * (1.0 - COMPLETE_RTOL)
     nothing = total <= 0
-    complete = reached.any(axis=1) | nothing
-    first = np.where(reached.any(axis=1), reached.argmax(axis=1), 0)
+    first = np.zeros(n_missions, np.int64)
+    done = ~nothing & (cumulative[:, -1] >= threshold)
+    if done.any():  # the slot each completing mission reached its total in
+        rows = np.flatnonzero(done)
+        reached = cumulative[rows] >= threshold[rows, None]
+        if counted is not None:
+            reached &= counted[rows]
+        done[rows] = reached.any(axis=1)
+        first[rows] = reached.argmax(axis=1)
+    complete = done | nothing
     served_s = np.maximum(ran - share, 0) * slot
     t1 = np.where(
         nothing,

@@ -300,6 +300,7 @@ def run_numpy(batch: Batch) -> BatchResult:
     columns = np.arange(n_missions)
     # slot at which each mission's download window closes (the AADM controller's 500 s)
     window = batch.window_slots
+    first_close = int(window.min()) if window.size else 0
     # one (2N, U*K) table [rate ; snr seen]: a single column gather per slot; a trace that
     # ran out points one sample past its end, which is padding (the mission is over)
     table = np.ascontiguousarray(
@@ -363,8 +364,8 @@ def run_numpy(batch: Batch) -> BatchResult:
         bits[sensor < 0] = 0.0
         left_after = left - bits  # what the policy expects after this slot
         served = sensor
-        closed = slot >= window
-        if closed.any():  # the download window has closed: the choice delivers nothing
+        closed = slot >= window if slot >= first_close else None
+        if closed is not None and closed.any():  # the window has closed: nothing is delivered
             served = np.where(closed, NO_SENSOR, sensor)
             bits = np.where(closed, 0.0, bits)
         remaining_flat[cell] = left - bits

@@ -234,11 +234,12 @@ def hgad_update(
         & (left_after_bit > 0)
         & ~state.cooling.take(cell)
     )
-    if trigger.any():
-        chosen = np.flatnonzero(trigger)
-        max_hover = np.broadcast_to(max_hover_s, trigger.shape)
-        state.budget_s[chosen] = np.minimum(
-            left_after_bit[chosen] / peak_served[chosen], max_hover[chosen]
-        )
-        state.sensor[chosen] = sensor[chosen]
+    if not trigger.any():
+        return hover_flag
+    chosen = np.flatnonzero(trigger)
+    max_hover = np.broadcast_to(max_hover_s, trigger.shape)
+    state.budget_s[chosen] = np.minimum(
+        left_after_bit[chosen] / peak_served[chosen], max_hover[chosen]
+    )
+    state.sensor[chosen] = sensor[chosen]
     return hover_flag | trigger

@@ -66,8 +66,12 @@ BATCH_POLICIES: dict[str, Callable[[PolicySpec], PolicyParams]] = {
 
 
 def batchable(mission: Mission, spec: PolicySpec) -> bool:
-    """True if ``mission`` under ``spec`` can run in the batched engine."""
-    return mission.track is not None and spec.name in BATCH_POLICIES
+    """True if ``mission`` under ``spec`` can run in the batched engine.
+
+    Missions with faults (``mission.faults``) run in the reference engine: the batched loops
+    do not apply ``[[faults]]`` yet.
+    """
+    return mission.track is not None and mission.faults is None and spec.name in BATCH_POLICIES
 
 
 @dataclass(frozen=True)
@@ -176,6 +180,11 @@ def stack_missions(missions: Sequence[Mission], specs: Sequence[PolicySpec]) -> 
     for b, mission in enumerate(missions):
         if mission.track is None:
             raise SkymuleError("the batched engine needs fixed trajectories (trajectory.mode)")
+        if mission.faults is not None:
+            raise SkymuleError(
+                "the batched engine does not apply [[faults]]: run fault missions with "
+                "skymule.sim.run.run_mission (the reference engines)"
+            )
         key = (id(mission.track), id(mission.rate_table), mission.bandwidth_hz)
         if key not in keys:
             keys[key] = len(unique)

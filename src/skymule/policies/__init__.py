@@ -28,7 +28,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from skymule.errors import SkymuleError
 from skymule.policies.base import Action, MissionContext, Observation, Policy
 from skymule.policies.greedy import Greedy
-from skymule.policies.hgad import HGAD
+from skymule.policies.hgad import HGAD, RobustHGAD
 from skymule.registry import Registry
 
 
@@ -55,6 +55,13 @@ class HGADParams(NoParams):
     """Fraction of the peak rate that triggers a hover."""
     max_hover_s: Annotated[float, Field(gt=0)] = 60.0
     """Longest hover [s]."""
+
+
+class RobustParams(HGADParams):
+    fail_slots: Annotated[int, Field(ge=1)] = 3
+    """A hover (or target) is abandoned after this many consecutive slots with no data."""
+    window_slots: Annotated[int, Field(ge=1)] = 2
+    """Slots in the moving average of observed rates that choices and hovers follow."""
 
 
 PolicyFactory = Callable[[Any], Policy]
@@ -84,6 +91,7 @@ POLICIES: Registry[PolicyFactory] = Registry(
 
 POLICIES.register("greedy", lambda p: Greedy(), params=NoParams)
 POLICIES.register("hgad", lambda p: HGAD(p.hover_threshold, p.max_hover_s), params=HGADParams)
+POLICIES.register("hgad-robust", lambda p: RobustHGAD(**p.model_dump()), params=RobustParams)
 POLICIES.register("planner", _by_path("skymule.policies.planner:Planner"), params=NoParams)
 POLICIES.register(
     "optimal-fixed", _by_path("skymule.policies.optimal_fixed:OptimalFixed"), params=NoParams

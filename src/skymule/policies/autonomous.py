@@ -86,7 +86,11 @@ class HGADTour:
     """Buffer-priority tour with hovering at each target's hover point (Alg. 2)."""
 
     def __init__(
-        self, context: MissionContext, max_hover_s: float, priority: Priority = "initial"
+        self,
+        context: MissionContext,
+        max_hover_s: float,
+        priority: Priority = "initial",
+        fail_slots: int | None = None,
     ) -> None:
         self._hover, self._home = _require(context)
         self._peak_bps = np.asarray(context.peak_rate_bps, float)
@@ -103,6 +107,10 @@ class HGADTour:
         self._target: int | None = None
         self._hovering = False
         self._budget_s = 0.0
+        # robust (hgad-robust): abandon a hover after fail_slots slots that delivered nothing
+        self._fail_slots = fail_slots
+        self._fails = 0
+        self._before_bit = -1.0  # the hovered sensor's buffer before the last hover slot
 
     def _next_target(self, remaining: np.ndarray) -> int | None:
         if self._planned and self._plan:
@@ -121,10 +129,18 @@ class HGADTour:
     def _hover_slot(self, observation: Observation, sensor: int) -> Action:
         """Serve ``sensor`` without moving; end the hover when the budget or buffer runs out."""
         self._budget_s -= self._slot_s
-        left = observation.remaining_bit[sensor] - slot_download_bit(
-            observation, sensor, self._slot_s
-        )
+        now = float(observation.remaining_bit[sensor])
+        self._fails = self._fails + 1 if now >= self._before_bit >= 0 else 0
+        self._before_bit = now
+        left = now - slot_download_bit(observation, sensor, self._slot_s)
+        silent = self._fail_slots is not None and self._fails >= self._fail_slots
+        if silent:  # the tower went silent: leave it (it waits for the next round)
+            self._hovering = False
+            self._target = None
+            self._fails, self._before_bit = 0, -1.0
+            return Action(serve=None, hover=False, goto_m=None, target=sensor)
         if self._budget_s <= 1e-12 or left <= 0:
+            self._fails, self._before_bit = 0, -1.0
             self._hovering = False
             self._target = None
         return Action(serve=sensor, hover=True, goto_m=None, target=sensor)

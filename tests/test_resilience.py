@@ -6,9 +6,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 import pytest
 
+from conftest import run_cli
 from skymule.policies import make_policy
+from skymule.resilience import leveled, run_study
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.log import MissionLog
@@ -97,3 +100,48 @@ def test_robust_hgad_parameters_are_validated() -> None:
     data["policy"] = {"name": "hgad-robust", "params": {"fail_slots": 2, "window_slots": 4}}
     policy = make_policy(scenario_from_dict(data, "x", Path(base.base_dir)).policy)
     assert (policy.fail_slots, policy.window_slots) == (2, 4)  # type: ignore[attr-defined]
+
+
+def test_resilience_command_writes_the_table_and_figure(tmp_path: Path) -> None:
+    out = tmp_path / "res"
+    result = run_cli(
+        "resilience", "paper-sim-fixed", "--fault", "outage", "--levels", "0,120",
+        "--policies", "hgad,hgad-robust", "--missions", "2", "--out", out,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    frame = pd.read_csv(out / "resilience.csv")
+    assert list(frame["policy"]) == ["hgad", "hgad", "hgad-robust", "hgad-robust"]
+    assert list(frame["level"]) == [0.0, 120.0, 0.0, 120.0]
+    assert (frame["missions"] == 2).all()
+    # the fault-free bound holds at every level and every mean is below it
+    assert (frame["mbit_mean"] <= frame["bound_mbit_mean"] + 1e-6).all()
+    assert (out / "resilience.png").stat().st_size > 0
+    # level 0 is the fault-free mission: what `skymule run` gives on mission 0 ...
+    clean = frame[(frame["policy"] == "hgad") & (frame["level"] == 0)]
+    study = run_study(load_scenario("paper-sim-fixed"), "outage", [0.0], ["hgad"], 2, False)
+    assert float(clean["mbit_mean"].iloc[0]) == pytest.approx(study.rows["mbit"].mean(), abs=1e-3)
+    # ... and paired: mission 0 at level 0 is mission 0 of the study with no fault at all
+    first = leveled(load_scenario("paper-sim-fixed"), "outage", 0.0, 0)
+    assert first.faults is None
+    alone = run_mission(build_mission(first), make_policy(first.policy)).downloaded_bit.sum()
+    assert study.rows["mbit"].iloc[0] == pytest.approx(alone / 1e6, rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("--fault", "meteor", "--levels", "0"), "--fault 'meteor' is not a fault kind"),
+        (("--fault", "outage", "--levels", "0,abc"), "'abc' is not a number"),
+        (("--fault", "missed-polls", "--levels", "0,1"), "allowed: in [0, 1)"),
+        (("--fault", "outage", "--levels", "-5"), "allowed: >= 0"),
+        (("--fault", "wind", "--levels", "12"), "speed_mps"),
+        (("--fault", "outage", "--levels", "0", "--policies", "nope"), "--policies"),
+    ],
+)
+def test_resilience_command_mistakes_are_one_line(
+    tmp_path: Path, args: tuple[str, ...], message: str
+) -> None:
+    result = run_cli("resilience", "paper-sim-fixed", *args, "--out", tmp_path / "r")
+    assert result.returncode == 2
+    assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "r").exists()

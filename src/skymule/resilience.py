@@ -126,6 +126,8 @@ def run_study(
     from skymule.runner import simulate
     from skymule.world import build_mission
 
+    for level in levels:  # every level's mistake before anything runs
+        leveled(scenario, kind, level, 0)
     rows = []
     bounds: list[float] = []
     for level in levels:
@@ -167,7 +169,12 @@ def table(study: Study) -> pd.DataFrame:
     """One row per (policy, level): Mbit mean and 95 % CI, AADM score mean, the bound."""
     out = []
     bound = None if study.bound_mbit is None else mean_ci(study.bound_mbit)[0]
-    for (policy, level), group in study.rows.groupby(["policy", "level"], sort=False):
+    rows = study.rows
+    order = {name: i for i, name in enumerate(dict.fromkeys(rows["policy"]))}
+    rows = rows.sort_values(
+        ["policy", "level"], key=lambda c: c.map(order) if c.name == "policy" else c, kind="stable"
+    )
+    for (policy, level), group in rows.groupby(["policy", "level"], sort=False):
         mean, half = mean_ci(group["mbit"].to_numpy())
         out.append(
             {

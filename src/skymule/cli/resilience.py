@@ -55,5 +55,6 @@ def resilience(
     out.mkdir(parents=True, exist_ok=True)
     frame.to_csv(out / "resilience.csv", index=False)
     plot(frame, fault, out / "resilience.png")
-    print_table(output.console, f"{base.name}: {fault}", frame.to_dict("records"), COLUMNS)
+    rows = [{str(k): v for k, v in row.items()} for row in frame.to_dict("records")]
+    print_table(output.console, f"{base.name}: {fault}", rows, COLUMNS)
     output.console.print(f"wrote {out}/resilience.csv, resilience.png", markup=False)

@@ -172,14 +172,46 @@ def test_battery_limit_sends_the_uav_home_before_it_is_spent() -> None:
     assert log.downloaded_bit.sum() < clean.downloaded_bit.sum()
 
 
-def test_fault_missions_leave_the_batched_and_compiled_engines() -> None:
-    outage = {"kind": "outage", "params": {"sensors": ["LW1"], "start_s": 0, "duration_s": 50}}
-    mission = build_mission(_with_faults("paper-sim-fixed", [outage]))
+MIXED_FAULTS = [
+    {"kind": "outage", "params": {"sensors": ["LW1"], "start_s": 40, "duration_s": 80}},
+    {"kind": "gilbert-elliott", "params": {"p_good_to_bad": 0.05, "p_bad_to_good": 0.3}},
+    {"kind": "snr-error", "params": {"bias_db": -1.0, "std_db": 4.0, "correlation_s": 3.0}},
+    {"kind": "missed-polls", "params": {"probability": 0.05}},
+]
+
+
+def test_the_batched_engine_applies_faults_as_the_reference_engine() -> None:
+    faulty = [
+        build_mission(_with_faults("paper-sim-fixed", MIXED_FAULTS, seed=seed))
+        for seed in (1, 2, 3)
+    ]
+    clean = build_mission(load_scenario("paper-sim-fixed"))  # mixed with a fault-free one
+    missions = [*faulty, clean]
+    for name in ("greedy", "hgad"):
+        specs = [PolicySpec(name=name)] * len(missions)
+        assert all(batchable(m, s) for m, s in zip(missions, specs, strict=True))
+        batched = run_fixed_batch(missions, specs, engine="numpy")
+        for mission, log in zip(missions, batched, strict=True):
+            reference = _run(mission, name)
+            _same_log(reference, log)
+            for field in ("affected", "chosen"):
+                ours, theirs = getattr(log, field), getattr(reference, field)
+                assert (ours is None) == (theirs is None), field
+                if ours is not None:
+                    assert np.array_equal(ours, theirs), field
+        assert not np.array_equal(batched[0].served, batched[3].served)
+
+
+def test_compiled_refuses_fault_missions_and_a_wind_is_not_batched() -> None:
+    mission = build_mission(_with_faults("paper-sim-fixed", MIXED_FAULTS[:1]))
     spec = PolicySpec(name="hgad")
-    assert not batchable(mission, spec)
-    for engine in ("numpy", "compiled"):
-        with pytest.raises(SkymuleError, match="faults"):
-            run_fixed_batch([mission], [spec], engine=engine)  # type: ignore[arg-type]
+    with pytest.raises(SkymuleError, match="faults"):
+        run_fixed_batch([mission], [spec], engine="compiled")
+    wind = [{"kind": "wind", "params": {"speed_mps": 4.0}}]
+    windy = build_mission(_with_faults("paper-sim-fixed", wind))
+    assert not batchable(windy, spec)
+    with pytest.raises(SkymuleError, match="wind"):
+        run_fixed_batch([windy], [spec], engine="numpy")
 
 
 def test_slots_csv_marks_the_faulty_slots() -> None:
@@ -201,3 +233,29 @@ def test_fleet_applies_faults_through_its_flights() -> None:
         assert not (uav.served == 1).any()
         assert uav.affected is not None and uav.affected.all()
     assert log.logs[0].remaining_bit[-1, 1] == fleet.missions[0].buffers_bit[1]
+
+
+def test_a_sweep_draws_each_missions_faults_from_its_seed(tmp_path: Path) -> None:
+    import pandas as pd
+
+    import skymule
+    from conftest import run_cli
+    from skymule.runner import simulate
+
+    preset = Path(skymule.__file__).parent / "scenarios" / "paper-sim-fixed.toml"
+    text = preset.read_text(encoding="utf-8")
+    text += '\n[[faults]]\nkind = "outage"\nparams = { mean_duration_s = 60.0 }\n'
+    text += '\n[[faults]]\nkind = "snr-error"\nparams = { std_db = 6.0 }\n'
+    (tmp_path / "scen.toml").write_text(text, encoding="utf-8")
+    (tmp_path / "sweep.toml").write_text(
+        'base = "scen.toml"\nseed = 1\nmode = "product"\n\n[axes]\n'
+        'policy.name = ["greedy", "hgad"]\nseed = { range = [0, 3] }\n',
+        encoding="utf-8",
+    )
+    result = run_cli("sweep", tmp_path / "sweep.toml", "--out", tmp_path / "out")
+    assert result.returncode == 0, result.stderr
+    rows = pd.read_parquet(tmp_path / "out" / "results.parquet")
+    scenario = load_scenario(tmp_path / "scen.toml")
+    for row in rows.itertuples():
+        alone = simulate(scenario.model_copy(update={"seed": row.seed}), policy=row.policy)
+        assert row.total_downloaded_mbit == alone.summary["total_downloaded_mbit"]

@@ -62,6 +62,8 @@ class RobustParams(HGADParams):
     """A hover (or target) is abandoned after this many consecutive slots with no data."""
     window_slots: Annotated[int, Field(ge=1)] = 2
     """Slots in the moving average of observed rates that choices and hovers follow."""
+    arrive_m: Annotated[float, Field(ge=0, allow_inf_nan=False)] = 10.0
+    """Autonomous: a reported position this close to a hover point counts as there [m]."""
 
 
 PolicyFactory = Callable[[Any], Policy]

@@ -30,6 +30,7 @@ left, further rounds go to the largest remaining buffer not yet hovered over thi
 
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 import numpy as np
@@ -91,6 +92,7 @@ class HGADTour:
         max_hover_s: float,
         priority: Priority = "initial",
         fail_slots: int | None = None,
+        arrive_m: float = 0.0,
     ) -> None:
         self._hover, self._home = _require(context)
         self._peak_bps = np.asarray(context.peak_rate_bps, float)
@@ -111,6 +113,9 @@ class HGADTour:
         self._fail_slots = fail_slots
         self._fails = 0
         self._before_bit = -1.0  # the hovered sensor's buffer before the last hover slot
+        # robust: a reported position within arrive_m of the hover point counts as there (GPS
+        # error: the reported position never equals it); the hover then still flies to it
+        self._arrive_m = arrive_m
 
     def _next_target(self, remaining: np.ndarray) -> int | None:
         if self._planned and self._plan:
@@ -143,7 +148,8 @@ class HGADTour:
             self._fails, self._before_bit = 0, -1.0
             self._hovering = False
             self._target = None
-        return Action(serve=sensor, hover=True, goto_m=None, target=sensor)
+        goto = _xy(self._hover[sensor]) if self._arrive_m > 0 else None
+        return Action(serve=sensor, hover=True, goto_m=goto, target=sensor)
 
     def act(self, observation: Observation, en_route_serve: int | None) -> Action:
         remaining = observation.remaining_bit
@@ -160,7 +166,7 @@ class HGADTour:
                 return Action(serve=en_route_serve, goto_m=_xy(self._home))
             target = self._target
             goal = _xy(self._hover[target])
-            if position != goal:
+            if position != goal and math.dist(position, goal) > self._arrive_m:
                 return Action(serve=en_route_serve, goto_m=goal, target=target)
             # arrived: hover if there is something to gain, else on to the next waypoint
             self._hovered[target] = True

@@ -110,11 +110,13 @@ class RobustHGAD(HGAD):
       ``fail_slots`` consecutive failed slots the hover (or, autonomous, the target) is
       abandoned and the sensor cools down like after a normal hover, so the UAV moves on
       instead of hovering up to ``max_hover_s`` on a dead link;
+    * **GPS error** (autonomous): a reported position within ``arrive_m`` of a hover point
+      counts as arrived (0: exact, as HGAD; default 10 m), and the hover keeps flying to the point;
     * **noisy SNR**: choices and hover triggers use the mean of the last ``window_slots``
       observed rates (a moving estimate), kept at 0 for a sensor that reports nothing now
       (a dead link is never chosen on its past).
 
-    With ``window_slots = 1`` and no failed slots it is exactly HGAD.
+    With ``window_slots = 1``, ``arrive_m = 0`` and no failed slots it is exactly HGAD.
     """
 
     name = "hgad-robust"
@@ -125,11 +127,13 @@ class RobustHGAD(HGAD):
         max_hover_s: float = 60.0,
         fail_slots: int = 3,
         window_slots: int = 2,
+        arrive_m: float = 10.0,
         priority: Priority = "initial",
     ) -> None:
         super().__init__(hover_threshold, max_hover_s, priority)
         self.fail_slots = fail_slots
         self.window_slots = window_slots
+        self.arrive_m = arrive_m
         self._recent: list[np.ndarray] = []
         self._last: tuple[int, float] | None = None  # (sensor served, its buffer before)
         self._fails = 0
@@ -137,7 +141,9 @@ class RobustHGAD(HGAD):
     def reset(self, context: MissionContext) -> None:
         super().reset(context)
         if self._tour is not None:
-            self._tour = HGADTour(context, self.max_hover_s, self.priority, self.fail_slots)
+            self._tour = HGADTour(
+                context, self.max_hover_s, self.priority, self.fail_slots, self.arrive_m
+            )
         self._recent = []
         self._last = None
         self._fails = 0

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from shapely.geometry import Point
 
 from skymule.errors import SkymuleError
 from skymule.faults import no_faults
@@ -259,3 +260,20 @@ def test_a_sweep_draws_each_missions_faults_from_its_seed(tmp_path: Path) -> Non
     for row in rows.itertuples():
         alone = simulate(scenario.model_copy(update={"seed": row.seed}), policy=row.policy)
         assert row.total_downloaded_mbit == alone.summary["total_downloaded_mbit"]
+
+
+@pytest.mark.parametrize("policy", ["greedy", "hgad", "hgad-robust", "planner"])
+def test_autonomous_policies_run_under_every_fault_at_once(policy: str) -> None:
+    faults = [
+        *MIXED_FAULTS,
+        {"kind": "gps-error", "params": {"std_m": 30.0, "correlation_s": 5.0}},
+        {"kind": "wind", "params": {"speed_mps": 4.0, "from_deg": 90.0}},
+    ]
+    mission = build_mission(_with_faults("paper-sim-autonomous", faults))
+    log = _run(mission, policy)
+    _true_yield_holds(log)
+    steps = np.diff(np.vstack([log.position_m, log.end_position_m[None]])[:, :2], axis=0)
+    assert np.all(np.hypot(*steps.T) <= mission.max_step_m + 1e-9)
+    assert mission.fence is None or all(
+        mission.fence.buffer(1e-6).covers(Point(x, y)) for x, y in log.position_m[:, :2]
+    )

@@ -18,6 +18,7 @@ from shapely.geometry import Point, Polygon, box
 from skymule.aadm.plan import is_plan, plan_waypoints_m, scenario_fence
 from skymule.aadm.score import AADM_WINDOW_S
 from skymule.errors import ScenarioError, SkymuleError
+from skymule.faults.draws import FaultDraws, draw_faults, fault_rng
 from skymule.flight.navigation import Navigator, hover_point
 from skymule.flight.paths import Track, path_length_m, read_waypoints_csv, sample_path
 from skymule.geo import LocalFrame, covers, sensor_positions_m
@@ -68,6 +69,8 @@ class Mission:
         aadm_window_s: the AADM download window [s] (``mission.aadm_window_s``): slots that
             start at or after it serve nothing; None: every slot may serve (the AADM score
             still counts only the controller's 500 s).
+        faults: the mission's fault draws (``[[faults]]``, drawn once, the same for every
+            policy; ``docs/faults.md``), or None for a fault-free mission.
 
     A Mission is immutable: its arrays are read-only (writing raises), so policies and
     engines can share one Mission across runs.
@@ -95,6 +98,7 @@ class Mission:
     return_home: bool = True
     navigator: Navigator | None = None
     aadm_window_s: float | None = None
+    faults: FaultDraws | None = None
 
     def __post_init__(self) -> None:
         for item in fields(self):
@@ -307,6 +311,20 @@ def _trace_track(scenario: Scenario, frame: LocalFrame) -> Track:
     return Track(position_m=positions, snr_db=snr, hold_at_end=False)
 
 
+def mission_faults(
+    scenario: Scenario, n_slots: int, names: tuple[str, ...], slot_s: float
+) -> FaultDraws | None:
+    """The scenario's fault draws for one mission, or None when nothing is faulty (so a
+    fault-free mission takes exactly the fault-free path of every engine)."""
+    if not scenario.faults:
+        return None
+    try:
+        draws = draw_faults(scenario.faults, n_slots, names, slot_s, fault_rng(scenario.seed))
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from None
+    return None if draws.is_empty else draws
+
+
 def build_mission(scenario: Scenario) -> Mission:
     """Resolve a scenario into a :class:`Mission` (raises ScenarioError on user mistakes)."""
     if scenario.uavs:
@@ -381,6 +399,7 @@ def build_mission(scenario: Scenario) -> Mission:
         return_home=trajectory.return_home,
         navigator=Navigator(fence_or_box(fence)) if autonomous else None,
         aadm_window_s=scenario.mission.aadm_window_s,
+        faults=mission_faults(scenario, n_slots, names, slot_s),
     )
     if autonomous:
         check_duration(mission)

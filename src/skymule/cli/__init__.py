@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import sys
 
-from skymule.cli import files, missions
+from skymule.cli import files, missions, resilience
 from skymule.cli.app import app
 from skymule.errors import SkymuleError
 
@@ -24,6 +24,7 @@ app.command()(missions.compare)
 app.command()(missions.bound)
 app.command()(missions.sweep)
 app.command()(missions.scenarios)
+app.command()(resilience.resilience)
 app.command()(files.plot)
 app.command()(files.report)
 app.command()(files.export)

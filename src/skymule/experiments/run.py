@@ -42,7 +42,7 @@ from skymule.experiments.sweep import (
     plan_missions,
 )
 from skymule.radio.channel import mission_fading_db
-from skymule.world import BITS_PER_MBIT, Mission
+from skymule.world import BITS_PER_MBIT, Mission, mission_faults
 
 if TYPE_CHECKING:
     from skymule.scenario import PolicySpec, Scenario
@@ -125,7 +125,9 @@ def _per_mission(built: Mission, scenario: Scenario) -> Mission:
     fading = built.fading_db
     if fading is not None:  # fading is on for every mission of this geometry: redraw it
         fading = mission_fading_db(scenario, built.n_slots, len(buffers))
-    return replace(built, scenario=scenario, buffers_bit=buffers, fading_db=fading)
+    # faults follow the seed: drawn for this mission (None without [[faults]])
+    faults = mission_faults(scenario, built.n_slots, built.sensor_names, built.slot_s)
+    return replace(built, scenario=scenario, buffers_bit=buffers, fading_db=fading, faults=faults)
 
 
 def run_chunk(tasks: Sequence[Task], base_dir: str) -> pd.DataFrame:

@@ -59,6 +59,8 @@ def slots_frame(log: MissionLog, frame: LocalFrame) -> pd.DataFrame:
     columns["distance_m"] = np.cumsum(step_lengths_m(log))
     columns["speed_mps"] = speed_mps(log)
     columns["power_w"] = power_w(log)
+    if log.affected is not None:  # only with [[faults]]: fault-free folders are unchanged
+        columns["fault"] = log.affected.astype(int)
     return pd.DataFrame(columns)
 
 

@@ -28,7 +28,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from skymule.errors import SkymuleError
 from skymule.policies.base import Action, MissionContext, Observation, Policy
 from skymule.policies.greedy import Greedy
-from skymule.policies.hgad import HGAD
+from skymule.policies.hgad import HGAD, RobustHGAD
 from skymule.registry import Registry
 
 
@@ -55,6 +55,15 @@ class HGADParams(NoParams):
     """Fraction of the peak rate that triggers a hover."""
     max_hover_s: Annotated[float, Field(gt=0)] = 60.0
     """Longest hover [s]."""
+
+
+class RobustParams(HGADParams):
+    fail_slots: Annotated[int, Field(ge=1)] = 3
+    """A hover (or target) is abandoned after this many consecutive slots with no data."""
+    window_slots: Annotated[int, Field(ge=1)] = 2
+    """Slots in the moving average of observed rates that choices and hovers follow."""
+    arrive_m: Annotated[float, Field(ge=0, allow_inf_nan=False)] = 10.0
+    """Autonomous: a reported position this close to a hover point counts as there [m]."""
 
 
 PolicyFactory = Callable[[Any], Policy]
@@ -84,6 +93,7 @@ POLICIES: Registry[PolicyFactory] = Registry(
 
 POLICIES.register("greedy", lambda p: Greedy(), params=NoParams)
 POLICIES.register("hgad", lambda p: HGAD(p.hover_threshold, p.max_hover_s), params=HGADParams)
+POLICIES.register("hgad-robust", lambda p: RobustHGAD(**p.model_dump()), params=RobustParams)
 POLICIES.register("planner", _by_path("skymule.policies.planner:Planner"), params=NoParams)
 POLICIES.register(
     "optimal-fixed", _by_path("skymule.policies.optimal_fixed:OptimalFixed"), params=NoParams

@@ -30,6 +30,7 @@ left, further rounds go to the largest remaining buffer not yet hovered over thi
 
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 import numpy as np
@@ -86,7 +87,12 @@ class HGADTour:
     """Buffer-priority tour with hovering at each target's hover point (Alg. 2)."""
 
     def __init__(
-        self, context: MissionContext, max_hover_s: float, priority: Priority = "initial"
+        self,
+        context: MissionContext,
+        max_hover_s: float,
+        priority: Priority = "initial",
+        fail_slots: int | None = None,
+        arrive_m: float = 0.0,
     ) -> None:
         self._hover, self._home = _require(context)
         self._peak_bps = np.asarray(context.peak_rate_bps, float)
@@ -103,6 +109,13 @@ class HGADTour:
         self._target: int | None = None
         self._hovering = False
         self._budget_s = 0.0
+        # robust (hgad-robust): abandon a hover after fail_slots slots that delivered nothing
+        self._fail_slots = fail_slots
+        self._fails = 0
+        self._before_bit = -1.0  # the hovered sensor's buffer before the last hover slot
+        # robust: a reported position within arrive_m of the hover point counts as there (GPS
+        # error: the reported position never equals it); the hover then still flies to it
+        self._arrive_m = arrive_m
 
     def _next_target(self, remaining: np.ndarray) -> int | None:
         if self._planned and self._plan:
@@ -121,13 +134,22 @@ class HGADTour:
     def _hover_slot(self, observation: Observation, sensor: int) -> Action:
         """Serve ``sensor`` without moving; end the hover when the budget or buffer runs out."""
         self._budget_s -= self._slot_s
-        left = observation.remaining_bit[sensor] - slot_download_bit(
-            observation, sensor, self._slot_s
-        )
-        if self._budget_s <= 1e-12 or left <= 0:
+        now = float(observation.remaining_bit[sensor])
+        self._fails = self._fails + 1 if now >= self._before_bit >= 0 else 0
+        self._before_bit = now
+        left = now - slot_download_bit(observation, sensor, self._slot_s)
+        silent = self._fail_slots is not None and self._fails >= self._fail_slots
+        if silent:  # the tower went silent: leave it (it waits for the next round)
             self._hovering = False
             self._target = None
-        return Action(serve=sensor, hover=True, goto_m=None, target=sensor)
+            self._fails, self._before_bit = 0, -1.0
+            return Action(serve=None, hover=False, goto_m=None, target=sensor)
+        if self._budget_s <= 1e-12 or left <= 0:
+            self._fails, self._before_bit = 0, -1.0
+            self._hovering = False
+            self._target = None
+        goto = _xy(self._hover[sensor]) if self._arrive_m > 0 else None
+        return Action(serve=sensor, hover=True, goto_m=goto, target=sensor)
 
     def act(self, observation: Observation, en_route_serve: int | None) -> Action:
         remaining = observation.remaining_bit
@@ -144,7 +166,7 @@ class HGADTour:
                 return Action(serve=en_route_serve, goto_m=_xy(self._home))
             target = self._target
             goal = _xy(self._hover[target])
-            if position != goal:
+            if position != goal and math.dist(position, goal) > self._arrive_m:
                 return Action(serve=en_route_serve, goto_m=goal, target=target)
             # arrived: hover if there is something to gain, else on to the next waypoint
             self._hovered[target] = True

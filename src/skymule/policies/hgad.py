@@ -99,3 +99,89 @@ class HGAD:
         if serve == contract.NO_SENSOR:
             return Action(serve=None)
         return Action(serve=serve, hover=bool(hover[0]))
+
+
+class RobustHGAD(HGAD):
+    """HGAD that survives faults (issue 15): a silent tower ends the hover, noisy SNR is
+    smoothed. Plain :class:`HGAD` is unchanged; this adds two rules on top of it:
+
+    * **silent tower**: a slot "failed" when the sensor served in the previous slot did not
+      lose any data (its buffer is what it was), i.e. nothing was delivered. After
+      ``fail_slots`` consecutive failed slots the hover (or, autonomous, the target) is
+      abandoned and the sensor cools down like after a normal hover, so the UAV moves on
+      instead of hovering up to ``max_hover_s`` on a dead link;
+    * **GPS error** (autonomous): a reported position within ``arrive_m`` of a hover point
+      counts as arrived (0: exact, as HGAD; default 10 m), and the hover keeps flying to the point;
+    * **noisy SNR**: choices and hover triggers use the mean of the last ``window_slots``
+      observed rates (a moving estimate), kept at 0 for a sensor that reports nothing now
+      (a dead link is never chosen on its past).
+
+    With ``window_slots = 1``, ``arrive_m = 0`` and no failed slots it is exactly HGAD.
+    """
+
+    name = "hgad-robust"
+
+    def __init__(
+        self,
+        hover_threshold: float = 1.0,
+        max_hover_s: float = 60.0,
+        fail_slots: int = 3,
+        window_slots: int = 2,
+        arrive_m: float = 10.0,
+        priority: Priority = "initial",
+    ) -> None:
+        super().__init__(hover_threshold, max_hover_s, priority)
+        self.fail_slots = fail_slots
+        self.window_slots = window_slots
+        self.arrive_m = arrive_m
+        self._recent: list[np.ndarray] = []
+        self._last: tuple[int, float] | None = None  # (sensor served, its buffer before)
+        self._fails = 0
+
+    def reset(self, context: MissionContext) -> None:
+        super().reset(context)
+        if self._tour is not None:
+            self._tour = HGADTour(
+                context, self.max_hover_s, self.priority, self.fail_slots, self.arrive_m
+            )
+        self._recent = []
+        self._last = None
+        self._fails = 0
+
+    def _count_failure(self, remaining_bit: np.ndarray) -> None:
+        """Update the run of consecutive slots in which the served sensor delivered nothing."""
+        if self._last is None:
+            self._fails = 0
+            return
+        sensor, before = self._last
+        self._fails = self._fails + 1 if remaining_bit[sensor] >= before else 0
+
+    def act(self, observation: Observation) -> Action:
+        if self._tour is not None:
+            return super().act(observation)
+        self._count_failure(observation.remaining_bit)
+        state = self._state
+        hovered = int(state.sensor[0])
+        if hovered != contract.NO_SENSOR and self._fails >= self.fail_slots:
+            # the tower went silent: give up this hover; it cools down like a finished one
+            state.sensor[0] = contract.NO_SENSOR
+            state.cooling[hovered] = True
+            self._fails = 0
+        self._recent = [*self._recent, observation.rate_bps][-self.window_slots :]
+        smoothed = np.where(observation.rate_bps > 0, np.mean(self._recent, axis=0), 0.0)
+        smoothed.flags.writeable = False
+        seen = Observation(
+            slot=observation.slot,
+            position_m=observation.position_m,
+            snr_db=observation.snr_db,
+            rate_bps=smoothed,
+            remaining_bit=observation.remaining_bit,
+        )
+        action = super().act(seen)
+        if action.serve is None:
+            self._last, self._fails = None, 0
+        else:
+            if self._last is not None and self._last[0] != action.serve:
+                self._fails = 0
+            self._last = (action.serve, float(observation.remaining_bit[action.serve]))
+        return action

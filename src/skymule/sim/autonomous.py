@@ -34,6 +34,7 @@ from skymule.sim import contract
 from skymule.sim.context import mission_context
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.engine import check_serve
+from skymule.sim.faulting import delivered_sensor, fault_fields, slot_faults
 from skymule.sim.log import MissionLog
 from skymule.world import Mission
 
@@ -102,6 +103,12 @@ class AutonomousFlight:
         self._remaining_after: list[np.ndarray] = []
         self._hovering: list[bool] = []
         self._targets: list[int] = []
+        # faults (docs/faults.md): None on a fault-free mission, which then never reads them
+        self._deliverable = None if mission.faults is None else mission.faults.deliverable()
+        self._deliver = self._rates  # what a served sensor yields (true rate, 0 if blocked)
+        self._chosen: list[int] = []
+        self.used_j = 0.0  # propulsion energy so far (battery fault only)
+        self.landed = False  # battery fault: the usable energy is spent
 
     @property
     def done(self) -> bool:
@@ -122,28 +129,78 @@ class AutonomousFlight:
         self._snr = snr
         self._rates = mission.rate_bps(snr)
         self._rates.flags.writeable = False
+        self._deliver, seen_snr, seen_rate = self._rates, np.nan_to_num(snr, nan=-np.inf), None
+        if mission.faults is not None and self._deliverable is not None:
+            now = slot_faults(mission.faults, self._deliverable, self.slot, snr, self._rates)
+            self._deliver, seen_snr = now.deliver_bps, now.snr_seen_db
+            seen_rate = mission.rate_bps(seen_snr)
+            seen_rate.flags.writeable = False
+            # the reported position, projected into the fence: a policy plans in-fence paths
+            # from it (the autopilot knows its fence; a reading outside it is clipped)
+            assert mission.navigator is not None
+            x, y = legal_goal(
+                mission.navigator,
+                (here[0] + now.position_error_m[0], here[1] + now.position_error_m[1]),
+            )
+            here = np.array([x, y, here[2]])
         return Observation(
             slot=self.slot,
             position_m=here,
-            snr_db=np.nan_to_num(snr, nan=-np.inf),
-            rate_bps=self._rates,
+            snr_db=seen_snr,
+            rate_bps=self._rates if seen_rate is None else seen_rate,
             remaining_bit=self._remaining.copy(),
         )
 
     def _move(self, goto_m: XY | None) -> tuple[XY, bool]:
-        return next_position(self.mission, self.position, goto_m, self.slot)
+        faults = self.mission.faults
+        if faults is None or (faults.wind is None and faults.battery is None):
+            return next_position(self.mission, self.position, goto_m, self.slot)
+        return self._faulted_move(goto_m)
+
+    def _faulted_move(self, goto_m: XY | None) -> tuple[XY, bool]:
+        """The move under wind and/or a battery limit (``docs/faults.md``, steps 5-6).
+
+        A battery that no longer covers the way home overrides the goal with home (at the
+        return speed, never above the speed cap); a spent battery keeps the UAV where it is.
+        The wind then shortens the step (never lengthens it), along the in-fence path.
+        """
+        mission, faults = self.mission, self.mission.faults
+        nav, home = mission.navigator, mission.home_m
+        assert faults is not None and nav is not None and home is not None
+        battery, wind, slot_s = faults.battery, faults.wind, mission.slot_s
+        if self.landed:
+            return self.position, True
+        home_xy: XY = (float(home[0]), float(home[1]))
+        if battery is not None and bool(
+            battery.must_return(self.used_j, nav.travel_distance(self.position, home_xy), slot_s)
+        ):
+            speed = min(battery.return_speed_mps, mission.max_speed_mps)
+            moved, overridden = nav.step(self.position, home_xy, speed * slot_s), True
+        else:
+            moved, overridden = next_position(mission, self.position, goto_m, self.slot)
+        if wind is not None:
+            step = np.subtract(moved, self.position)
+            length = float(np.hypot(*wind.achieved_step_m(step, slot_s, mission.max_speed_mps)))
+            if length < float(np.hypot(*step)):
+                moved = nav.step(self.position, moved, length)
+        if battery is not None:
+            speed = float(np.hypot(*np.subtract(moved, self.position))) / slot_s
+            self.used_j += float(battery.slot_energy_j(speed, slot_s))
+            self.landed = bool(battery.exhausted(self.used_j))
+        return moved, overridden
 
     @property
     def rate_bps(self) -> np.ndarray:
-        """(N,) rates [bit/s] observed at the start of the current slot."""
-        return self._rates
+        """(N,) rates [bit/s] a served sensor delivers at in the current slot (the observed
+        rates without faults; under faults the true rate, 0 where a fault blocks the link)."""
+        return self._deliver
 
     def apply(self, action: Action, who: str = "policy") -> float:
         """Apply ``action`` to the slot last observed; returns the bits downloaded."""
         sensor = check_serve(action.serve, self.mission.n_sensors, who)
         sensor = self.windowed(sensor)
         served = np.array([sensor])
-        bits = contract.take_bits(self._remaining, served, self._rates[None], self.mission.slot_s)
+        bits = contract.take_bits(self._remaining, served, self._deliver[None], self.mission.slot_s)
         self.record(action, sensor, float(bits[0]))
         return float(bits[0])
 
@@ -158,6 +215,9 @@ class AutonomousFlight:
         self._positions.append(self.position)
         self._snr_log.append(self._snr)
         self._rate_log.append(self._rates)
+        if self._deliverable is not None:
+            self._chosen.append(sensor)
+            sensor = delivered_sensor(self._deliverable, self.slot, sensor)
         self._served.append(sensor)
         self._downloaded.append(bits)
         self._remaining_after.append(self._remaining.copy())
@@ -172,6 +232,7 @@ class AutonomousFlight:
         n_sensors, altitude = mission.n_sensors, mission.altitude_m
         heights = np.full((len(self._positions), 1), altitude)
         assert mission.home_m is not None and mission.hover_points_m is not None
+        affected, chosen = fault_fields(mission.faults, self._chosen, len(self._positions))
         return MissionLog(
             policy=policy,
             sensor_names=mission.sensor_names,
@@ -190,6 +251,8 @@ class AutonomousFlight:
             visit_radius_m=mission.visit_radius_m,
             target=np.asarray(self._targets, int),
             aadm_window_s=mission.score_window_s,
+            affected=affected,
+            chosen=chosen,
         )
 
 

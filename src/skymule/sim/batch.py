@@ -36,6 +36,7 @@ from skymule.radio.rates import RateTable
 from skymule.scenario import PolicySpec
 from skymule.sim import contract
 from skymule.sim.batch_fading import apply_fading, stack_fading
+from skymule.sim.batch_faults import BatchFaults, apply_faults, stack_faults
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.log import MissionLog
 from skymule.world import Mission
@@ -66,8 +67,13 @@ BATCH_POLICIES: dict[str, Callable[[PolicySpec], PolicyParams]] = {
 
 
 def batchable(mission: Mission, spec: PolicySpec) -> bool:
-    """True if ``mission`` under ``spec`` can run in the batched engine."""
-    return mission.track is not None and spec.name in BATCH_POLICIES
+    """True if ``mission`` under ``spec`` can run in the batched engine.
+
+    The numpy loop applies faults (:mod:`skymule.sim.batch_faults`) except a wind, which
+    changes progress along the track: such missions run in the reference engine.
+    """
+    windy = mission.faults is not None and mission.faults.wind is not None
+    return mission.track is not None and not windy and spec.name in BATCH_POLICIES
 
 
 @dataclass(frozen=True)
@@ -96,6 +102,7 @@ class Batch:
             a mission's last slot).
         rate_model: (F,) index of each fading mission's rate model in ``rate_models``.
         rate_models: (rate table, bandwidth [Hz]) pairs turning faded SNR into rate.
+        faults: the missions with ``[[faults]]`` and their draws (``docs/faults.md``).
     """
 
     track_id: np.ndarray
@@ -117,6 +124,7 @@ class Batch:
     fading_db: np.ndarray
     rate_model: np.ndarray
     rate_models: tuple[tuple[RateTable, float], ...]
+    faults: BatchFaults
 
     @property
     def size(self) -> int:
@@ -139,6 +147,8 @@ class BatchResult:
             the run was asked not to keep them: summaries need only ``left_bit``).
         end_sample: (B,) track sample after the last slot.
         left_bit: (B, N) buffers after the last slot [bit].
+        chosen: (B, T_max) the sensor each policy chose when some mission has faults (then
+            ``served`` is NO_SENSOR where a fault blocked it), else None.
     """
 
     served: np.ndarray
@@ -149,6 +159,7 @@ class BatchResult:
     remaining_bit: np.ndarray | None
     end_sample: np.ndarray
     left_bit: np.ndarray
+    chosen: np.ndarray | None = None
 
 
 def policy_params(spec: PolicySpec) -> PolicyParams:
@@ -176,6 +187,11 @@ def stack_missions(missions: Sequence[Mission], specs: Sequence[PolicySpec]) -> 
     for b, mission in enumerate(missions):
         if mission.track is None:
             raise SkymuleError("the batched engine needs fixed trajectories (trajectory.mode)")
+        if mission.faults is not None and mission.faults.wind is not None:
+            raise SkymuleError(
+                "the batched engine does not apply a wind fault: run such missions with "
+                "skymule.sim.run.run_mission (the reference engines)"
+            )
         key = (id(mission.track), id(mission.rate_table), mission.bandwidth_hz)
         if key not in keys:
             keys[key] = len(unique)
@@ -226,6 +242,7 @@ def stack_missions(missions: Sequence[Mission], specs: Sequence[PolicySpec]) -> 
         max_hover_s=np.array([p.max_hover_s for p in params], float),
         fading_index=fading_index,
         fading_db=fading,
+        faults=stack_faults(missions, n),
         rate_model=rate_model,
         rate_models=rate_models,
     )
@@ -246,9 +263,9 @@ def run_batch(batch: Batch, engine: Engine = "auto", keep_remaining: bool = True
 
     if engine not in ("auto", "numpy", "compiled"):
         raise SkymuleError(f"engine = {engine!r}; allowed: auto, numpy, compiled")
-    fading = batch.fading_index.size > 0
+    fading = batch.fading_index.size > 0 or batch.faults.any
     if engine == "compiled" and (fading or not compiled.available()):
-        why = "missions with per-slot fading" if fading else "numba is not installed"
+        why = "missions with per-slot fading or faults" if fading else "numba is not installed"
         raise SkymuleError(f"engine = 'compiled' cannot run this batch: {why}")
     if engine == "compiled" or (engine == "auto" and not fading and compiled.available()):
         return run_compiled(batch, keep_remaining)
@@ -319,6 +336,7 @@ def run_numpy(batch: Batch) -> BatchResult:
     any_hgad = bool(is_hgad.any())
     any_greedy = not bool(is_hgad.all())
     any_fading = batch.fading_index.size > 0
+    any_faults = batch.faults.any
 
     remaining = np.ascontiguousarray(batch.buffers_bit.astype(float).T)
     remaining_flat = remaining.reshape(-1)
@@ -331,6 +349,7 @@ def run_numpy(batch: Batch) -> BatchResult:
     hovering_log = np.zeros((t_max, n_missions), bool)
     sample_log = np.zeros((t_max, n_missions), np.int64)
     n_run = np.zeros(n_missions, np.int64)
+    chosen_log = np.full((t_max, n_missions), NO_SENSOR, np.int64) if any_faults else None
 
     for slot in range(t_max):
         active = (slot < n_slots) & (sample < n_samples)
@@ -344,6 +363,8 @@ def run_numpy(batch: Batch) -> BatchResult:
                 batch.fading_index, batch.fading_db[slot], batch.rate_model, batch.rate_models,
                 rate, snr,
             )  # fmt: skip
+        if any_faults:  # the policy sees the faulty SNR; `deliver` is what serving yields
+            rate, snr, deliver, ok = apply_faults(batch.faults, slot, rate, snr)
         has_data = contract.servable(rate, remaining)
         if any_hgad and any_greedy:
             choice = np.where(
@@ -368,6 +389,11 @@ def run_numpy(batch: Batch) -> BatchResult:
         if closed is not None and closed.any():  # the window has closed: nothing is delivered
             served = np.where(closed, NO_SENSOR, sensor)
             bits = np.where(closed, 0.0, bits)
+        if chosen_log is not None:  # a fault blocks the choice: 0 bits, nothing served
+            chosen_log[slot] = served
+            served = np.where(ok.reshape(-1).take(cell), served, NO_SENSOR)
+            true_bits = contract.served_bits(deliver.reshape(-1).take(cell), left, dt)
+            bits = np.where(served >= 0, true_bits, 0.0)
         remaining_flat[cell] = left - bits
         if any_hgad:
             hover_flag = contract.hgad_update(
@@ -404,6 +430,7 @@ def run_numpy(batch: Batch) -> BatchResult:
         remaining_bit=remaining_log.transpose(2, 0, 1),
         end_sample=np.minimum(sample, last_sample),
         left_bit=np.ascontiguousarray(remaining.T),
+        chosen=None if chosen_log is None else chosen_log.T,
     )
 
 
@@ -436,6 +463,10 @@ def mission_log(
         hover_points_m=mission.hover_points_m,
         visit_radius_m=mission.visit_radius_m,
         aadm_window_s=mission.score_window_s,
+        affected=None if mission.faults is None else np.array(mission.faults.affected[:n]),
+        chosen=None
+        if mission.faults is None or result.chosen is None
+        else result.chosen[b, :n].copy(),
     )
 
 

@@ -23,6 +23,7 @@ from skymule.policies.base import Action, Observation, Policy
 from skymule.sim import contract
 from skymule.sim.context import mission_context
 from skymule.sim.contract import NO_SENSOR
+from skymule.sim.faulting import delivered_sensor, fault_fields, slot_faults
 from skymule.sim.log import MissionLog
 from skymule.world import Mission
 
@@ -77,6 +78,11 @@ class FixedFlight:
         self._downloaded: list[float] = []
         self._remaining_after: list[np.ndarray] = []
         self._hovering: list[bool] = []
+        # faults (docs/faults.md): None on a fault-free mission, which then never reads them
+        self._faults = mission.faults
+        self._deliverable = None if mission.faults is None else mission.faults.deliverable()
+        self._chosen: list[int] = []
+        self._progress = 0.0  # wind: share of the next track sample reached so far
 
     @property
     def done(self) -> bool:
@@ -90,17 +96,26 @@ class FixedFlight:
         if fading is not None:
             snr_now = _frozen(self._snr_seen[sample] + fading[self.slot])
             self._rate_now = _frozen(self.mission.rate_bps(snr_now))
+        position, rate_seen = self._track.position_m[sample], self._rate_now
+        if self._faults is not None and self._deliverable is not None:
+            # the policy sees the faulty SNR and position; _rate_now (what serving yields)
+            # stays the TRUE rate, 0 where a fault blocks the link
+            now = slot_faults(self._faults, self._deliverable, self.slot, snr_now, self._rate_now)
+            snr_now, self._rate_now = now.snr_seen_db, now.deliver_bps
+            rate_seen = _frozen(self.mission.rate_bps(snr_now))
+            position = _frozen(position + now.position_error_m)
         return Observation(
             slot=self.slot,
-            position_m=self._track.position_m[sample],
+            position_m=position,
             snr_db=snr_now,
-            rate_bps=self._rate_now,
+            rate_bps=rate_seen,
             remaining_bit=self._remaining.copy(),
         )
 
     @property
     def rate_bps(self) -> np.ndarray:
-        """(N,) rates [bit/s] observed at the start of the current slot."""
+        """(N,) rates [bit/s] a served sensor delivers at in the current slot (the observed
+        rates without faults; under faults the true rate, 0 where a fault blocks the link)."""
         return self._rate_now
 
     def apply(self, action: Action, who: str = "policy") -> float:
@@ -122,16 +137,42 @@ class FixedFlight:
     def record(self, action: Action, sensor: int, bits: float) -> None:
         """Log the slot (``sensor`` served, ``bits`` already taken) and move on the track."""
         self._samples.append(self._sample)
+        if self._deliverable is not None:
+            self._chosen.append(sensor)
+            sensor = delivered_sensor(self._deliverable, self.slot, sensor)
         self._served.append(sensor)
         self._downloaded.append(bits)
         self._remaining_after.append(self._remaining.copy())
         self._hovering.append(bool(action.hover))
-        if not action.hover:
+        if not action.hover and self._wind_reaches_next_sample():
             last = self._track.n_samples - 1
             self._sample = (
                 min(self._sample + 1, last) if self._track.hold_at_end else (self._sample + 1)
             )
         self.slot += 1
+
+    def _wind_reaches_next_sample(self) -> bool:
+        """False while a wind keeps the UAV short of the next track sample.
+
+        Progress advances by achieved/commanded of a sample per slot (``docs/faults.md``);
+        the UAV holds the current sample until a whole sample is reached.
+        """
+        wind = None if self._faults is None else self._faults.wind
+        nxt = self._sample + 1
+        if wind is None or nxt >= self._track.n_samples:
+            return True
+        commanded = self._track.position_m[nxt, :2] - self._track.position_m[self._sample, :2]
+        length = float(np.hypot(*commanded))
+        if length == 0.0:
+            return True
+        slot_s = self.mission.slot_s
+        airspeed = max(self.mission.max_speed_mps, length / slot_s)
+        achieved = wind.achieved_step_m(commanded, slot_s, airspeed)
+        self._progress += float(np.hypot(*achieved)) / length
+        if self._progress < 1.0 - 1e-9:
+            return False
+        self._progress = max(self._progress - 1.0, 0.0)
+        return True
 
     def log(self, policy: str) -> MissionLog:
         """The mission log of the slots run so far."""
@@ -139,6 +180,7 @@ class FixedFlight:
         index = np.asarray(self._samples, int)
         end_sample = min(self._sample, track.n_samples - 1)
         snr_log, rate_log = track.snr_db[index], self._rates[index]
+        affected, chosen = fault_fields(mission.faults, self._chosen, index.size)
         if mission.fading_db is not None:
             snr_log = snr_log + mission.fading_db[: index.size]
             rate_log = mission.rate_bps(snr_log)
@@ -159,6 +201,8 @@ class FixedFlight:
             hover_points_m=mission.hover_points_m,
             visit_radius_m=mission.visit_radius_m,
             aadm_window_s=mission.score_window_s,
+            affected=affected,
+            chosen=chosen,
         )
 
 

@@ -26,6 +26,8 @@ _ARRAY_FIELDS = (
     "home_m",
     "hover_points_m",
     "target",
+    "affected",
+    "chosen",
 )
 
 
@@ -53,6 +55,10 @@ class MissionLog:
         target: autonomous: (T',) sensor the policy was heading for in each slot, or
             NO_SENSOR; None on fixed trajectories.
         aadm_window_s: the AADM download window the score counts downloads in [s].
+        affected: (T',) True where a per-slot fault touched the slot (``[[faults]]``), or
+            None for a fault-free mission.
+        chosen: (T',) the sensor the policy chose (``served`` is NO_SENSOR where a fault kept
+            it from delivering), or None for a fault-free mission (then equal to ``served``).
     """
 
     policy: str
@@ -72,6 +78,8 @@ class MissionLog:
     visit_radius_m: float = 50.0
     target: np.ndarray | None = None
     aadm_window_s: float = 500.0
+    affected: np.ndarray | None = None
+    chosen: np.ndarray | None = None
 
     @property
     def n_slots(self) -> int:

@@ -1,0 +1,60 @@
+"""``skymule resilience``: degradation curves of every policy over a fault's intensity."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+import skymule.cli.output as output
+from skymule.cli.missions import ScenarioArg, SetOption, _names, load
+from skymule.cli.tables import print_table
+from skymule.errors import SkymuleError
+
+COLUMNS = (
+    "policy", "level", "missions", "mbit_mean", "mbit_ci95", "aadm_score_mean", "bound_mbit_mean"
+)  # fmt: skip
+
+
+def resilience(
+    scenario: ScenarioArg,
+    fault: Annotated[
+        str,
+        typer.Option(
+            "--fault",
+            help="Fault kind: outage, gilbert-elliott, snr-error, missed-polls, gps-error, wind.",
+        ),
+    ],
+    levels: Annotated[
+        str, typer.Option("--levels", help="Comma-separated intensities, e.g. 0,3,6 (dB).")
+    ],
+    out: Annotated[Path, typer.Option("--out", help="Folder for resilience.csv/.png.")],
+    policies: Annotated[
+        str, typer.Option("--policies", help="Comma-separated policy names.")
+    ] = "greedy,hgad,hgad-robust",
+    missions: Annotated[
+        int, typer.Option("--missions", help="Paired missions per level (seeds seed..seed+N-1).")
+    ] = 20,
+    overrides: SetOption = None,
+) -> None:
+    """Every policy over increasing fault intensity, paired draws: Mbit (mean, 95 % CI)."""
+    from skymule.policies import check_policies
+    from skymule.resilience import parse_levels, plot, run_study, table
+
+    values = parse_levels(levels, fault)
+    names = check_policies(_names(policies))
+    if missions < 1:
+        raise SkymuleError(f"--missions = {missions}; allowed: an integer >= 1")
+    if out.exists() and not out.is_dir():
+        raise SkymuleError(f"--out {out}: exists and is not a folder")
+    base = load(scenario, overrides)
+    if base.uavs:
+        raise SkymuleError("resilience runs one UAV; this scenario has [[uavs]]")
+    frame = table(run_study(base, fault, values, names, missions))
+    out.mkdir(parents=True, exist_ok=True)
+    frame.to_csv(out / "resilience.csv", index=False)
+    plot(frame, fault, out / "resilience.png")
+    rows = [{str(k): v for k, v in row.items()} for row in frame.to_dict("records")]
+    print_table(output.console, f"{base.name}: {fault}", rows, COLUMNS)
+    output.console.print(f"wrote {out}/resilience.csv, resilience.png", markup=False)

@@ -252,11 +252,12 @@ def test_fixed_fleet_needs_waypoints_per_uav() -> None:
 
 
 def test_bench_fleet_tiny_mode_runs_and_respects_the_bound(
-    capsys: pytest.CaptureFixture[str],
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     import importlib.util
 
     path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_fleet.py"
+    monkeypatch.syspath_prepend(str(path.parent))  # its helpers, as `python benchmarks/..`
     spec = importlib.util.spec_from_file_location("bench_fleet", path)
     assert spec is not None and spec.loader is not None
     bench = importlib.util.module_from_spec(spec)

@@ -26,6 +26,7 @@ EXPECTED = {
     "bench_engine.py": ["single (2 missions)", "numpy + summaries", "memory bandwidth"],
     "bench_envs.py": ["vector env", "single envs", "ratio"],
     "bench_fleet.py": ["coordinated", "bound", "coordinated - independent hgad"],
+    "bench_invariants.py": ["missions with faults run", "y = min(R dt, Q)", "speed cap"],
     "bench_planner.py": ["planner gain over hgad", "mean gap to bound", "above the bound: 0"],
     "bench_resilience.py": ["robust - plain", "hgad-robust", "outages + 6 dB SNR error"],
     "bench_single.py": ["paper-sim-fixed", "aadm-default", "slots/s"],

@@ -39,9 +39,10 @@ from skymule.world import Mission, build_mission
 POLICIES = ("greedy", "hgad", "hgad-robust")
 
 
-def random_fault(rng: np.random.Generator) -> dict[str, object]:
-    kind = str(rng.choice(["outage", "gilbert-elliott", "snr-error", "missed-polls", "gps-error",
-                           "wind"]))  # fmt: skip
+KINDS = ("outage", "gilbert-elliott", "snr-error", "missed-polls", "gps-error", "wind")
+
+
+def random_fault(rng: np.random.Generator, kind: str) -> dict[str, object]:
     params: dict[str, object] = {
         "outage": {"mean_duration_s": float(rng.uniform(10, 120))},
         "gilbert-elliott": {"p_good_to_bad": float(rng.uniform(0.01, 0.1)), "p_bad_to_good": 0.2},
@@ -60,7 +61,8 @@ def random_mission(rng: np.random.Generator, fixed: Scenario, auto: Scenario) ->
         sensor["buffer_mbit"] = float(rng.uniform(50, 1500))
     data["seed"] = int(rng.integers(0, 2**31))
     data["policy"] = {"name": str(rng.choice(POLICIES))}
-    data["faults"] = [random_fault(rng) for _ in range(int(rng.integers(1, 4)))]
+    kinds = rng.choice(KINDS, size=int(rng.integers(1, 4)), replace=False)  # one of each at most
+    data["faults"] = [random_fault(rng, str(kind)) for kind in kinds]
     return scenario_from_dict(data, "random mission", Path(base.base_dir))
 
 

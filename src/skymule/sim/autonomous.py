@@ -31,9 +31,8 @@ from skymule.errors import SkymuleError
 from skymule.flight.navigation import Navigator, hover_point
 from skymule.policies.base import Action, Observation, Policy
 from skymule.sim import contract
-from skymule.sim.context import mission_context
 from skymule.sim.contract import NO_SENSOR
-from skymule.sim.engine import check_serve
+from skymule.sim.engine import check_serve, drive, log_fields
 from skymule.sim.faulting import delivered_sensor, fault_fields, slot_faults
 from skymule.sim.log import MissionLog
 from skymule.world import Mission
@@ -234,10 +233,7 @@ class AutonomousFlight:
         assert mission.home_m is not None and mission.hover_points_m is not None
         affected, chosen = fault_fields(mission.faults, self._chosen, len(self._positions))
         return MissionLog(
-            policy=policy,
-            sensor_names=mission.sensor_names,
-            slot_s=mission.slot_s,
-            buffers_bit=mission.buffers_bit.copy(),
+            **log_fields(mission, policy),
             position_m=np.hstack([np.asarray(self._positions, float).reshape(-1, 2), heights]),
             end_position_m=np.array([self.position[0], self.position[1], altitude]),
             snr_db=np.asarray(self._snr_log, float).reshape(-1, n_sensors),
@@ -246,11 +242,7 @@ class AutonomousFlight:
             downloaded_bit=np.asarray(self._downloaded, float),
             remaining_bit=np.asarray(self._remaining_after, float).reshape(-1, n_sensors),
             hovering=np.asarray(self._hovering, bool),
-            home_m=mission.home_m.copy(),
-            hover_points_m=mission.hover_points_m.copy(),
-            visit_radius_m=mission.visit_radius_m,
             target=np.asarray(self._targets, int),
-            aadm_window_s=mission.score_window_s,
             affected=affected,
             chosen=chosen,
         )
@@ -258,8 +250,4 @@ class AutonomousFlight:
 
 def run_autonomous(mission: Mission, policy: Policy) -> MissionLog:
     """Run an autonomous mission under ``policy``; see the module docstring for the rules."""
-    flight = AutonomousFlight(mission)
-    policy.reset(mission_context(mission))
-    while not flight.done:
-        flight.apply(policy.act(flight.observe()), policy.name)
-    return flight.log(policy.name)
+    return drive(AutonomousFlight(mission), policy)

@@ -38,6 +38,7 @@ from skymule.sim import contract
 from skymule.sim.batch_fading import apply_fading, stack_fading
 from skymule.sim.batch_faults import BatchFaults, apply_faults, stack_faults
 from skymule.sim.contract import NO_SENSOR
+from skymule.sim.engine import track_log
 from skymule.sim.log import MissionLog
 from skymule.world import Mission
 
@@ -441,28 +442,16 @@ def mission_log(
     n = int(result.n_run[b])
     u = int(batch.track_id[b])
     assert result.remaining_bit is not None, "run_batch(..., keep_remaining=True) for logs"
-    index = result.sample[b, :n]
-    snr_log, rate_log = batch.snr_db[u][index], batch.rate_bps[u][index]
-    if mission.fading_db is not None:
-        snr_log = snr_log + mission.fading_db[:n]
-        rate_log = mission.rate_bps(snr_log)
-    return MissionLog(
-        policy=policy,
-        sensor_names=mission.sensor_names,
-        slot_s=mission.slot_s,
-        buffers_bit=mission.buffers_bit.copy(),
-        position_m=batch.position_m[u][index],
-        end_position_m=batch.position_m[u, result.end_sample[b]].copy(),
-        snr_db=snr_log,
-        rate_bps=rate_log,
+    return track_log(
+        mission,
+        policy,
+        result.sample[b, :n],
+        int(result.end_sample[b]),
+        batch.rate_bps[u],
         served=result.served[b, :n].copy(),
         downloaded_bit=result.downloaded_bit[b, :n].copy(),
         remaining_bit=result.remaining_bit[b, :n].copy(),
         hovering=result.hovering[b, :n].copy(),
-        home_m=mission.home_m,
-        hover_points_m=mission.hover_points_m,
-        visit_radius_m=mission.visit_radius_m,
-        aadm_window_s=mission.score_window_s,
         affected=None if mission.faults is None else np.array(mission.faults.affected[:n]),
         chosen=None
         if mission.faults is None or result.chosen is None

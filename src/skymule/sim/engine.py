@@ -16,6 +16,8 @@ loop that hands each observation to a policy.
 
 from __future__ import annotations
 
+from typing import Any, Protocol
+
 import numpy as np
 
 from skymule.errors import SkymuleError
@@ -176,40 +178,88 @@ class FixedFlight:
 
     def log(self, policy: str) -> MissionLog:
         """The mission log of the slots run so far."""
-        mission, track = self.mission, self._track
         index = np.asarray(self._samples, int)
-        end_sample = min(self._sample, track.n_samples - 1)
-        snr_log, rate_log = track.snr_db[index], self._rates[index]
-        affected, chosen = fault_fields(mission.faults, self._chosen, index.size)
-        if mission.fading_db is not None:
-            snr_log = snr_log + mission.fading_db[: index.size]
-            rate_log = mission.rate_bps(snr_log)
-        return MissionLog(
-            policy=policy,
-            sensor_names=mission.sensor_names,
-            slot_s=mission.slot_s,
-            buffers_bit=mission.buffers_bit.copy(),
-            position_m=track.position_m[index],
-            end_position_m=track.position_m[end_sample].copy(),
-            snr_db=snr_log,
-            rate_bps=rate_log,
+        affected, chosen = fault_fields(self.mission.faults, self._chosen, index.size)
+        return track_log(
+            self.mission,
+            policy,
+            index,
+            min(self._sample, self._track.n_samples - 1),
+            self._rates,
             served=np.asarray(self._served, int),
             downloaded_bit=np.asarray(self._downloaded, float),
-            remaining_bit=np.asarray(self._remaining_after, float).reshape(-1, mission.n_sensors),
+            remaining_bit=np.asarray(self._remaining_after, float).reshape(
+                -1, self.mission.n_sensors
+            ),
             hovering=np.asarray(self._hovering, bool),
-            home_m=mission.home_m,
-            hover_points_m=mission.hover_points_m,
-            visit_radius_m=mission.visit_radius_m,
-            aadm_window_s=mission.score_window_s,
             affected=affected,
             chosen=chosen,
         )
 
 
-def run_fixed(mission: Mission, policy: Policy) -> MissionLog:
-    """Run a fixed-trajectory mission (planned path or recorded trace) under ``policy``."""
-    flight = FixedFlight(mission)
-    policy.reset(mission_context(mission))
+def log_fields(mission: Mission, policy: str) -> dict[str, Any]:
+    """The :class:`MissionLog` fields every engine copies from the mission."""
+    return {
+        "policy": policy,
+        "sensor_names": mission.sensor_names,
+        "slot_s": mission.slot_s,
+        "buffers_bit": mission.buffers_bit.copy(),
+        "home_m": mission.home_m,
+        "hover_points_m": mission.hover_points_m,
+        "visit_radius_m": mission.visit_radius_m,
+        "aadm_window_s": mission.score_window_s,
+    }
+
+
+def track_log(
+    mission: Mission,
+    policy: str,
+    index: np.ndarray,
+    end_sample: int,
+    rates_bps: np.ndarray,
+    **slots: Any,
+) -> MissionLog:
+    """A fixed-trajectory log: position, SNR and rate read off the track at samples ``index``
+    (per-slot fading added), the rest (served, downloads, ...) given per slot in ``slots``."""
+    track = mission.track
+    assert track is not None
+    snr_log, rate_log = track.snr_db[index], rates_bps[index]
+    if mission.fading_db is not None:
+        snr_log = snr_log + mission.fading_db[: index.size]
+        rate_log = mission.rate_bps(snr_log)
+    return MissionLog(
+        **log_fields(mission, policy),
+        position_m=track.position_m[index],
+        end_position_m=track.position_m[end_sample].copy(),
+        snr_db=snr_log,
+        rate_bps=rate_log,
+        **slots,
+    )
+
+
+class Flight(Protocol):
+    """What :func:`drive` needs of an engine in progress (``FixedFlight``, ``AutonomousFlight``)."""
+
+    mission: Mission
+
+    @property
+    def done(self) -> bool: ...
+
+    def observe(self) -> Observation: ...
+
+    def apply(self, action: Action, who: str = "policy") -> float: ...
+
+    def log(self, policy: str) -> MissionLog: ...
+
+
+def drive(flight: Flight, policy: Policy) -> MissionLog:
+    """Hand each observation of ``flight`` to ``policy`` until the mission ends; its log."""
+    policy.reset(mission_context(flight.mission))
     while not flight.done:
         flight.apply(policy.act(flight.observe()), policy.name)
     return flight.log(policy.name)
+
+
+def run_fixed(mission: Mission, policy: Policy) -> MissionLog:
+    """Run a fixed-trajectory mission (planned path or recorded trace) under ``policy``."""
+    return drive(FixedFlight(mission), policy)

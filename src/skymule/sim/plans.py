@@ -93,15 +93,10 @@ def simulate_plans(
             if leg_slots[u] > 0:
                 if t >= n_slots:
                     break
-                total, done = serve(q, departing, prefer, slot_s, t, n_slots, total, done)
-                t += 1
-                for k in range(leg_slots[u] - 1):
-                    if t >= n_slots:
-                        break
-                    if leg_has_rates[u]:
-                        rates = leg_rates[leg_row[u] + k]
-                        total, done = serve(q, rates, none, slot_s, t, n_slots, total, done)
-                    t += 1
+                t, total, done = fly_leg(
+                    q, departing, prefer, leg_rates, leg_row[u], leg_has_rates[u], leg_slots[u],
+                    none, slot_s, t, n_slots, total, done,
+                )  # fmt: skip
             arrival_out[pos] = q[j]
             stay = extra[pos]
             departing = hover_rates[j]
@@ -118,15 +113,10 @@ def simulate_plans(
         final = departing
         if return_home and leg_slots[u] > 0:
             if t < n_slots:
-                total, done = serve(q, departing, prefer, slot_s, t, n_slots, total, done)
-                t += 1
-                for k in range(leg_slots[u] - 1):
-                    if t >= n_slots:
-                        break
-                    if leg_has_rates[u]:
-                        rates = leg_rates[leg_row[u] + k]
-                        total, done = serve(q, rates, none, slot_s, t, n_slots, total, done)
-                    t += 1
+                t, total, done = fly_leg(
+                    q, departing, prefer, leg_rates, leg_row[u], leg_has_rates[u], leg_slots[u],
+                    none, slot_s, t, n_slots, total, done,
+                )  # fmt: skip
             final = home_rates
         while t < n_slots and has_data(q) and final.max() > 0:
             total, done = serve(q, final, none, slot_s, t, n_slots, total, done)
@@ -182,9 +172,38 @@ def serve(
     return total, done
 
 
+def fly_leg(
+    q: np.ndarray,
+    departing: np.ndarray,
+    prefer: int,
+    leg_rates: np.ndarray,
+    first_row: int,
+    has_rates: bool,
+    n_leg_slots: int,
+    none: int,
+    slot_s: float,
+    t: int,
+    n_slots: int,
+    total: float,
+    done: int,
+) -> tuple[int, float, int]:
+    """The slots of one flight leg from slot ``t``: the departure slot serves at the rates of
+    the point left (``prefer`` first), the others at the leg's en-route rates (rows
+    ``first_row``.. of ``leg_rates``), until the leg or the mission ends."""
+    total, done = serve(q, departing, prefer, slot_s, t, n_slots, total, done)
+    t += 1
+    for k in range(n_leg_slots - 1):
+        if t >= n_slots:
+            break
+        if has_rates:
+            total, done = serve(q, leg_rates[first_row + k], none, slot_s, t, n_slots, total, done)
+        t += 1
+    return t, total, done
+
+
 @cache
 def plans_kernel() -> Callable[..., None]:
     """:func:`simulate_plans`, compiled by numba when it is installed (else plain Python)."""
     if not compiled.available():
         return simulate_plans
-    return compiled.jit(simulate_plans, (contract.served_bits, has_data, serve))
+    return compiled.jit(simulate_plans, (contract.served_bits, has_data, serve, fly_leg))

@@ -30,9 +30,8 @@ import numpy as np
 from skymule.errors import SkymuleError
 from skymule.flight.navigation import Navigator, hover_point
 from skymule.policies.base import Action, Observation, Policy
-from skymule.sim import contract
 from skymule.sim.contract import NO_SENSOR
-from skymule.sim.engine import check_serve, drive, log_fields
+from skymule.sim.engine import ServingFlight, drive, log_fields
 from skymule.sim.faulting import delivered_sensor, fault_fields, slot_faults
 from skymule.sim.log import MissionLog
 from skymule.world import Mission
@@ -72,7 +71,7 @@ def next_position(mission: Mission, position: XY, goto_m: XY | None, slot: int) 
     return moved, False
 
 
-class AutonomousFlight:
+class AutonomousFlight(ServingFlight):
     """One autonomous mission in progress: the policy steers, the engine keeps it legal.
 
     Call :meth:`observe`, then :meth:`apply` with the action, until :attr:`done`; then
@@ -193,20 +192,6 @@ class AutonomousFlight:
         """(N,) rates [bit/s] a served sensor delivers at in the current slot (the observed
         rates without faults; under faults the true rate, 0 where a fault blocks the link)."""
         return self._deliver
-
-    def apply(self, action: Action, who: str = "policy") -> float:
-        """Apply ``action`` to the slot last observed; returns the bits downloaded."""
-        sensor = check_serve(action.serve, self.mission.n_sensors, who)
-        sensor = self.windowed(sensor)
-        served = np.array([sensor])
-        bits = contract.take_bits(self._remaining, served, self._deliver[None], self.mission.slot_s)
-        self.record(action, sensor, float(bits[0]))
-        return float(bits[0])
-
-    def windowed(self, sensor: int) -> int:
-        """``sensor``, or NO_SENSOR once the download window has closed."""
-        window = self.mission.window_slots
-        return NO_SENSOR if window is not None and self.slot >= window else sensor
 
     def record(self, action: Action, sensor: int, bits: float) -> None:
         """Log the slot (``sensor`` served, ``bits`` already taken) and fly toward the goal."""

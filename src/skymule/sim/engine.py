@@ -52,7 +52,43 @@ def _frozen(values: np.ndarray) -> np.ndarray:
     return values
 
 
-class FixedFlight:
+class ServingFlight:
+    """What every flight does with an action's ``serve``: check it, close the download window,
+    take the bits through the contract, then log the slot (:meth:`record`, per engine).
+
+    A subclass keeps ``mission``, ``slot`` and the buffers ``_remaining`` and gives
+    :attr:`rate_bps` and :meth:`record`.
+    """
+
+    mission: Mission
+    slot: int
+    _remaining: np.ndarray
+
+    @property
+    def rate_bps(self) -> np.ndarray:
+        """(N,) rates [bit/s] a served sensor delivers at in the current slot."""
+        raise NotImplementedError
+
+    def record(self, action: Action, sensor: int, bits: float) -> None:
+        """Log the slot (``sensor`` served, ``bits`` already taken) and move on."""
+        raise NotImplementedError
+
+    def windowed(self, sensor: int) -> int:
+        """``sensor``, or NO_SENSOR once the download window has closed."""
+        window = self.mission.window_slots
+        return NO_SENSOR if window is not None and self.slot >= window else sensor
+
+    def apply(self, action: Action, who: str = "policy") -> float:
+        """Apply ``action`` to the slot last observed; returns the bits downloaded."""
+        sensor = self.windowed(check_serve(action.serve, self.mission.n_sensors, who))
+        bits = contract.take_bits(
+            self._remaining, np.array([sensor]), self.rate_bps[None], self.mission.slot_s
+        )
+        self.record(action, sensor, float(bits[0]))
+        return float(bits[0])
+
+
+class FixedFlight(ServingFlight):
     """One fixed-trajectory mission in progress (planned path or recorded trace).
 
     Call :meth:`observe`, then :meth:`apply` with the action, until :attr:`done`; then
@@ -119,22 +155,6 @@ class FixedFlight:
         """(N,) rates [bit/s] a served sensor delivers at in the current slot (the observed
         rates without faults; under faults the true rate, 0 where a fault blocks the link)."""
         return self._rate_now
-
-    def apply(self, action: Action, who: str = "policy") -> float:
-        """Apply ``action`` to the slot last observed; returns the bits downloaded."""
-        sensor = check_serve(action.serve, self.mission.n_sensors, who)
-        sensor = self.windowed(sensor)
-        served = np.array([sensor])
-        bits = contract.take_bits(
-            self._remaining, served, self._rate_now[None], self.mission.slot_s
-        )
-        self.record(action, sensor, float(bits[0]))
-        return float(bits[0])
-
-    def windowed(self, sensor: int) -> int:
-        """``sensor``, or NO_SENSOR once the download window has closed."""
-        window = self.mission.window_slots
-        return NO_SENSOR if window is not None and self.slot >= window else sensor
 
     def record(self, action: Action, sensor: int, bits: float) -> None:
         """Log the slot (``sensor`` served, ``bits`` already taken) and move on the track."""

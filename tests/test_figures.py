@@ -210,3 +210,15 @@ def test_plot_cli_still_writes_pngs(runs: Path, tmp_path: Path) -> None:
     assert json.loads((folder / "summary.json").read_text())["policy"] == "greedy"
     done = run_cli("plot", str(folder), check=True)
     assert "download.png" in done.stdout and (folder / "trajectory.png").is_file()
+
+
+def test_plot_command_writes_the_formats_asked_for_and_refuses_bad_ones(tmp_path: Path) -> None:
+    from conftest import run_cli
+
+    out = tmp_path / "run"
+    run_cli("run", "paper-sim-fixed", "--out", out, check=True)
+    run_cli("plot", out, "--format", "png,svg", "--dpi", "150", check=True)
+    assert (out / "download.svg").exists() and (out / "download.png").exists()
+    for args in (("--format", "gif"), ("--dpi", "5")):
+        bad = run_cli("plot", out, *args)
+        assert bad.returncode == 2 and bad.stderr.count("\n") == 1

@@ -15,10 +15,16 @@ from skymule.cli.tables import print_table
 
 def plot(
     run_dir: Annotated[Path, typer.Argument(help="A run folder (or compare folder).")],
+    fmt: Annotated[str, typer.Option("--format", help="Comma-separated: png, pdf, svg.")] = "png",
+    dpi: Annotated[int, typer.Option("--dpi", help="Raster resolution [dpi].")] = 300,
 ) -> None:
     """Draw a run's figures from its files (never re-simulates)."""
     from skymule.io.runs import is_run_dir, read_run
     from skymule.report.plot import plot_run
+    from skymule.report.style import check_dpi, parse_formats
+
+    formats = parse_formats(fmt)
+    check_dpi(dpi)
 
     folders = (
         [run_dir]
@@ -31,7 +37,7 @@ def plot(
         read_run(run_dir)  # raises the clear "not a run folder" error
     for folder in folders:
         summary, slots = read_run(folder)
-        for path in plot_run(folder, summary, slots):
+        for path in plot_run(folder, summary, slots, formats=formats, dpi=dpi):
             output.console.print(f"wrote {path}", markup=False)
 
 

@@ -104,3 +104,11 @@ def test_fit_radiomap_table(width: int | None, flight: Path, tmp_path: Path) -> 
     values = [row[c] for row in fit["sensors"] for c in RadioMapFit.COLUMNS]
     assert any(k.startswith("cv_rmse") for k in fit["sensors"][0])
     assert_intact(text, values, width)
+
+
+def test_written_paths_are_never_folded(tmp_path: Path, width: int | None) -> None:
+    """A 'wrote PATH' line keeps a long path on one line at any width, so it can be copied
+    or piped whole (rich folds long words at the terminal width by default)."""
+    out = tmp_path / ("a-folder-name-long-enough-to-pass-any-terminal-width-" * 2) / "run"
+    done = run_cli("run", "paper-sim-fixed", "--set", "mission.duration_s=20", "--out", out, check=True)
+    assert f"wrote {out}/summary.json" in done.stdout

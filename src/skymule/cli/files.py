@@ -38,7 +38,7 @@ def plot(
     for folder in folders:
         summary, slots = read_run(folder)
         for path in plot_run(folder, summary, slots, formats=formats, dpi=dpi):
-            output.console.print(f"wrote {path}", markup=False)
+            output.say(f"wrote {path}")
 
 
 def remove_stale_pdfs(folder: Path) -> list[Path]:
@@ -68,7 +68,7 @@ def report(
     """Write DIR/report.html (self-contained) and DIR/figures/*.png|pdf from its files."""
     path = _report(run_dir, pdf, baseline)
     kinds = "*.png, *.pdf" if pdf else "*.png"
-    output.console.print(f"wrote {path} and {run_dir / 'figures'}/{kinds}", markup=False)
+    output.say(f"wrote {path} and {run_dir / 'figures'}/{kinds}")
 
 
 def export(
@@ -84,7 +84,7 @@ def export(
 
     chosen = [name for name, on in (("kml", kml), ("geojson", geojson), ("plan", plan)) if on]
     for path in export_run(run_dir, chosen):
-        output.console.print(f"wrote {path}", markup=False)
+        output.say(f"wrote {path}")
 
 
 def analyze(
@@ -122,16 +122,12 @@ def analyze(
         download_log=download_log,
     )
     if volumes is None and buffers is None:
-        output.console.print(
-            f"note: no --volumes or --buffers given; assumed {DEFAULT_BUFFER_MBIT:g} Mbit "
-            "per tower",
-            markup=False,
+        output.say(
+            f"note: no --volumes or --buffers given; assumed {DEFAULT_BUFFER_MBIT:g} Mbit per tower"
         )
     print_table(output.console, f"{log.name}: replay", rows, summary_columns())
     report_path = _report(out_dir, pdf)
-    output.console.print(
-        f"wrote {out_dir}/comparison.csv, one folder per run, {report_path}", markup=False
-    )
+    output.say(f"wrote {out_dir}/comparison.csv, one folder per run, {report_path}")
 
 
 OriginOption = Annotated[
@@ -169,7 +165,7 @@ def fit_radiomap_command(
         return
     title = "radio map fit (cv: held-out trace segments; baseline: fspl)"
     print_table(output.console, title, fit.rows, RadioMapFit.COLUMNS)
-    output.console.print(f"wrote {out}", markup=False)
+    output.say(f"wrote {out}")
 
 
 def score_radiomap_command(

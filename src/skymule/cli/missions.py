@@ -111,7 +111,7 @@ def run(
     )  # fmt: skip
     print_table(output.console, "summary", [result.summary], summary_columns())
     if out is not None:
-        output.console.print(f"wrote {out}/summary.json, slots.csv, scenario.json", markup=False)
+        output.say(f"wrote {out}/summary.json, slots.csv, scenario.json")
 
 
 def _names(text: str) -> list[str]:
@@ -171,10 +171,10 @@ def compare(
     )
     for source, note in comparison.notes.items():
         where = f"{source}: " if source is not None else ""
-        output.console.print(f"{where}no upper bound: {note}", markup=False)
+        output.say(f"{where}no upper bound: {note}")
     if out is not None:
         names_written = ", ".join(str(p) for p in written)
-        output.console.print(f"wrote {names_written} and one folder per run", markup=False)
+        output.say(f"wrote {names_written} and one folder per run")
 
 
 def _comparison_json(comparison: Comparison) -> dict[str, Any]:
@@ -223,7 +223,7 @@ def bound(
         ("quantity", "value"),
     )
     if path is not None:
-        output.console.print(f"wrote {path}", markup=False)
+        output.say(f"wrote {path}")
 
 
 class _working:
@@ -328,10 +328,9 @@ def sweep(
     ]
     title = f"{sweep_file.name}: {outcome.n_missions} missions (mean ± 95% CI)"
     print_table(output.console, title, rows, ("policy", "missions", *SWEEP_METRICS))
-    output.console.print(
+    output.say(
         f"ran {outcome.n_run} of {outcome.n_missions} missions in {outcome.seconds:.1f} s; "
-        f"wrote {out}/results.parquet and {out}/summary.csv",
-        markup=False,
+        f"wrote {out}/results.parquet and {out}/summary.csv"
     )
 
 

@@ -17,3 +17,11 @@ def __getattr__(name: str) -> Any:
     made = Console()
     globals()["console"] = made  # made once per process, like sys.stdout
     return made
+
+
+def say(message: str) -> None:
+    """Print one message line as it is: no markup, no highlighting, and never folded at the
+    terminal's width, so the paths in it can be copied (or piped) whole."""
+    from skymule.cli import output  # the module attribute: made on first use, or a test's
+
+    output.console.print(message, markup=False, highlight=False, soft_wrap=True)

@@ -57,4 +57,4 @@ def resilience(
     plot(frame, fault, out / "resilience.png")
     rows = [{str(k): v for k, v in row.items()} for row in frame.to_dict("records")]
     print_table(output.console, f"{base.name}: {fault}", rows, COLUMNS)
-    output.console.print(f"wrote {out}/resilience.csv, resilience.png", markup=False)
+    output.say(f"wrote {out}/resilience.csv, resilience.png")

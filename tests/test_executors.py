@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import socket
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -63,3 +65,29 @@ def test_dask_local_runs_while_port_8787_is_taken(
     }
     assert len(tables["inprocess"]) == 6
     pd.testing.assert_frame_equal(tables["inprocess"], tables["dask-local"])
+
+
+WARMED = """
+import sys
+from skymule.experiments.executors import open_executor
+
+def loaded(name):
+    return name in sys.modules
+
+if __name__ == "__main__":
+    with open_executor("process", 1, warm=("skymule.sim.batch",)) as pool:
+        print(pool.submit(loaded, "skymule.sim.batch").result(), flush=True)
+    with open_executor("process", 1) as pool:
+        print(pool.submit(loaded, "skymule.sim.batch").result(), flush=True)
+"""
+
+
+def test_process_workers_import_the_warm_modules_as_they_start(tmp_path: Path) -> None:
+    """A sweep's workers import its engine on start-up (while the plan is made), not on the
+    first chunk; without ``warm`` they import nothing extra."""
+    script = tmp_path / "warmed.py"
+    script.write_text(WARMED)
+    done = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=300, check=True
+    )
+    assert done.stdout.split() == ["True", "False"]

@@ -12,6 +12,7 @@ Dask is an optional extra (``pip install 'skymule[dask]'``) and is imported only
 
 from __future__ import annotations
 
+import importlib
 import multiprocessing
 import os
 import threading
@@ -42,7 +43,9 @@ def default_workers() -> int:
 
 
 @contextmanager
-def _inprocess(workers: int | None, scheduler: str | None) -> Iterator[Executor]:
+def _inprocess(
+    workers: int | None, scheduler: str | None, warm: tuple[str, ...] = ()
+) -> Iterator[Executor]:
     with InProcessExecutor() as executor:
         yield executor
 
@@ -71,15 +74,30 @@ def exit_with_parent(parent_pid: int, poll_s: float = PARENT_POLL_S) -> None:
     ).start()
 
 
+def start_worker(parent_pid: int, modules: tuple[str, ...]) -> None:
+    """Process-pool worker initializer: exit with the parent, then import ``modules``.
+
+    The imports (about a second of CPU for a sweep's engine, pandas and pyarrow) then happen
+    while the parent is still planning the first chunk, not after it has sent one.
+    """
+    exit_with_parent(parent_pid)
+    for module in modules:
+        importlib.import_module(module)
+
+
 @contextmanager
-def _process(workers: int | None, scheduler: str | None) -> Iterator[Executor]:
+def _process(
+    workers: int | None, scheduler: str | None, warm: tuple[str, ...] = ()
+) -> Iterator[Executor]:
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(
         workers or default_workers(),
         mp_context=context,
-        initializer=exit_with_parent,
-        initargs=(os.getpid(),),
+        initializer=start_worker,
+        initargs=(os.getpid(), warm),
     ) as executor:
+        # a spawn pool starts its workers at the first submit: start them now
+        executor.submit(os.getpid)
         yield executor
 
 
@@ -123,7 +141,9 @@ def _start_local_cluster(distributed: Any, workers: int) -> Any:
 
 
 @contextmanager
-def _dask_local(workers: int | None, scheduler: str | None) -> Iterator[Executor]:
+def _dask_local(
+    workers: int | None, scheduler: str | None, warm: tuple[str, ...] = ()
+) -> Iterator[Executor]:
     distributed = _distributed()
     cluster = _start_local_cluster(distributed, workers or default_workers())
     with cluster, distributed.Client(cluster, timeout=f"{DASK_START_TIMEOUT_S}s") as client:
@@ -131,7 +151,9 @@ def _dask_local(workers: int | None, scheduler: str | None) -> Iterator[Executor
 
 
 @contextmanager
-def _dask(workers: int | None, scheduler: str | None) -> Iterator[Executor]:
+def _dask(
+    workers: int | None, scheduler: str | None, warm: tuple[str, ...] = ()
+) -> Iterator[Executor]:
     if not scheduler:
         raise SkymuleError("--executor dask needs --scheduler tcp://HOST:PORT")
     distributed = _distributed()
@@ -143,10 +165,13 @@ def _dask(workers: int | None, scheduler: str | None) -> Iterator[Executor]:
         yield client.get_executor()
 
 
-ExecutorFactory = Callable[[int | None, str | None], AbstractContextManager[Executor]]
+ExecutorFactory = Callable[
+    [int | None, str | None, tuple[str, ...]], AbstractContextManager[Executor]
+]
 
 EXECUTORS: Registry[ExecutorFactory] = Registry("--executor")
-"""Executor registry: name -> context manager (workers, scheduler) yielding an Executor."""
+"""Executor registry: name -> context manager (workers, scheduler, modules to import in each
+new worker; only the local process pool uses them) yielding an Executor."""
 
 EXECUTORS.register("inprocess", _inprocess)
 EXECUTORS.register("process", _process)
@@ -155,12 +180,16 @@ EXECUTORS.register("dask", _dask)
 
 
 def open_executor(
-    name: str, workers: int | None = None, scheduler: str | None = None
+    name: str,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    warm: tuple[str, ...] = (),
 ) -> AbstractContextManager[Executor]:
-    """The named executor; ``scheduler`` alone selects ``dask``."""
+    """The named executor; ``scheduler`` alone selects ``dask``; ``warm``: modules a local
+    worker imports as it starts."""
     if scheduler and name in ("process", "dask"):
         name = "dask"
     factory = EXECUTORS.get(name)
     if workers is not None and workers < 1:
         raise SkymuleError(f"--workers {workers}: allowed: an integer >= 1")
-    return factory(workers, scheduler)
+    return factory(workers, scheduler, warm)

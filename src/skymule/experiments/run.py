@@ -47,6 +47,17 @@ from skymule.world import BITS_PER_MBIT, Mission, mission_faults
 if TYPE_CHECKING:
     from skymule.scenario import PolicySpec, Scenario
 
+WORKER_MODULES = (
+    "skymule.experiments.run",
+    "skymule.scenario",
+    "skymule.world",
+    "skymule.sim.batch",
+    "skymule.sim.run",
+    "skymule.policies",
+    "pyarrow.parquet",
+)
+"""What a local worker imports as it starts (while the sweep process plans the first chunk)."""
+
 Task = tuple[int, str, dict[str, Any], dict[str, Any]]
 """(mission index, mission id, axis values, resolved scenario dict)."""
 
@@ -342,7 +353,7 @@ def run_sweep(
         n_run = 0
         total = len(spec)
         with (
-            open_executor(executor, workers, scheduler) as pool,
+            open_executor(executor, workers, scheduler, WORKER_MODULES) as pool,
             _progress(progress, total, len(found.ids)) as advance,
         ):
             pending: set[Future] = set()

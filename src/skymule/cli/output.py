@@ -6,6 +6,7 @@ rich's console. Tests assign a console of a chosen width to ``skymule.cli.output
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 
@@ -22,6 +23,5 @@ def __getattr__(name: str) -> Any:
 def say(message: str) -> None:
     """Print one message line as it is: no markup, no highlighting, and never folded at the
     terminal's width, so the paths in it can be copied (or piped) whole."""
-    from skymule.cli import output  # the module attribute: made on first use, or a test's
-
-    output.console.print(message, markup=False, highlight=False, soft_wrap=True)
+    # the module attribute (made on first use by __getattr__, or a test's console)
+    sys.modules[__name__].console.print(message, markup=False, highlight=False, soft_wrap=True)

@@ -41,6 +41,7 @@ NOT_RUN = {
     "pip install -e .": "installs the package",
     "pip install torch==2.13.0": "installs the rl extra's CPU torch",
     "pip install -e '.[rl]'": "installs the rl extra",
+    "pip install -e '.[marl]'": "installs the marl extra",
     "python -m pytest -q": "runs this suite",
 }
 """Commands the docs show that this test does not run, and why."""

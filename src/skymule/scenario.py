@@ -10,6 +10,7 @@ path is accepted.
 
 from __future__ import annotations
 
+import functools
 import tomllib
 from collections.abc import Sequence
 from importlib import resources
@@ -296,17 +297,20 @@ def _param(validated: BaseModel, name: str, owner: str) -> Any:
 
 
 def _pathloss_param_names() -> frozenset[str]:
-    return frozenset(
-        name for _, kind in PATHLOSS_MODELS.items() for name in kind.params.model_fields
-    )
+    return _param_names_of_models(tuple(kind.params for _, kind in PATHLOSS_MODELS.items()))
 
 
 def _policy_param_names() -> frozenset[str]:
-    return frozenset(
-        name
-        for policy in POLICIES.names()
-        for name in (policy_params_model(policy) or BaseModel).model_fields
+    return _param_names_of_models(
+        tuple(policy_params_model(policy) or BaseModel for policy in POLICIES.names())
     )
+
+
+@functools.lru_cache(maxsize=8)
+def _param_names_of_models(models: tuple[type[BaseModel], ...]) -> frozenset[str]:
+    """Every field name of ``models`` (cached by the registered models: a sweep validates
+    thousands of missions against the same registry; a newly registered one is a new key)."""
+    return frozenset(name for model in models for name in model.model_fields)
 
 
 class FaultSpec(_Spec):

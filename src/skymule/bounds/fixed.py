@@ -84,13 +84,18 @@ Spatial shadowing is deterministic per seed and part of the track, so it is supp
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import linprog
 
+from skymule.bounds.prefix_lp import (
+    PrefixSolution,
+    dual_bounds,
+    prefix_lp,
+    prefix_lp_columns,
+)
 from skymule.bounds.result import BoundError, BoundResult, MissionBound
 
 if TYPE_CHECKING:
@@ -107,6 +112,10 @@ __all__ = [
 #: test and is 2.6-15x faster at 3,600 slots; at 36,000 slots the simplex does not finish in
 #: 10 minutes. ``"highs"`` stays selectable (``lp_method=``) for comparisons.
 LP_METHOD = "highs-ipm"
+
+#: How each prefix LP is solved: ``"columns"`` (column generation, the default) or ``"full"``
+#: (the plain reference, every column in one LP; the method before column generation).
+PREFIX_SOLVERS = ("columns", "full")
 
 #: Relative tolerance for pruning a last sample whose dual bound does not beat the incumbent.
 PRUNE_TOL = 1e-9
@@ -195,95 +204,56 @@ def record_samples(rate: np.ndarray) -> np.ndarray:
     return np.concatenate([[0], 1 + np.flatnonzero(improves)])
 
 
-def dual_bounds(
-    rate: np.ndarray, buf: np.ndarray, slot_s: float, n_slots: int, lam: np.ndarray
-) -> np.ndarray:
-    """Weak-duality bound ``Phi_L(lam)`` on ``V(L)`` for every last sample ``L`` at once.
-
-    ``rate`` is ``(K, N)`` (bit/s) with ``K <= T``, ``lam`` an ``(N,)`` buffer price >= 0.
-    Returns ``(K,)`` bits: ``lam . Q + dt sum_{k<=L} g_k + (T - L - 1) dt max_{k<=L} g_k`` with
-    ``g_k = max(0, max_i R[k, i] (1 - lam_i))``.
-    """
-    gain = np.maximum(0.0, np.max(rate * (1.0 - lam), axis=1))
-    hover_s = (n_slots - 1 - np.arange(rate.shape[0])) * slot_s
-    return float(lam @ buf) + slot_s * np.cumsum(gain) + hover_s * np.maximum.accumulate(gain)
-
-
-@dataclass(frozen=True)
-class _PrefixSolution:
-    """Optimum of the prefix LP for one last sample ``L`` (see :func:`_prefix_lp`)."""
-
-    bits: float
-    lam: np.ndarray  # (N,) buffer prices
-    transit_s: np.ndarray  # (L + 1, N) serve time in the mandatory slots (s)
-    hover_s: np.ndarray  # (N,) hover time serving sensor i at its best sample (s)
-    status: str
-
-
-def _prefix_lp(
-    rate: np.ndarray, buf: np.ndarray, slot_s: float, n_slots: int, last: int, lp_method: str
-) -> _PrefixSolution:
-    """``V(L)``: one time-shared slot at each sample ``0..L`` plus ``(T - L - 1) dt`` of hover.
-
-    Hover is collapsed to one column per sensor at its best rate over samples ``0..L``.
-    """
-    pre = rate[: last + 1]
-    k, n = pre.shape
-    best = pre.max(axis=0)
-    a_time, a_buf = _serve_block(pre)
-    a = sp.vstack(
-        [
-            sp.hstack([a_time, sp.csr_array((k, n))]),
-            sp.hstack([sp.csr_array((1, k * n)), np.ones((1, n))]),
-            sp.hstack([a_buf, sp.diags_array(best)]),
-        ],
-        format="csr",
-    )
-    b = np.concatenate([np.full(k, slot_s), [(n_slots - 1 - last) * slot_s], buf])
-    res = linprog(
-        -np.concatenate([pre.ravel(), best]), A_ub=a, b_ub=b, bounds=(0, None), method=lp_method
-    )
-    if res.status != 0:
-        raise RuntimeError(f"HiGHS failed on the prefix LP (L={last}): {res.message}")
-    return _PrefixSolution(
-        bits=float(-res.fun),
-        lam=np.clip(-res.ineqlin.marginals[k + 1 :], 0.0, None),
-        transit_s=np.reshape(res.x[: k * n], (k, n)),
-        hover_s=res.x[k * n :],
-        status=str(res.message),
-    )
-
-
 def _hover_search(
-    rate: np.ndarray, buf: np.ndarray, slot_s: float, n_slots: int, lp_method: str
-) -> tuple[float, _PrefixSolution, int, int]:
+    rate: np.ndarray,
+    buf: np.ndarray,
+    slot_s: float,
+    n_slots: int,
+    lp_method: str,
+    prefix_solver: str,
+) -> tuple[float, PrefixSolution, int, int, int]:
     """Exact ``max_L V(L)`` over record samples, pruned with dual bounds.
 
-    Returns ``(upper bound, best solution, its L, number of LPs solved)``.
+    ``prefix_solver`` is ``"columns"`` (column generation, warm-started from the prices that
+    gave the candidate its current bound) or ``"full"`` (the reference: every column, with
+    ``lp_method``). Returns ``(upper bound, best solution, its L, prefix LPs, HiGHS solves)``.
     """
     candidates = record_samples(rate)
-    upper = dual_bounds(rate, buf, slot_s, n_slots, np.zeros(rate.shape[1]))[candidates]
+    n_sensors = rate.shape[1]
+    upper = dual_bounds(rate, buf, slot_s, n_slots, np.zeros(n_sensors))[candidates]
+    prices = [np.zeros(n_sensors)]  # every price vector tried so far
+    upper_from = np.zeros(candidates.size, dtype=np.int64)  # which one gave ``upper``
     solved = np.zeros(candidates.size, dtype=bool)
-    best: _PrefixSolution | None = None
+    best: PrefixSolution | None = None
     best_last = 0
-    n_lp = 0
+    n_lp = n_solves = 0
     while True:
         open_ub = np.where(solved, -np.inf, upper)
         j = int(np.argmax(open_ub))
         lower = best.bits if best is not None else -np.inf
         if solved[j] or open_ub[j] <= lower + PRUNE_TOL * max(1.0, abs(lower)):
             break
-        sol = _prefix_lp(rate, buf, slot_s, n_slots, int(candidates[j]), lp_method)
+        last = int(candidates[j])
+        if prefix_solver == "full":
+            sol = prefix_lp(rate, buf, slot_s, n_slots, last, lp_method)
+        else:
+            sol = prefix_lp_columns(
+                rate, buf, slot_s, n_slots, last, prices[upper_from[j]], lp_method
+            )
         n_lp += 1
+        n_solves += sol.rounds
         solved[j] = True
         upper[j] = sol.bits
         if best is None or sol.bits > best.bits:
-            best, best_last = sol, int(candidates[j])
+            best, best_last = sol, last
         phi = dual_bounds(rate, buf, slot_s, n_slots, sol.lam)[candidates]
-        upper = np.where(solved, upper, np.minimum(upper, phi))
+        tighter = ~solved & (phi < upper)
+        upper[tighter] = phi[tighter]
+        upper_from[tighter] = len(prices)
+        prices.append(sol.lam)
     assert best is not None
     remaining = np.where(solved, -np.inf, upper).max(initial=-np.inf)
-    return max(best.bits, float(remaining)), best, best_last, n_lp
+    return max(best.bits, float(remaining)), best, best_last, n_lp, n_solves
 
 
 def fixed_path_bound(
@@ -296,6 +266,7 @@ def fixed_path_bound(
     hold_at_end: bool = True,
     max_hover_s: float | None = None,
     lp_method: str = LP_METHOD,
+    prefix_solver: str = "columns",
 ) -> BoundResult:
     """Upper bound on the bits collected along a fixed path (see the module docstring).
 
@@ -309,16 +280,21 @@ def fixed_path_bound(
             after moving past ``K - 1``).
         max_hover_s: per-pause hover cap of the policy being bounded; ignored by the bound
             (which stays valid), only validated.
-        lp_method: ``scipy.optimize.linprog`` HiGHS method (default :data:`LP_METHOD`).
+        lp_method: ``scipy.optimize.linprog`` HiGHS method of every LP (default
+            :data:`LP_METHOD`).
+        prefix_solver: ``"columns"`` (column generation, see
+            :mod:`skymule.bounds.prefix_lp`) or ``"full"`` (the reference, every column).
 
     Returns:
         A :class:`BoundResult`; ``served_time_s`` is ``(K, N)`` and ``dwell_time_s`` ``(K,)``.
 
     Raises:
         BoundError: on negative or non-finite rates or buffers, shape mismatch, ``slot_s <= 0``
-            or ``n_slots < 1``.
+            or ``n_slots < 1``, or an unknown ``prefix_solver``.
     """
     rate, buf = _validate(rate_bps, buffers_bit, slot_s, n_slots, max_hover_s)
+    if prefix_solver not in PREFIX_SOLVERS:
+        raise BoundError(f"prefix_solver must be one of {PREFIX_SOLVERS}, got {prefix_solver!r}")
     n_samples, n_sensors = rate.shape
     n_slots = int(n_slots)
     slot_s = float(slot_s)
@@ -327,16 +303,20 @@ def fixed_path_bound(
     dwell = np.zeros(n_samples)
     if hover_allowed:
         reach = min(n_samples, n_slots)
-        bound, sol, last, n_lp = _hover_search(rate[:reach], buf, slot_s, n_slots, lp_method)
+        bound, sol, last, n_lp, n_solves = _hover_search(
+            rate[:reach], buf, slot_s, n_slots, lp_method, prefix_solver
+        )
         served[: last + 1] = sol.transit_s
         best_at = np.argmax(rate[: last + 1], axis=0)
         np.add.at(served, (best_at, np.arange(n_sensors)), sol.hover_s)
         dwell[: last + 1] = slot_s
         np.add.at(dwell, best_at, sol.hover_s)  # several sensors may share a best sample
         dwell[last] += n_slots * slot_s - dwell.sum()
-        status = f"{sol.status} ({n_lp} prefix LPs)"
+        status = f"{sol.status} ({n_lp} prefix LPs, {n_solves} HiGHS solves)"
+        how = "column generation" if prefix_solver == "columns" else "every column"
         method = (
-            f"fixed-path exact search: pause anywhere, time-shared slots (HiGHS {lp_method} LPs)"
+            "fixed-path exact search: pause anywhere, time-shared slots "
+            f"(prefix LPs by {how}, HiGHS {lp_method})"
         )
     else:
         counts = no_hover_slot_counts(n_samples, n_slots, hold_at_end=hold_at_end)

@@ -5,18 +5,18 @@ four sensors at different positions and a free-space-like rate profile
 ``R = B log2(1 + snr0 / (d / d0)^2)``. Buffers are 500/800/700/1000 Mbit, ``dt = 1 s``.
 The path has as many samples as the mission has slots (K = T).
 
-Scale: the fixed-path bound for 36,000 slots x 4 sensors (target < 10 s; buffers x 20) and
-for 3,600 slots x 16 sensors (target < 5 s; sensors on a 4 x 4 grid, buffers a quarter of the
-four-sensor ones), in CPU seconds, with the default interior-point method and, in the same
-run, the previous method (HiGHS dual simplex, ``lp_method="highs"``) with the ratio. The old
-method is skipped at 36,000 slots (it did not finish in 600 s) unless ``--old-36k`` is given.
-Both methods must give the same bound (the difference is printed).
+Scale: the fixed-path bound for 3,600 slots x 16 sensors (target < 5 s; sensors on a 4 x 4
+grid, buffers a quarter of the four-sensor ones), 3,600 slots x 4 sensors and 36,000 slots x 4
+sensors (target < 10 s; buffers x 20), in CPU seconds, with the default method (prefix LPs by
+column generation, ``prefix_solver="columns"``) and, in the same run, the previous method
+(every column in each prefix LP, ``prefix_solver="full"``, the plain reference) with the ratio
+and the relative difference of the two bounds. Both use HiGHS interior point.
 
 Then, for the fixed presets ``paper-sim-fixed`` and ``aadm-default``: the bound (with and
 without hovering), each policy's download and its gap to the bound (Mbit and fraction).
 
 Run: ``python benchmarks/bench_bound.py`` (``--quick`` skips the 36,000-slot case;
-``SKYMULE_BENCH_TINY=1``: one preset, 50/120-slot paths, no large cases)
+``SKYMULE_BENCH_TINY=1``: one preset, 50-120-slot paths)
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ import time
 import numpy as np
 from _sizes import size
 
-from skymule.bounds.fixed import LP_METHOD, fixed_path_bound
+from skymule.bounds.fixed import fixed_path_bound
 from skymule.bounds.mission import mission_bound
 from skymule.runner import simulate
 from skymule.scenario import load_scenario
@@ -89,64 +89,48 @@ def preset_gaps(preset: str) -> None:
         print(f"  {policy:<14} {got:8.1f} Mbit  gap {gap:7.1f} Mbit ({gap / upper:6.2%})")
 
 
-def _solve(rate: np.ndarray, buffers: np.ndarray, method: str) -> tuple[float, float]:
-    """(CPU seconds, bound in bit) of the hover bound with ``method``."""
+def _solve(rate: np.ndarray, buffers: np.ndarray, solver: str) -> tuple[float, float, str]:
+    """(CPU seconds, bound in bit, status) of the hover bound with ``prefix_solver=solver``."""
     start = time.process_time()
-    res = fixed_path_bound(rate, buffers, SLOT_S, rate.shape[0], lp_method=method)
-    return time.process_time() - start, res.upper_bound_bit
+    res = fixed_path_bound(rate, buffers, SLOT_S, rate.shape[0], prefix_solver=solver)
+    return time.process_time() - start, res.upper_bound_bit, res.status
 
 
-def scale_case(
-    label: str, rate: np.ndarray, buffers: np.ndarray, target_s: float, old: bool
-) -> None:
-    """Print new-method time vs target, and the old method's time, ratio and bound difference."""
-    new_s, new_bit = _solve(rate, buffers, LP_METHOD)
+def scale_case(label: str, rate: np.ndarray, buffers: np.ndarray, target_s: float) -> None:
+    """Print the new method's time vs target, the previous method's time, ratio and bound gap."""
+    new_s, new_bit, status = _solve(rate, buffers, "columns")
+    old_s, old_bit, _ = _solve(rate, buffers, "full")
     verdict = "ok" if new_s < target_s else "MISSED"
-    line = (
-        f"{label}: {LP_METHOD} {new_s:.2f} s CPU (target < {target_s:g} s: {verdict}), "
-        f"bound {new_bit / 1e6:.3f} Mbit"
+    print(
+        f"{label}: column generation {new_s:.2f} s CPU (target < {target_s:g} s: {verdict}), "
+        f"bound {new_bit / 1e6:.3f} Mbit [{status.split('(')[-1].rstrip(')')}]; "
+        f"previous (every column) {old_s:.2f} s -> x{old_s / max(new_s, 1e-9):.1f}, "
+        f"bounds differ by {abs(new_bit - old_bit) / old_bit:.1e} (relative)",
+        flush=True,
     )
-    if old:
-        old_s, old_bit = _solve(rate, buffers, "highs")
-        line += (
-            f"; previous (highs) {old_s:.2f} s -> {old_s / new_s:.1f}x faster, "
-            f"bound difference {abs(new_bit - old_bit) / 1e6:.2e} Mbit"
-        )
-    else:
-        line += "; previous (highs) skipped (did not finish in 600 s; --old-36k runs it)"
-    print(line, flush=True)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="skip the 36,000-slot case")
-    parser.add_argument("--old-36k", action="store_true", help="also time highs at 36,000 slots")
     args = parser.parse_args()
-    if not size(False, True):  # the large cases (not at the smoke test's tiny size)
-        sixteen = grid_sensors(4)
-        sixteen_buffers = np.resize(BUFFERS_BIT, 16) / 4
+    short, long = size((3600, 36000), (60, 120))  # slots (tiny mode: a smoke run)
+    scale_case(
+        f"bound {short} slots x 16 sensors (hover)",
+        rates_bps(lawnmower_xy(short), grid_sensors(4)),
+        np.resize(BUFFERS_BIT, 16) / 4,
+        5.0,
+    )
+    scale_case(
+        f"bound {short} slots x 4 sensors (hover)", rates_bps(lawnmower_xy(short)), BUFFERS_BIT, 5.0
+    )
+    if not args.quick:
         scale_case(
-            "bound 3600 slots x 16 sensors (hover)",
-            rates_bps(lawnmower_xy(3600), sixteen),
-            sixteen_buffers,
-            5.0,
-            old=True,
+            f"bound {long} slots x 4 sensors (hover)",
+            rates_bps(lawnmower_xy(long)),
+            BUFFERS_BIT * 20,  # ten hours: buffers large enough that the bound is not their sum
+            10.0,
         )
-        scale_case(
-            "bound 3600 slots x 4 sensors (hover)",
-            rates_bps(lawnmower_xy(3600)),
-            BUFFERS_BIT,
-            5.0,
-            True,
-        )
-        if not args.quick:
-            scale_case(
-                "bound 36000 slots x 4 sensors (hover)",
-                rates_bps(lawnmower_xy(36000)),
-                BUFFERS_BIT * 20,  # ten hours: buffers large enough that the bound is not their sum
-                10.0,
-                old=args.old_36k,
-            )
     for preset in size(PRESETS, PRESETS[:1]):
         preset_gaps(preset)
     for n_slots in size((500, 3600), (50, 120)):

@@ -8,8 +8,8 @@ The path has as many samples as the mission has slots (K = T).
 Scale: the fixed-path bound for 3,600 slots x 16 sensors (target < 5 s; sensors on a 4 x 4
 grid, buffers a quarter of the four-sensor ones), 3,600 slots x 4 sensors and 36,000 slots x 4
 sensors (target < 10 s; buffers x 20), in CPU seconds, with the default method (prefix LPs by
-column generation, ``prefix_solver="columns"``) and, in the same run, the previous method
-(every column in each prefix LP, ``prefix_solver="full"``, the plain reference) with the ratio
+column generation, ``solver="columns"``) and, in the same run, the previous method
+(every column in each prefix LP, ``solver="full"``, the plain reference) with the ratio
 and the relative difference of the two bounds. Both use HiGHS interior point.
 
 Then, for the fixed presets ``paper-sim-fixed`` and ``aadm-default``: the bound (with and
@@ -90,9 +90,9 @@ def preset_gaps(preset: str) -> None:
 
 
 def _solve(rate: np.ndarray, buffers: np.ndarray, solver: str) -> tuple[float, float, str]:
-    """(CPU seconds, bound in bit, status) of the hover bound with ``prefix_solver=solver``."""
+    """(CPU seconds, bound in bit, status) of the hover bound with ``solver=solver``."""
     start = time.process_time()
-    res = fixed_path_bound(rate, buffers, SLOT_S, rate.shape[0], prefix_solver=solver)
+    res = fixed_path_bound(rate, buffers, SLOT_S, rate.shape[0], solver=solver)
     return time.process_time() - start, res.upper_bound_bit, res.status
 
 

@@ -30,17 +30,25 @@ def random_instance(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, i
 def test_columns_equal_full_on_random_instances() -> None:
     rng = np.random.default_rng(20261130)
     several_rounds = 0
-    for _ in range(60):
+    for _ in range(40):
         rate, buf, n_slots = random_instance(rng)
         dt = float(rng.choice([0.5, 1.0, 2.0]))
-        fast = fixed_path_bound(rate, buf, dt, n_slots, prefix_solver="columns")
-        full = fixed_path_bound(rate, buf, dt, n_slots, prefix_solver="full")
+        fast = fixed_path_bound(rate, buf, dt, n_slots, solver="columns")
+        full = fixed_path_bound(rate, buf, dt, n_slots, solver="full")
         assert fast.upper_bound_bit == pytest.approx(full.upper_bound_bit, rel=REL, abs=1e-9)
         # the schedule it returns collects the bound and spends the whole mission
         assert np.sum(rate * fast.served_time_s) == pytest.approx(
             fast.upper_bound_bit, rel=REL, abs=1e-6
         )
         assert fast.dwell_time_s.sum() == pytest.approx(n_slots * dt)
+        for hold in (True, False):  # the paper's no-hover LP
+            kw = {"hover_allowed": False, "hold_at_end": hold}
+            plain = fixed_path_bound(rate, buf, dt, n_slots, solver="columns", **kw)
+            ref = fixed_path_bound(rate, buf, dt, n_slots, solver="full", **kw)
+            assert plain.upper_bound_bit == pytest.approx(ref.upper_bound_bit, rel=REL, abs=1e-9)
+            assert np.sum(rate * plain.served_time_s) == pytest.approx(
+                plain.upper_bound_bit, rel=REL, abs=1e-6
+            )
         counts = re.search(r"\((\d+) prefix LPs, (\d+) HiGHS solves\)", fast.status)
         assert counts is not None, fast.status
         several_rounds += int(counts[2]) > int(counts[1])
@@ -72,25 +80,27 @@ def test_columns_equal_full_on_the_benchmark_path() -> None:
     dist = np.hypot(np.linalg.norm(track[:, None] - sensors[None], axis=2), 100.0)
     rate = 1e5 * np.log2(1.0 + 100.0 / (dist / 100.0) ** 2)
     buf = np.resize([8.75e6, 14e6, 12.25e6, 17.5e6], 16)
-    fast = fixed_path_bound(rate, buf, 1.0, 300)
-    full = fixed_path_bound(rate, buf, 1.0, 300, prefix_solver="full")
-    collected = np.sum(rate * fast.served_time_s, axis=0)
-    assert 0 < np.sum(collected >= buf * (1 - 1e-6)) < 16  # time and some buffers bind
-    assert fast.upper_bound_bit == pytest.approx(full.upper_bound_bit, rel=1e-7)
+    for hover in (True, False):
+        fast = fixed_path_bound(rate, buf, 1.0, 300, hover_allowed=hover)
+        full = fixed_path_bound(rate, buf, 1.0, 300, hover_allowed=hover, solver="full")
+        assert fast.upper_bound_bit == pytest.approx(full.upper_bound_bit, rel=1e-7)
+        collected = np.sum(rate * fast.served_time_s, axis=0)
+        assert 0 < np.sum(collected >= buf * (1 - 1e-6)) < 16  # time and some buffers bind
 
 
 @pytest.mark.parametrize("preset", ["paper-sim-fixed", "aadm-default"])
 @pytest.mark.parametrize("n_slots", [None, 150])
-def test_columns_equal_full_on_presets(preset: str, n_slots: int | None) -> None:
+@pytest.mark.parametrize("hover", [True, False])
+def test_columns_equal_full_on_presets(preset: str, n_slots: int | None, hover: bool) -> None:
     mission = build_mission(load_scenario(preset))
-    rate = mission_track_rates(mission)
+    args = (mission_track_rates(mission), mission.buffers_bit, mission.slot_s)
     slots = n_slots or mission.n_slots
-    fast = fixed_path_bound(rate, mission.buffers_bit, mission.slot_s, slots)
-    full = fixed_path_bound(rate, mission.buffers_bit, mission.slot_s, slots, prefix_solver="full")
+    fast = fixed_path_bound(*args, slots, hover_allowed=hover)
+    full = fixed_path_bound(*args, slots, hover_allowed=hover, solver="full")
     assert fast.upper_bound_bit == pytest.approx(full.upper_bound_bit, rel=1e-7)
 
 
-def test_unknown_prefix_solver_is_one_line() -> None:
-    with pytest.raises(BoundError, match="prefix_solver must be one of") as info:
-        fixed_path_bound(np.ones((2, 1)), np.ones(1), 1.0, 2, prefix_solver="fast")
+def test_unknown_solver_is_one_line() -> None:
+    with pytest.raises(BoundError, match="solver must be one of") as info:
+        fixed_path_bound(np.ones((2, 1)), np.ones(1), 1.0, 2, solver="fast")
     assert "\n" not in str(info.value)

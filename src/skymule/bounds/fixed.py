@@ -95,6 +95,7 @@ from skymule.bounds.prefix_lp import (
     dual_bounds,
     prefix_lp,
     prefix_lp_columns,
+    time_sharing_columns,
 )
 from skymule.bounds.result import BoundError, BoundResult, MissionBound
 
@@ -113,9 +114,10 @@ __all__ = [
 #: 10 minutes. ``"highs"`` stays selectable (``lp_method=``) for comparisons.
 LP_METHOD = "highs-ipm"
 
-#: How each prefix LP is solved: ``"columns"`` (column generation, the default) or ``"full"``
-#: (the plain reference, every column in one LP; the method before column generation).
-PREFIX_SOLVERS = ("columns", "full")
+#: How every LP of the bound is solved: ``"columns"`` (column generation, the default; see
+#: :mod:`skymule.bounds.prefix_lp`) or ``"full"`` (the plain reference, every column in one LP;
+#: the method before column generation).
+SOLVERS = ("columns", "full")
 
 #: Relative tolerance for pruning a last sample whose dual bound does not beat the incumbent.
 PRUNE_TOL = 1e-9
@@ -162,26 +164,22 @@ def no_hover_slot_counts(n_samples: int, n_slots: int, *, hold_at_end: bool) -> 
     return counts
 
 
-def _serve_block(rate: np.ndarray) -> tuple[sp.csr_array, sp.csr_array]:
-    """Sparse rows shared by both models, over the ``K * N`` serve columns (row-major).
+def _fixed_dwell_lp(
+    rate: np.ndarray, buf: np.ndarray, dwell_s: np.ndarray, lp_method: str, solver: str
+) -> tuple[float, str, np.ndarray]:
+    """LP optimum with the dwell per sample fixed: returns ``(bits, status, s (K, N))``.
 
-    Returns ``(A_time, A_buf)``: ``A_time`` is ``(K, K N)`` with ``A_time @ s = sum_i s[k, i]``
-    and ``A_buf`` is ``(N, K N)`` with ``A_buf @ s = sum_k R[k, i] s[k, i]`` (bit).
+    ``solver="columns"``: column generation (no hover time); ``"full"``: every column.
     """
     k, n = rate.shape
+    if solver == "columns":
+        zero = np.zeros(n)
+        sol = time_sharing_columns(rate, buf, dwell_s, 0.0, zero, zero, lp_method)
+        return sol.bits, f"{sol.status} ({sol.rounds} HiGHS solves)", sol.transit_s
     a_time = sp.kron(sp.eye_array(k), np.ones((1, n)), format="csr")
     a_buf = sp.csr_array(
         (rate.ravel(), (np.tile(np.arange(n), k), np.arange(k * n))), shape=(n, k * n)
     )
-    return a_time, a_buf
-
-
-def _fixed_dwell_lp(
-    rate: np.ndarray, buf: np.ndarray, dwell_s: np.ndarray, lp_method: str
-) -> tuple[float, str, np.ndarray]:
-    """LP optimum with the dwell per sample fixed: returns ``(bits, status, s (K, N))``."""
-    k, n = rate.shape
-    a_time, a_buf = _serve_block(rate)
     res = linprog(
         -rate.ravel(),
         A_ub=sp.vstack([a_time, a_buf], format="csr"),
@@ -210,11 +208,11 @@ def _hover_search(
     slot_s: float,
     n_slots: int,
     lp_method: str,
-    prefix_solver: str,
+    solver: str,
 ) -> tuple[float, PrefixSolution, int, int, int]:
     """Exact ``max_L V(L)`` over record samples, pruned with dual bounds.
 
-    ``prefix_solver`` is ``"columns"`` (column generation, warm-started from the prices that
+    ``solver`` is ``"columns"`` (column generation, warm-started from the prices that
     gave the candidate its current bound) or ``"full"`` (the reference: every column, with
     ``lp_method``). Returns ``(upper bound, best solution, its L, prefix LPs, HiGHS solves)``.
     """
@@ -234,7 +232,7 @@ def _hover_search(
         if solved[j] or open_ub[j] <= lower + PRUNE_TOL * max(1.0, abs(lower)):
             break
         last = int(candidates[j])
-        if prefix_solver == "full":
+        if solver == "full":
             sol = prefix_lp(rate, buf, slot_s, n_slots, last, lp_method)
         else:
             sol = prefix_lp_columns(
@@ -266,7 +264,7 @@ def fixed_path_bound(
     hold_at_end: bool = True,
     max_hover_s: float | None = None,
     lp_method: str = LP_METHOD,
-    prefix_solver: str = "columns",
+    solver: str = "columns",
 ) -> BoundResult:
     """Upper bound on the bits collected along a fixed path (see the module docstring).
 
@@ -282,29 +280,30 @@ def fixed_path_bound(
             (which stays valid), only validated.
         lp_method: ``scipy.optimize.linprog`` HiGHS method of every LP (default
             :data:`LP_METHOD`).
-        prefix_solver: ``"columns"`` (column generation, see
-            :mod:`skymule.bounds.prefix_lp`) or ``"full"`` (the reference, every column).
+        solver: ``"columns"`` (column generation, see :mod:`skymule.bounds.prefix_lp`) or
+            ``"full"`` (the reference, every column); same bound to ~1e-9 relative.
 
     Returns:
         A :class:`BoundResult`; ``served_time_s`` is ``(K, N)`` and ``dwell_time_s`` ``(K,)``.
 
     Raises:
         BoundError: on negative or non-finite rates or buffers, shape mismatch, ``slot_s <= 0``
-            or ``n_slots < 1``, or an unknown ``prefix_solver``.
+            or ``n_slots < 1``, or an unknown ``solver``.
     """
     rate, buf = _validate(rate_bps, buffers_bit, slot_s, n_slots, max_hover_s)
-    if prefix_solver not in PREFIX_SOLVERS:
-        raise BoundError(f"prefix_solver must be one of {PREFIX_SOLVERS}, got {prefix_solver!r}")
+    if solver not in SOLVERS:
+        raise BoundError(f"solver must be one of {SOLVERS}, got {solver!r}")
     n_samples, n_sensors = rate.shape
     n_slots = int(n_slots)
     slot_s = float(slot_s)
     start = time.perf_counter()
     served = np.zeros((n_samples, n_sensors))
     dwell = np.zeros(n_samples)
+    how = "column generation" if solver == "columns" else "every column"
     if hover_allowed:
         reach = min(n_samples, n_slots)
         bound, sol, last, n_lp, n_solves = _hover_search(
-            rate[:reach], buf, slot_s, n_slots, lp_method, prefix_solver
+            rate[:reach], buf, slot_s, n_slots, lp_method, solver
         )
         served[: last + 1] = sol.transit_s
         best_at = np.argmax(rate[: last + 1], axis=0)
@@ -313,7 +312,6 @@ def fixed_path_bound(
         np.add.at(dwell, best_at, sol.hover_s)  # several sensors may share a best sample
         dwell[last] += n_slots * slot_s - dwell.sum()
         status = f"{sol.status} ({n_lp} prefix LPs, {n_solves} HiGHS solves)"
-        how = "column generation" if prefix_solver == "columns" else "every column"
         method = (
             "fixed-path exact search: pause anywhere, time-shared slots "
             f"(prefix LPs by {how}, HiGHS {lp_method})"
@@ -321,11 +319,12 @@ def fixed_path_bound(
     else:
         counts = no_hover_slot_counts(n_samples, n_slots, hold_at_end=hold_at_end)
         dwell = counts * slot_s
-        bound, status, served = _fixed_dwell_lp(rate, buf, dwell, lp_method)
+        bound, status, served = _fixed_dwell_lp(rate, buf, dwell, lp_method, solver)
         last = int(np.flatnonzero(counts)[-1])
         semantics = "hold at end" if hold_at_end else "trace ends at last sample"
         method = (
-            f"fixed-path LP: no hover ({semantics}), fractional association (HiGHS {lp_method})"
+            f"fixed-path LP: no hover ({semantics}), fractional association ({how}, "
+            f"HiGHS {lp_method})"
         )
     elapsed = time.perf_counter() - start
     served = np.clip(served, 0.0, None)

@@ -41,7 +41,14 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import linprog
 
-__all__ = ["PrefixSolution", "dual_bounds", "prefix_lp", "prefix_lp_columns"]
+__all__ = [
+    "PrefixSolution",
+    "dual_bounds",
+    "lagrangian_bound",
+    "prefix_lp",
+    "prefix_lp_columns",
+    "time_sharing_columns",
+]
 
 #: A column joins the restricted LP when its priced gain is at least this share of the best
 #: priced gain in its slot (within 3 %). Smaller means bigger LPs and fewer rounds: on the
@@ -122,24 +129,42 @@ def prefix_lp(
     )
 
 
-def _restricted_lp(
-    pre: np.ndarray,
+def lagrangian_bound(
+    rate: np.ndarray,
     buf: np.ndarray,
-    slot_s: float,
-    hover_total_s: float,
+    caps_s: np.ndarray,
+    hover_s: float,
+    hover_rate: np.ndarray,
+    lam: np.ndarray,
+) -> float:
+    """Weak-duality bound of :func:`time_sharing_columns`'s LP at buffer prices ``lam >= 0``.
+
+    ``lam.Q + sum_k caps_k g_k + H max(0, max_i P_i (1 - lam_i))`` with
+    ``g_k = max(0, max_i R[k, i] (1 - lam_i))`` (bit); for the prefix LP it is ``Phi_L(lam)``.
+    """
+    gain = np.maximum(0.0, np.max(rate * (1.0 - lam), axis=1, initial=0.0))
+    hover_gain = max(0.0, float(np.max(hover_rate * (1.0 - lam), initial=0.0)))
+    return float(lam @ buf + caps_s @ gain + hover_s * hover_gain)
+
+
+def _restricted_lp(
+    rate: np.ndarray,
+    buf: np.ndarray,
+    caps_s: np.ndarray,
+    hover_s: float,
+    hover_rate: np.ndarray,
     chosen: np.ndarray,
     lp_method: str,
 ) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, str]:
-    """The prefix LP over the serve columns where ``chosen`` (``(L + 1, N)`` bool) is True.
+    """The time-sharing LP over the serve columns where ``chosen`` (``(K, N)`` bool) is True.
 
-    Every hover column is kept. Returns ``(bits, lam (N,), transit_s (L + 1, N), hover_s (N,),
+    Every hover column is kept. Returns ``(bits, lam (N,), serve_s (K, N), hover_s (N,),
     status)``.
     """
-    k, n = pre.shape
+    k, n = rate.shape
     col_k, col_i = np.nonzero(chosen)
     m = col_k.size
-    gain = pre[col_k, col_i]
-    best = pre.max(axis=0)
+    gain = rate[col_k, col_i]
     a = sp.vstack(
         [
             sp.hstack(
@@ -150,25 +175,72 @@ def _restricted_lp(
             ),
             sp.hstack([sp.csr_array((1, m)), np.ones((1, n))]),
             sp.hstack(
-                [sp.csr_array((gain, (col_i, np.arange(m))), shape=(n, m)), sp.diags_array(best)]
+                [
+                    sp.csr_array((gain, (col_i, np.arange(m))), shape=(n, m)),
+                    sp.diags_array(hover_rate),
+                ]
             ),
         ],
         format="csr",
     )
-    b = np.concatenate([np.full(k, slot_s), [hover_total_s], buf])
-    res = linprog(-np.concatenate([gain, best]), A_ub=a, b_ub=b, bounds=(0, None), method=lp_method)
+    b = np.concatenate([caps_s, [hover_s], buf])
+    res = linprog(
+        -np.concatenate([gain, hover_rate]), A_ub=a, b_ub=b, bounds=(0, None), method=lp_method
+    )
     if res.status != 0:
-        raise RuntimeError(f"HiGHS failed on a restricted prefix LP: {res.message}")
-    transit = np.zeros((k, n))
-    transit[col_k, col_i] = res.x[:m]
+        raise RuntimeError(f"HiGHS failed on a restricted time-sharing LP: {res.message}")
+    serve = np.zeros((k, n))
+    serve[col_k, col_i] = res.x[:m]
     lam = np.clip(-res.ineqlin.marginals[k + 1 :], 0.0, None)
-    return float(-res.fun), lam, transit, res.x[m:], str(res.message)
+    return float(-res.fun), lam, serve, res.x[m:], str(res.message)
 
 
-def _near_best(pre: np.ndarray, lam: np.ndarray) -> np.ndarray:
-    """``(L + 1, N)`` bool: positive priced gain within NEAR_BEST of the best in its slot."""
-    priced = pre * (1.0 - lam)
-    return (priced > 0.0) & (priced >= NEAR_BEST * priced.max(axis=1, keepdims=True))
+def _near_best(rate: np.ndarray, caps_s: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """``(K, N)`` bool: positive priced gain within NEAR_BEST of the best in its slot (cap > 0)."""
+    priced = rate * (1.0 - lam)
+    best = priced.max(axis=1, keepdims=True, initial=0.0)
+    return (priced > 0.0) & (priced >= NEAR_BEST * best) & (caps_s[:, None] > 0.0)
+
+
+def time_sharing_columns(
+    rate: np.ndarray,
+    buf: np.ndarray,
+    caps_s: np.ndarray,
+    hover_s: float,
+    hover_rate: np.ndarray,
+    lam_guess: np.ndarray,
+    lp_method: str,
+) -> PrefixSolution:
+    """Column generation (module docstring) for the general time-sharing LP::
+
+        max  sum R[k,i] s[k,i] + sum_i P[i] h[i]
+        s.t. sum_i s[k,i] <= caps[k],  sum_i h[i] <= H,  sum_k R[k,i] s[k,i] + P[i] h[i] <= Q[i]
+
+    ``rate`` ``(K, N)`` and ``hover_rate`` ``P`` ``(N,)`` in bit/s, ``buf`` ``(N,)`` bit,
+    ``caps_s`` ``(K,)`` and ``hover_s`` ``H`` in s, starting prices ``lam_guess`` ``(N,)`` >= 0,
+    ``lp_method`` the HiGHS method of every restricted LP. The value equals the every-column
+    LP's to :data:`COLUMN_TOL` relative and is never below :func:`lagrangian_bound` at the
+    returned prices (a certified upper bound). ``transit_s`` is ``s`` and ``hover_s`` is ``h``.
+    """
+    chosen = _near_best(rate, caps_s, lam_guess)
+    rounds = 0
+    while True:
+        bits, lam, serve, hover, status = _restricted_lp(
+            rate, buf, caps_s, hover_s, hover_rate, chosen, lp_method
+        )
+        rounds += 1
+        certified = lagrangian_bound(rate, buf, caps_s, hover_s, hover_rate, lam)
+        grown = chosen | _near_best(rate, caps_s, lam)
+        if certified <= bits + COLUMN_TOL * max(1.0, abs(bits)) or np.array_equal(grown, chosen):
+            return PrefixSolution(
+                bits=max(bits, certified),
+                lam=lam,
+                transit_s=serve,
+                hover_s=hover,
+                status=status,
+                rounds=rounds,
+            )
+        chosen = grown
 
 
 def prefix_lp_columns(
@@ -180,30 +252,11 @@ def prefix_lp_columns(
     lam_guess: np.ndarray,
     lp_method: str,
 ) -> PrefixSolution:
-    """``V(L)`` by column generation (module docstring), starting from prices ``lam_guess``.
+    """``V(L)`` by column generation, starting from prices ``lam_guess`` (``(N,)``, >= 0).
 
-    Same arguments as :func:`prefix_lp` (``lam_guess`` is ``(N,)``, >= 0; ``lp_method`` is the
-    HiGHS method of every restricted LP); the value equals
-    :func:`prefix_lp`'s to :data:`COLUMN_TOL` relative and is never below ``Phi_L(lam)``.
+    Same arguments as :func:`prefix_lp`; see :func:`time_sharing_columns`.
     """
     pre = rate[: last + 1]
-    hover_total_s = (n_slots - 1 - last) * slot_s
-    chosen = _near_best(pre, lam_guess)
-    rounds = 0
-    while True:
-        bits, lam, transit, hover, status = _restricted_lp(
-            pre, buf, slot_s, hover_total_s, chosen, lp_method
-        )
-        rounds += 1
-        certified = float(dual_bounds(pre, buf, slot_s, n_slots, lam)[-1])
-        grown = chosen | _near_best(pre, lam)
-        if certified <= bits + COLUMN_TOL * max(1.0, abs(bits)) or np.array_equal(grown, chosen):
-            return PrefixSolution(
-                bits=max(bits, certified),
-                lam=lam,
-                transit_s=transit,
-                hover_s=hover,
-                status=status,
-                rounds=rounds,
-            )
-        chosen = grown
+    caps = np.full(last + 1, slot_s)
+    hover = (n_slots - 1 - last) * slot_s
+    return time_sharing_columns(pre, buf, caps, hover, pre.max(axis=0), lam_guess, lp_method)

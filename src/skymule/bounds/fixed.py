@@ -48,6 +48,11 @@ bits and uses less time. So ``V(L)`` is the LP *prefix LP*: ``s[k, i]`` with
   relaxation is loose — it averages buffers over a mixture of path lengths — which is why
   HiGHS branch-and-bound on ``m`` took minutes at 3,600 slots while this takes seconds).
   ``upper_bound_bit`` is ``max(incumbent, largest unsolved bound)``, so it stays a bound.
+* Each prefix LP is solved by column generation (:mod:`skymule.bounds.prefix_lp`): an LP over
+  the few columns that are near-best in their slot at the buffer prices that gave the
+  candidate its current bound, grown until ``Phi_L`` at its own prices certifies it (the value
+  reported is never below that certified bound). ``solver="full"`` solves every prefix LP
+  with all its ``(L + 1) N`` columns instead: the plain reference, tested equal.
 
 Hover not allowed: the paper's formulation
 ------------------------------------------
@@ -58,7 +63,8 @@ maximising ``sum x R dt``. Any integral association with ``y = min(R dt, Q_i)`` 
 ``x = y / (R dt)``, so the LP bounds the integral problem. Slots at the same sample have the
 same rates, so we aggregate them: ``s[k, i] = sum_{t at k} x[t, i] dt`` with
 ``sum_i s[k, i] <= c_k dt`` where ``c_k`` is the number of slots at ``k``. This has the same
-optimum and ``K x N`` rather than ``T x N`` columns.
+optimum and ``K x N`` rather than ``T x N`` columns. It is solved by the same column generation
+(no hover time; ``c_k dt`` per sample), or with every column under ``solver="full"``.
 
 ``max_hover_s`` (an HGAD-style cap on a single pause) is *not* part of the bound: dropping a
 constraint can only raise the optimum, so the bound stays valid for capped policies. It is

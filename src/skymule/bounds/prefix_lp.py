@@ -1,4 +1,4 @@
-"""The prefix LP of the fixed-path bound, solved two ways: every column, or column generation.
+"""The fixed-path bound's LPs, solved two ways: every column, or column generation.
 
 The prefix LP ``V(L)`` (see :mod:`skymule.bounds.fixed` for why it matters) has one
 time-shared slot of ``dt`` at each sample ``k = 0..L``, ``H = (T - L - 1) dt`` of hover time
@@ -18,10 +18,12 @@ with equality at the LP's optimal buffer duals (LP strong duality).
 
 :func:`prefix_lp` is the plain reference: all ``(L + 1) N`` serve columns, one HiGHS solve.
 
-:func:`prefix_lp_columns` is the fast path, *column generation*: at the optimum slot ``k``
-serves only sensors whose priced gain ``R[k,i] (1 - lam_i)`` is the slot's largest, so it
-solves the LP over the few columns whose priced gain is within :data:`NEAR_BEST` of the
-slot's best under a guess of the prices (zero, or the prices of a neighbouring ``L``), takes
+:func:`prefix_lp_columns` is the fast path, *column generation*
+(:func:`time_sharing_columns`, which also solves the paper's no-hover LP: slot capacities
+``c_k dt`` and no hover time): at the optimum slot ``k`` serves only sensors whose priced
+gain ``R[k,i] (1 - lam_i)`` is the slot's largest, so it solves the LP over the few columns
+whose priced gain is within :data:`NEAR_BEST` of the slot's best under a guess of the prices
+(the search passes the prices that gave this ``L`` its current dual bound), takes
 that LP's buffer duals ``lam`` and checks them on the *whole* LP: ``Phi_L(lam)`` is an upper
 bound on ``V(L)`` and the restricted optimum ``v`` a lower bound, so ``Phi_L(lam) <= v`` (to
 :data:`COLUMN_TOL` relative) proves ``v = V(L)``. Otherwise the columns near the best under the
@@ -29,8 +31,8 @@ new prices join and it solves again. Every slot's best column is always in the r
 once a round adds nothing the restricted duals are feasible for the whole LP and the check holds
 (up to HiGHS's own tolerances; the loop then stops too). The reported value is
 ``max(v, Phi_L(lam))``, never below the certified bound ``Phi_L(lam) >= V(L)``. At 3,600 slots x
-16 sensors the restricted LP has about 3,000 columns instead of 36,000 and one or two rounds
-suffice, so each prefix LP takes ~20-50 ms instead of 0.2-3.6 s.
+16 sensors the restricted LP has about 3,000 columns instead of up to 57,600 and about two
+rounds suffice, so a prefix LP takes ~10-40 ms of CPU instead of 0.2-3.6 s (docs/bounds.md).
 """
 
 from __future__ import annotations
@@ -165,23 +167,19 @@ def _restricted_lp(
     col_k, col_i = np.nonzero(chosen)
     m = col_k.size
     gain = rate[col_k, col_i]
-    a = sp.vstack(
-        [
-            sp.hstack(
-                [
-                    sp.csr_array((np.ones(m), (col_k, np.arange(m))), shape=(k, m)),
-                    sp.csr_array((k, n)),
-                ]
+    sensors = np.arange(n)
+    # rows: time of slot 0..K-1, hover time (K), buffer of sensor i (K + 1 + i); serve column j
+    # (slot col_k[j], sensor col_i[j]) enters its slot's time row and its sensor's buffer row,
+    # hover column m + i the hover row and sensor i's buffer row
+    a = sp.csc_array(
+        (
+            np.concatenate([np.ones(m), gain, np.ones(n), hover_rate]),
+            (
+                np.concatenate([col_k, k + 1 + col_i, np.full(n, k), k + 1 + sensors]),
+                np.concatenate([np.arange(m), np.arange(m), m + sensors, m + sensors]),
             ),
-            sp.hstack([sp.csr_array((1, m)), np.ones((1, n))]),
-            sp.hstack(
-                [
-                    sp.csr_array((gain, (col_i, np.arange(m))), shape=(n, m)),
-                    sp.diags_array(hover_rate),
-                ]
-            ),
-        ],
-        format="csr",
+        ),
+        shape=(k + 1 + n, m + n),
     )
     b = np.concatenate([caps_s, [hover_s], buf])
     res = linprog(

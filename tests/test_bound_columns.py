@@ -17,10 +17,13 @@ REL = 1e-6
 
 
 def random_instance(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, int]:
-    """Rates (K, N) with zero runs, buffers (some empty or huge) and a slot count T."""
+    """Rates (K, N) with zeros (or ties), buffers (some empty or huge) and a slot count T."""
     k = int(rng.integers(1, 60))
     n = int(rng.integers(1, 7))
-    rate = rng.uniform(0.0, 10.0, size=(k, n)) ** 2 * (rng.random((k, n)) < 0.7)
+    if rng.random() < 0.3:  # small integers: ties and degenerate LPs
+        rate = rng.integers(0, 4, size=(k, n)).astype(float)
+    else:
+        rate = rng.uniform(0.0, 10.0, size=(k, n)) ** 2 * (rng.random((k, n)) < 0.7)
     buf = rng.uniform(0.0, 400.0, size=n) * (rng.random(n) < 0.9)
     buf[rng.random(n) < 0.15] = 1e9
     n_slots = int(rng.integers(1, 2 * k + 5))

@@ -5,18 +5,22 @@ four sensors at different positions and a free-space-like rate profile
 ``R = B log2(1 + snr0 / (d / d0)^2)``. Buffers are 500/800/700/1000 Mbit, ``dt = 1 s``.
 The path has as many samples as the mission has slots (K = T).
 
-Scale: the fixed-path bound for 36,000 slots x 4 sensors (target < 10 s; buffers x 20) and
-for 3,600 slots x 16 sensors (target < 5 s; sensors on a 4 x 4 grid, buffers a quarter of the
-four-sensor ones), in CPU seconds, with the default interior-point method and, in the same
-run, the previous method (HiGHS dual simplex, ``lp_method="highs"``) with the ratio. The old
-method is skipped at 36,000 slots (it did not finish in 600 s) unless ``--old-36k`` is given.
-Both methods must give the same bound (the difference is printed).
+Scale: the fixed-path bound for 3,600 slots x 16 sensors (target < 5 s; sensors on a 4 x 4
+grid, buffers a quarter of the four-sensor ones), 3,600 slots x 4 sensors and 36,000 slots x 4
+sensors (target < 10 s; buffers x 20), in CPU seconds, with the default method (prefix LPs by
+column generation, ``solver="columns"``) and, in the same run, the previous method
+(every column in each LP, ``solver="full"``, the plain reference) with the ratio and the
+relative difference of the two bounds; the same for the paper's no-hover LP. Both use HiGHS
+interior point.
+
+Then the autonomous bound's reach rates and LP on its preset, and the fleet LP (two UAVs on
+fixed paths, 16 sensors) with HiGHS interior point against the previous dual simplex.
 
 Then, for the fixed presets ``paper-sim-fixed`` and ``aadm-default``: the bound (with and
 without hovering), each policy's download and its gap to the bound (Mbit and fraction).
 
 Run: ``python benchmarks/bench_bound.py`` (``--quick`` skips the 36,000-slot case;
-``SKYMULE_BENCH_TINY=1``: one preset, 50/120-slot paths, no large cases)
+``SKYMULE_BENCH_TINY=1``: one preset, 50-120-slot paths)
 """
 
 from __future__ import annotations
@@ -27,7 +31,9 @@ import time
 import numpy as np
 from _sizes import size
 
+from skymule.bounds.autonomous import best_rate_bps, time_sharing_lp
 from skymule.bounds.fixed import LP_METHOD, fixed_path_bound
+from skymule.bounds.fleet import fleet_time_sharing_lp
 from skymule.bounds.mission import mission_bound
 from skymule.runner import simulate
 from skymule.scenario import load_scenario
@@ -89,74 +95,92 @@ def preset_gaps(preset: str) -> None:
         print(f"  {policy:<14} {got:8.1f} Mbit  gap {gap:7.1f} Mbit ({gap / upper:6.2%})")
 
 
-def _solve(rate: np.ndarray, buffers: np.ndarray, method: str) -> tuple[float, float]:
-    """(CPU seconds, bound in bit) of the hover bound with ``method``."""
+def _solve(
+    rate: np.ndarray, buffers: np.ndarray, solver: str, hover: bool
+) -> tuple[float, float, str]:
+    """(CPU seconds, bound in bit, status) of the bound with ``solver=solver``."""
     start = time.process_time()
-    res = fixed_path_bound(rate, buffers, SLOT_S, rate.shape[0], lp_method=method)
-    return time.process_time() - start, res.upper_bound_bit
+    res = fixed_path_bound(rate, buffers, SLOT_S, rate.shape[0], hover_allowed=hover, solver=solver)
+    return time.process_time() - start, res.upper_bound_bit, res.status
 
 
-def scale_case(
-    label: str, rate: np.ndarray, buffers: np.ndarray, target_s: float, old: bool
-) -> None:
-    """Print new-method time vs target, and the old method's time, ratio and bound difference."""
-    new_s, new_bit = _solve(rate, buffers, LP_METHOD)
-    verdict = "ok" if new_s < target_s else "MISSED"
-    line = (
-        f"{label}: {LP_METHOD} {new_s:.2f} s CPU (target < {target_s:g} s: {verdict}), "
-        f"bound {new_bit / 1e6:.3f} Mbit"
-    )
-    if old:
-        old_s, old_bit = _solve(rate, buffers, "highs")
-        line += (
-            f"; previous (highs) {old_s:.2f} s -> {old_s / new_s:.1f}x faster, "
-            f"bound difference {abs(new_bit - old_bit) / 1e6:.2e} Mbit"
+def scale_case(label: str, rate: np.ndarray, buffers: np.ndarray, target_s: float) -> None:
+    """Print, with and without hover, the new method's time (vs target for the hover bound),
+    the previous method's time, the ratio and the bounds' relative difference."""
+    for hover in (True, False):
+        new_s, new_bit, status = _solve(rate, buffers, "columns", hover)
+        old_s, old_bit, _ = _solve(rate, buffers, "full", hover)
+        verdict = f" (target < {target_s:g} s: {'ok' if new_s < target_s else 'MISSED'})"
+        print(
+            f"{label} ({'hover' if hover else 'no hover'}): column generation {new_s:.2f} s CPU"
+            f"{verdict if hover else ''}, bound {new_bit / 1e6:.3f} Mbit "
+            f"[{status.split('(')[-1].rstrip(')')}]; previous (every column) {old_s:.2f} s "
+            f"-> x{old_s / max(new_s, 1e-9):.1f}, bounds differ by "
+            f"{abs(new_bit - old_bit) / old_bit:.1e} (relative)",
+            flush=True,
         )
-    else:
-        line += "; previous (highs) skipped (did not finish in 600 s; --old-36k runs it)"
-    print(line, flush=True)
+
+
+def other_bounds(n_slots: int) -> None:
+    """CPU time of the autonomous bound's parts (its preset) and of the fleet LP, vs before."""
+    mission = build_mission(load_scenario("paper-sim-autonomous"))
+    start = time.process_time()
+    rate, _ = best_rate_bps(mission)
+    rates_s = time.process_time() - start
+    start = time.process_time()
+    time_sharing_lp(rate, mission.buffers_bit, mission.slot_s)
+    print(
+        f"autonomous bound paper-sim-autonomous: reach rates {rates_s:.3f} s + LP "
+        f"{time.process_time() - start:.3f} s CPU (HiGHS {LP_METHOD}, unchanged)"
+    )
+    # two UAVs sweeping the lawnmower in opposite directions: best rate reached by each slot
+    forward = rates_bps(lawnmower_xy(n_slots), grid_sensors(4))
+    fleet_rate = np.stack([np.maximum.accumulate(r, axis=0) for r in (forward, forward[::-1])])
+    buffers = np.resize(BUFFERS_BIT, 16) / 4
+    took = {}
+    for method in (LP_METHOD, "highs"):
+        start = time.process_time()
+        fleet_time_sharing_lp(fleet_rate, buffers, SLOT_S, lp_method=method)
+        took[method] = time.process_time() - start
+    print(
+        f"fleet LP 2 UAVs x {n_slots} slots x 16 sensors: {LP_METHOD} {took[LP_METHOD]:.2f} s "
+        f"CPU; previous (highs) {took['highs']:.2f} s -> "
+        f"x{took['highs'] / max(took[LP_METHOD], 1e-9):.1f}",
+        flush=True,
+    )
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="skip the 36,000-slot case")
-    parser.add_argument("--old-36k", action="store_true", help="also time highs at 36,000 slots")
     args = parser.parse_args()
-    if not size(False, True):  # the large cases (not at the smoke test's tiny size)
-        sixteen = grid_sensors(4)
-        sixteen_buffers = np.resize(BUFFERS_BIT, 16) / 4
+    short, long = size((3600, 36000), (60, 120))  # slots (tiny mode: a smoke run)
+    scale_case(
+        f"bound {short} slots x 16 sensors",
+        rates_bps(lawnmower_xy(short), grid_sensors(4)),
+        np.resize(BUFFERS_BIT, 16) / 4,
+        5.0,
+    )
+    scale_case(f"bound {short} slots x 4 sensors", rates_bps(lawnmower_xy(short)), BUFFERS_BIT, 5.0)
+    if not args.quick:
         scale_case(
-            "bound 3600 slots x 16 sensors (hover)",
-            rates_bps(lawnmower_xy(3600), sixteen),
-            sixteen_buffers,
-            5.0,
-            old=True,
+            f"bound {long} slots x 4 sensors",
+            rates_bps(lawnmower_xy(long)),
+            BUFFERS_BIT * 20,  # ten hours: buffers large enough that the bound is not their sum
+            10.0,
         )
-        scale_case(
-            "bound 3600 slots x 4 sensors (hover)",
-            rates_bps(lawnmower_xy(3600)),
-            BUFFERS_BIT,
-            5.0,
-            True,
-        )
-        if not args.quick:
-            scale_case(
-                "bound 36000 slots x 4 sensors (hover)",
-                rates_bps(lawnmower_xy(36000)),
-                BUFFERS_BIT * 20,  # ten hours: buffers large enough that the bound is not their sum
-                10.0,
-                old=args.old_36k,
-            )
+    other_bounds(short)
     for preset in size(PRESETS, PRESETS[:1]):
         preset_gaps(preset)
     for n_slots in size((500, 3600), (50, 120)):
         rate = rates_bps(lawnmower_xy(n_slots))
         for hover in (True, False):
+            start = time.process_time()
             res = fixed_path_bound(rate, BUFFERS_BIT, SLOT_S, n_slots, hover_allowed=hover)
             label = "hover" if hover else "no hover"
             print(
                 f"bound {n_slots} slots x {rate.shape[1]} sensors ({label}): "
-                f"{res.solve_time_s:.2f} s, {res.upper_bound_bit / 1e6:.1f} Mbit "
+                f"{time.process_time() - start:.2f} s CPU, {res.upper_bound_bit / 1e6:.1f} Mbit "
                 f"[last sample {res.last_sample}, {res.status}]"
             )
 

@@ -48,6 +48,11 @@ bits and uses less time. So ``V(L)`` is the LP *prefix LP*: ``s[k, i]`` with
   relaxation is loose — it averages buffers over a mixture of path lengths — which is why
   HiGHS branch-and-bound on ``m`` took minutes at 3,600 slots while this takes seconds).
   ``upper_bound_bit`` is ``max(incumbent, largest unsolved bound)``, so it stays a bound.
+* Each prefix LP is solved by column generation (:mod:`skymule.bounds.prefix_lp`): an LP over
+  the few columns that are near-best in their slot at the buffer prices that gave the
+  candidate its current bound, grown until ``Phi_L`` at its own prices certifies it (the value
+  reported is never below that certified bound). ``solver="full"`` solves every prefix LP
+  with all its ``(L + 1) N`` columns instead: the plain reference, tested equal.
 
 Hover not allowed: the paper's formulation
 ------------------------------------------
@@ -58,7 +63,8 @@ maximising ``sum x R dt``. Any integral association with ``y = min(R dt, Q_i)`` 
 ``x = y / (R dt)``, so the LP bounds the integral problem. Slots at the same sample have the
 same rates, so we aggregate them: ``s[k, i] = sum_{t at k} x[t, i] dt`` with
 ``sum_i s[k, i] <= c_k dt`` where ``c_k`` is the number of slots at ``k``. This has the same
-optimum and ``K x N`` rather than ``T x N`` columns.
+optimum and ``K x N`` rather than ``T x N`` columns. It is solved by the same column generation
+(no hover time; ``c_k dt`` per sample), or with every column under ``solver="full"``.
 
 ``max_hover_s`` (an HGAD-style cap on a single pause) is *not* part of the bound: dropping a
 constraint can only raise the optimum, so the bound stays valid for capped policies. It is
@@ -84,13 +90,19 @@ Spatial shadowing is deterministic per seed and part of the track, so it is supp
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import linprog
 
+from skymule.bounds.prefix_lp import (
+    PrefixSolution,
+    dual_bounds,
+    prefix_lp,
+    prefix_lp_columns,
+    time_sharing_columns,
+)
 from skymule.bounds.result import BoundError, BoundResult, MissionBound
 
 if TYPE_CHECKING:
@@ -107,6 +119,11 @@ __all__ = [
 #: test and is 2.6-15x faster at 3,600 slots; at 36,000 slots the simplex does not finish in
 #: 10 minutes. ``"highs"`` stays selectable (``lp_method=``) for comparisons.
 LP_METHOD = "highs-ipm"
+
+#: How every LP of the bound is solved: ``"columns"`` (column generation, the default; see
+#: :mod:`skymule.bounds.prefix_lp`) or ``"full"`` (the plain reference, every column in one LP;
+#: the method before column generation).
+SOLVERS = ("columns", "full")
 
 #: Relative tolerance for pruning a last sample whose dual bound does not beat the incumbent.
 PRUNE_TOL = 1e-9
@@ -153,26 +170,22 @@ def no_hover_slot_counts(n_samples: int, n_slots: int, *, hold_at_end: bool) -> 
     return counts
 
 
-def _serve_block(rate: np.ndarray) -> tuple[sp.csr_array, sp.csr_array]:
-    """Sparse rows shared by both models, over the ``K * N`` serve columns (row-major).
+def _fixed_dwell_lp(
+    rate: np.ndarray, buf: np.ndarray, dwell_s: np.ndarray, lp_method: str, solver: str
+) -> tuple[float, str, np.ndarray]:
+    """LP optimum with the dwell per sample fixed: returns ``(bits, status, s (K, N))``.
 
-    Returns ``(A_time, A_buf)``: ``A_time`` is ``(K, K N)`` with ``A_time @ s = sum_i s[k, i]``
-    and ``A_buf`` is ``(N, K N)`` with ``A_buf @ s = sum_k R[k, i] s[k, i]`` (bit).
+    ``solver="columns"``: column generation (no hover time); ``"full"``: every column.
     """
     k, n = rate.shape
+    if solver == "columns":
+        zero = np.zeros(n)
+        sol = time_sharing_columns(rate, buf, dwell_s, 0.0, zero, zero, lp_method)
+        return sol.bits, f"{sol.status} ({sol.rounds} HiGHS solves)", sol.transit_s
     a_time = sp.kron(sp.eye_array(k), np.ones((1, n)), format="csr")
     a_buf = sp.csr_array(
         (rate.ravel(), (np.tile(np.arange(n), k), np.arange(k * n))), shape=(n, k * n)
     )
-    return a_time, a_buf
-
-
-def _fixed_dwell_lp(
-    rate: np.ndarray, buf: np.ndarray, dwell_s: np.ndarray, lp_method: str
-) -> tuple[float, str, np.ndarray]:
-    """LP optimum with the dwell per sample fixed: returns ``(bits, status, s (K, N))``."""
-    k, n = rate.shape
-    a_time, a_buf = _serve_block(rate)
     res = linprog(
         -rate.ravel(),
         A_ub=sp.vstack([a_time, a_buf], format="csr"),
@@ -195,95 +208,56 @@ def record_samples(rate: np.ndarray) -> np.ndarray:
     return np.concatenate([[0], 1 + np.flatnonzero(improves)])
 
 
-def dual_bounds(
-    rate: np.ndarray, buf: np.ndarray, slot_s: float, n_slots: int, lam: np.ndarray
-) -> np.ndarray:
-    """Weak-duality bound ``Phi_L(lam)`` on ``V(L)`` for every last sample ``L`` at once.
-
-    ``rate`` is ``(K, N)`` (bit/s) with ``K <= T``, ``lam`` an ``(N,)`` buffer price >= 0.
-    Returns ``(K,)`` bits: ``lam . Q + dt sum_{k<=L} g_k + (T - L - 1) dt max_{k<=L} g_k`` with
-    ``g_k = max(0, max_i R[k, i] (1 - lam_i))``.
-    """
-    gain = np.maximum(0.0, np.max(rate * (1.0 - lam), axis=1))
-    hover_s = (n_slots - 1 - np.arange(rate.shape[0])) * slot_s
-    return float(lam @ buf) + slot_s * np.cumsum(gain) + hover_s * np.maximum.accumulate(gain)
-
-
-@dataclass(frozen=True)
-class _PrefixSolution:
-    """Optimum of the prefix LP for one last sample ``L`` (see :func:`_prefix_lp`)."""
-
-    bits: float
-    lam: np.ndarray  # (N,) buffer prices
-    transit_s: np.ndarray  # (L + 1, N) serve time in the mandatory slots (s)
-    hover_s: np.ndarray  # (N,) hover time serving sensor i at its best sample (s)
-    status: str
-
-
-def _prefix_lp(
-    rate: np.ndarray, buf: np.ndarray, slot_s: float, n_slots: int, last: int, lp_method: str
-) -> _PrefixSolution:
-    """``V(L)``: one time-shared slot at each sample ``0..L`` plus ``(T - L - 1) dt`` of hover.
-
-    Hover is collapsed to one column per sensor at its best rate over samples ``0..L``.
-    """
-    pre = rate[: last + 1]
-    k, n = pre.shape
-    best = pre.max(axis=0)
-    a_time, a_buf = _serve_block(pre)
-    a = sp.vstack(
-        [
-            sp.hstack([a_time, sp.csr_array((k, n))]),
-            sp.hstack([sp.csr_array((1, k * n)), np.ones((1, n))]),
-            sp.hstack([a_buf, sp.diags_array(best)]),
-        ],
-        format="csr",
-    )
-    b = np.concatenate([np.full(k, slot_s), [(n_slots - 1 - last) * slot_s], buf])
-    res = linprog(
-        -np.concatenate([pre.ravel(), best]), A_ub=a, b_ub=b, bounds=(0, None), method=lp_method
-    )
-    if res.status != 0:
-        raise RuntimeError(f"HiGHS failed on the prefix LP (L={last}): {res.message}")
-    return _PrefixSolution(
-        bits=float(-res.fun),
-        lam=np.clip(-res.ineqlin.marginals[k + 1 :], 0.0, None),
-        transit_s=np.reshape(res.x[: k * n], (k, n)),
-        hover_s=res.x[k * n :],
-        status=str(res.message),
-    )
-
-
 def _hover_search(
-    rate: np.ndarray, buf: np.ndarray, slot_s: float, n_slots: int, lp_method: str
-) -> tuple[float, _PrefixSolution, int, int]:
+    rate: np.ndarray,
+    buf: np.ndarray,
+    slot_s: float,
+    n_slots: int,
+    lp_method: str,
+    solver: str,
+) -> tuple[float, PrefixSolution, int, int, int]:
     """Exact ``max_L V(L)`` over record samples, pruned with dual bounds.
 
-    Returns ``(upper bound, best solution, its L, number of LPs solved)``.
+    ``solver`` is ``"columns"`` (column generation, warm-started from the prices that
+    gave the candidate its current bound) or ``"full"`` (the reference: every column, with
+    ``lp_method``). Returns ``(upper bound, best solution, its L, prefix LPs, HiGHS solves)``.
     """
     candidates = record_samples(rate)
-    upper = dual_bounds(rate, buf, slot_s, n_slots, np.zeros(rate.shape[1]))[candidates]
+    n_sensors = rate.shape[1]
+    upper = dual_bounds(rate, buf, slot_s, n_slots, np.zeros(n_sensors))[candidates]
+    prices = [np.zeros(n_sensors)]  # every price vector tried so far
+    upper_from = np.zeros(candidates.size, dtype=np.int64)  # which one gave ``upper``
     solved = np.zeros(candidates.size, dtype=bool)
-    best: _PrefixSolution | None = None
+    best: PrefixSolution | None = None
     best_last = 0
-    n_lp = 0
+    n_lp = n_solves = 0
     while True:
         open_ub = np.where(solved, -np.inf, upper)
         j = int(np.argmax(open_ub))
         lower = best.bits if best is not None else -np.inf
         if solved[j] or open_ub[j] <= lower + PRUNE_TOL * max(1.0, abs(lower)):
             break
-        sol = _prefix_lp(rate, buf, slot_s, n_slots, int(candidates[j]), lp_method)
+        last = int(candidates[j])
+        if solver == "full":
+            sol = prefix_lp(rate, buf, slot_s, n_slots, last, lp_method)
+        else:
+            sol = prefix_lp_columns(
+                rate, buf, slot_s, n_slots, last, prices[upper_from[j]], lp_method
+            )
         n_lp += 1
+        n_solves += sol.rounds
         solved[j] = True
         upper[j] = sol.bits
         if best is None or sol.bits > best.bits:
-            best, best_last = sol, int(candidates[j])
+            best, best_last = sol, last
         phi = dual_bounds(rate, buf, slot_s, n_slots, sol.lam)[candidates]
-        upper = np.where(solved, upper, np.minimum(upper, phi))
+        tighter = ~solved & (phi < upper)
+        upper[tighter] = phi[tighter]
+        upper_from[tighter] = len(prices)
+        prices.append(sol.lam)
     assert best is not None
     remaining = np.where(solved, -np.inf, upper).max(initial=-np.inf)
-    return max(best.bits, float(remaining)), best, best_last, n_lp
+    return max(best.bits, float(remaining)), best, best_last, n_lp, n_solves
 
 
 def fixed_path_bound(
@@ -296,6 +270,7 @@ def fixed_path_bound(
     hold_at_end: bool = True,
     max_hover_s: float | None = None,
     lp_method: str = LP_METHOD,
+    solver: str = "columns",
 ) -> BoundResult:
     """Upper bound on the bits collected along a fixed path (see the module docstring).
 
@@ -309,43 +284,53 @@ def fixed_path_bound(
             after moving past ``K - 1``).
         max_hover_s: per-pause hover cap of the policy being bounded; ignored by the bound
             (which stays valid), only validated.
-        lp_method: ``scipy.optimize.linprog`` HiGHS method (default :data:`LP_METHOD`).
+        lp_method: ``scipy.optimize.linprog`` HiGHS method of every LP (default
+            :data:`LP_METHOD`).
+        solver: ``"columns"`` (column generation, see :mod:`skymule.bounds.prefix_lp`) or
+            ``"full"`` (the reference, every column); same bound to ~1e-9 relative.
 
     Returns:
         A :class:`BoundResult`; ``served_time_s`` is ``(K, N)`` and ``dwell_time_s`` ``(K,)``.
 
     Raises:
         BoundError: on negative or non-finite rates or buffers, shape mismatch, ``slot_s <= 0``
-            or ``n_slots < 1``.
+            or ``n_slots < 1``, or an unknown ``solver``.
     """
     rate, buf = _validate(rate_bps, buffers_bit, slot_s, n_slots, max_hover_s)
+    if solver not in SOLVERS:
+        raise BoundError(f"solver must be one of {SOLVERS}, got {solver!r}")
     n_samples, n_sensors = rate.shape
     n_slots = int(n_slots)
     slot_s = float(slot_s)
     start = time.perf_counter()
     served = np.zeros((n_samples, n_sensors))
     dwell = np.zeros(n_samples)
+    how = "column generation" if solver == "columns" else "every column"
     if hover_allowed:
         reach = min(n_samples, n_slots)
-        bound, sol, last, n_lp = _hover_search(rate[:reach], buf, slot_s, n_slots, lp_method)
+        bound, sol, last, n_lp, n_solves = _hover_search(
+            rate[:reach], buf, slot_s, n_slots, lp_method, solver
+        )
         served[: last + 1] = sol.transit_s
         best_at = np.argmax(rate[: last + 1], axis=0)
         np.add.at(served, (best_at, np.arange(n_sensors)), sol.hover_s)
         dwell[: last + 1] = slot_s
         np.add.at(dwell, best_at, sol.hover_s)  # several sensors may share a best sample
         dwell[last] += n_slots * slot_s - dwell.sum()
-        status = f"{sol.status} ({n_lp} prefix LPs)"
+        status = f"{sol.status} ({n_lp} prefix LPs, {n_solves} HiGHS solves)"
         method = (
-            f"fixed-path exact search: pause anywhere, time-shared slots (HiGHS {lp_method} LPs)"
+            "fixed-path exact search: pause anywhere, time-shared slots "
+            f"(prefix LPs by {how}, HiGHS {lp_method})"
         )
     else:
         counts = no_hover_slot_counts(n_samples, n_slots, hold_at_end=hold_at_end)
         dwell = counts * slot_s
-        bound, status, served = _fixed_dwell_lp(rate, buf, dwell, lp_method)
+        bound, status, served = _fixed_dwell_lp(rate, buf, dwell, lp_method, solver)
         last = int(np.flatnonzero(counts)[-1])
         semantics = "hold at end" if hold_at_end else "trace ends at last sample"
         method = (
-            f"fixed-path LP: no hover ({semantics}), fractional association (HiGHS {lp_method})"
+            f"fixed-path LP: no hover ({semantics}), fractional association ({how}, "
+            f"HiGHS {lp_method})"
         )
     elapsed = time.perf_counter() - start
     served = np.clip(served, 0.0, None)

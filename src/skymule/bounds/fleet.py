@@ -38,6 +38,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import linprog
 
+from skymule.bounds.fixed import LP_METHOD
 from skymule.bounds.result import BoundError, MissionBound
 from skymule.sim.fleet import Fleet
 from skymule.world import Mission
@@ -68,9 +69,14 @@ def uav_best_rate_bps(mission: Mission) -> tuple[np.ndarray, str]:
 
 
 def fleet_time_sharing_lp(
-    rate_bps: np.ndarray, buffers_bit: np.ndarray, slot_s: float
+    rate_bps: np.ndarray, buffers_bit: np.ndarray, slot_s: float, lp_method: str = LP_METHOD
 ) -> tuple[float, str]:
-    """Optimum [bit] and status of the fleet LP (module docstring); ``rate_bps`` (K, T, N)."""
+    """Optimum [bit] and status of the fleet LP (module docstring); ``rate_bps`` (K, T, N).
+
+    ``lp_method``: the HiGHS method (interior point, as every bound; on 2 fixed-path UAVs x
+    3,600 slots x 16 sensors it took 1.7 s of CPU against 8.8 s with ``"highs"``, the default
+    until then, same optimum).
+    """
     rate = np.where(np.asarray(buffers_bit)[None, None, :] > 0, rate_bps, 0.0)
     n_uavs, _, n_sensors = rate.shape
     blocks, counts = np.unique(
@@ -98,7 +104,7 @@ def fleet_time_sharing_lp(
             [np.repeat(counts * slot_s, n_uavs), np.repeat(counts * slot_s, n_sensors), buffers]
         ),
         bounds=(0, None),
-        method="highs",
+        method=lp_method,
     )
     if res.status != 0:
         raise BoundError(f"fleet bound: HiGHS failed ({res.message})")

@@ -1,0 +1,468 @@
+"""The batched autonomous engine: many Greedy or HGAD autonomous missions at once.
+
+:func:`run_tours` loops over slots only; every step is a numpy operation over the B missions
+of a batch, and it applies the same rules as the reference autonomous engine
+(:mod:`skymule.sim.autonomous` with the tours of :mod:`skymule.policies.autonomous`), value
+for value (the test suite compares every log field). Every slot t (``docs/contract.md``):
+
+1. SNR and rates at each UAV's position r_t (:class:`~skymule.sim.batch_signal.BatchSignal`:
+   one path-loss evaluation per shared model, per-slot fading added);
+2. the tours decide (:mod:`skymule.sim.batch_tours`): Greedy serves argmax SNR, HGAD the best
+   rate en route or its hover target, through :mod:`skymule.sim.contract`; each names a goal;
+3. the served sensor delivers min(R dt, Q) bits (nothing once the download window closed);
+4. the UAV moves at most ``max_step_m`` along the in-fence shortest path toward the legal goal
+   (:meth:`~skymule.flight.navigation.Navigator.steps`: one vectorised shapely ``covers`` call
+   per query over all missions, against the same prepared polygon, so the same decisions);
+   with ``return_home`` the goal is overridden by home when the reference would override it.
+   The in-fence distance home is computed only in slots where the override may bind: it grows
+   by at most one step per slot, so an upper bound well inside the time left rules it out.
+
+Missions of one batch share the geofence (one :class:`Navigator`) and the sensor count, and run
+one policy; :func:`run_autonomous_batch` and :func:`summarize_autonomous_batch` group them.
+Scope (:func:`batchable`): fault-free autonomous missions under ``greedy`` or ``hgad`` (per-slot
+fading included); everything else runs through the reference engine
+(:func:`skymule.sim.run.run_mission`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import shapely
+
+from skymule.errors import SkymuleError
+from skymule.metrics import Flights, summaries, summary_dicts
+from skymule.policies.autonomous import Priority
+from skymule.scenario import PolicySpec
+from skymule.sim import contract
+from skymule.sim.autonomous import FEASIBILITY_SLACK_M, legal_goal
+from skymule.sim.batch_signal import BatchSignal
+from skymule.sim.batch_tours import GreedyTours, HGADTours, TourGeometry
+from skymule.sim.context import autonomous_peak_rate_bps
+from skymule.sim.contract import NO_SENSOR
+from skymule.sim.engine import log_fields
+from skymule.sim.log import MissionLog
+from skymule.world import Mission
+
+#: Margin [m] by which an upper bound on the distance home must clear the time left before the
+#: exact distance is skipped (far above float round-off, far below a step).
+BOUND_SLACK_M = 1e-3
+
+
+@dataclass(frozen=True)
+class TourParams:
+    """Per-mission policy parameters of the batched tours.
+
+    Attributes:
+        hgad: True for HGAD (Alg. 2), False for Greedy (Alg. 1).
+        max_hover_s: HGAD longest hover [s].
+        priority: HGAD tour order (``"initial"``: planned by initial buffer; ``"remaining"``).
+    """
+
+    hgad: bool
+    max_hover_s: float = 60.0
+    priority: Priority = "initial"
+
+
+AUTONOMOUS_POLICIES: dict[str, Callable[[PolicySpec], TourParams]] = {
+    "greedy": lambda spec: TourParams(hgad=False),
+    "hgad": lambda spec: TourParams(True, spec.param("max_hover_s")),
+}
+"""Policies with a batched autonomous engine: name -> parameters from ``[policy]``."""
+
+
+def batchable(mission: Mission, spec: PolicySpec) -> bool:
+    """True if autonomous ``mission`` under ``spec`` can run in the batched autonomous engine:
+    Greedy or HGAD, no faults."""
+    return (
+        mission.mode == "autonomous"
+        and mission.faults is None
+        and mission.source is not None
+        and mission.navigator is not None
+        and mission.home_m is not None
+        and mission.hover_points_m is not None
+        and spec.name in AUTONOMOUS_POLICIES
+    )
+
+
+@dataclass(frozen=True)
+class TourResult:
+    """What happened in B missions of one batch, slot by slot (T = max n_slots), input order.
+
+    Row b holds mission b; only its first ``n_slots[b]`` slots happened (padding: NO_SENSOR,
+    0 bits, not hovering, the end position).
+
+    Attributes:
+        n_slots: (B,) slots each mission ran.
+        position_m: (B, T + 1, 2) UAV position at the start of each slot, then the end [m].
+        served: (B, T) served sensor, or NO_SENSOR.
+        downloaded_bit: (B, T) bits downloaded in each slot.
+        hovering: (B, T) True where the UAV stayed put by the policy's choice.
+        target: (B, T) sensor the tour headed for, or NO_SENSOR.
+        left_bit: (B, N) buffers after the last slot [bit].
+        snr_db: (B, T, N) SNR observed [dB], or None (``keep_logs=False``).
+        rate_bps: (B, T, N) rates [bit/s], or None.
+        remaining_bit: (B, T, N) buffers after each slot's download [bit], or None.
+    """
+
+    n_slots: np.ndarray
+    position_m: np.ndarray
+    served: np.ndarray
+    downloaded_bit: np.ndarray
+    hovering: np.ndarray
+    target: np.ndarray
+    left_bit: np.ndarray
+    snr_db: np.ndarray | None
+    rate_bps: np.ndarray | None
+    remaining_bit: np.ndarray | None
+
+
+def _xy(point: np.ndarray) -> tuple[float, float]:
+    return (float(point[0]), float(point[1]))
+
+
+def _geometry(missions: Sequence[Mission]) -> tuple[TourGeometry, np.ndarray, Any, Any]:
+    """The tours' geometry, the legal goals (N + 1, B, 2) (hover points, then home) and the
+    sights of the legal goals and of the (raw) homes."""
+    nav = missions[0].navigator
+    assert nav is not None
+    home = np.array([m.home_m for m in missions], float).reshape(-1, 2)
+    hover = np.stack([np.asarray(m.hover_points_m, float) for m in missions], axis=1)
+    known = np.all(np.isfinite(hover), axis=2)
+    # unknown hover points are never goals; home stands in for them in the sight tables
+    places = np.where(known[..., None], hover, home[None])
+    legal = np.empty((hover.shape[0] + 1, len(missions), 2))
+    for b in range(len(missions)):
+        for i in range(hover.shape[0]):
+            legal[i, b] = legal_goal(nav, _xy(places[i, b]))
+        legal[-1, b] = legal_goal(nav, _xy(home[b]))
+    n_vertices = len(nav.vertices)
+
+    def sight(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        vis, dist = nav.sights(points.reshape(-1, 2))
+        shape = (*points.shape[:-1], n_vertices)
+        return vis.reshape(shape), dist.reshape(shape)
+
+    geometry = TourGeometry(nav, hover, known, home, sight(places))
+    return geometry, legal, sight(legal), sight(home)
+
+
+def _stack(missions: Sequence[Mission]) -> None:
+    """Check that ``missions`` can share a batch (one fence, one sensor count)."""
+    if not missions:
+        raise ValueError("a batch needs at least one mission")
+    first = missions[0]
+    for mission in missions:
+        if mission.mode != "autonomous" or mission.navigator is None or mission.source is None:
+            raise SkymuleError("the batched autonomous engine needs autonomous missions")
+        if mission.faults is not None:
+            raise SkymuleError(
+                "the batched autonomous engine does not apply faults: run such missions with "
+                "skymule.sim.run.run_mission (the reference engines)"
+            )
+        if mission.n_sensors != first.n_sensors:
+            raise ValueError("a batch needs one sensor count")
+    fences = {shapely.to_wkb(m.navigator.fence) for m in missions if m.navigator is not None}
+    if len(fences) != 1:
+        raise ValueError("a batch needs one geofence")
+
+
+def run_tours(
+    missions: Sequence[Mission], params: Sequence[TourParams], keep_logs: bool = True
+) -> TourResult:
+    """Run B autonomous missions (one fence, one sensor count, all Greedy or all HGAD).
+
+    ``keep_logs=False`` skips the (B, T, N) SNR, rate and buffer logs (summaries do not need
+    them).
+    """
+    _stack(missions)
+    if len({p.hgad for p in params}) != 1 or len(params) != len(missions):
+        raise ValueError("a batch runs one policy: one TourParams per mission, all Greedy or HGAD")
+    lengths = np.array([m.n_slots for m in missions], np.int64)
+    order = np.argsort(-lengths, kind="stable")  # active missions are a prefix of the columns
+    sorted_missions = [missions[i] for i in order]
+    result = _slot_loop(sorted_missions, [params[i] for i in order], keep_logs)
+    back = np.argsort(order)
+    return TourResult(
+        **{
+            name: None if value is None else value[back]
+            for name, value in vars(result).items()
+        }
+    )
+
+
+def _slot_loop(
+    missions: Sequence[Mission], params: Sequence[TourParams], keep_logs: bool
+) -> TourResult:
+    """:func:`run_tours` on missions sorted by length, longest first."""
+    n_missions, n_sensors = len(missions), missions[0].n_sensors
+    geometry, legal, legal_sight, home_sight = _geometry(missions)
+    nav = geometry.navigator
+    n_slots = np.array([m.n_slots for m in missions], np.int64)
+    slot_s = np.array([m.slot_s for m in missions], float)
+    step_m = np.array([m.max_step_m for m in missions], float)
+    window = np.array([m.n_slots if m.window_slots is None else m.window_slots for m in missions])
+    return_home = np.array([m.return_home for m in missions], bool)
+    buffers = np.array([m.buffers_bit for m in missions], float).reshape(-1, n_sensors).T
+    tours: GreedyTours | HGADTours
+    if params[0].hgad:
+        peak = np.array([autonomous_peak_rate_bps(m) for m in missions]).reshape(-1, n_sensors)
+        tours = HGADTours(
+            geometry,
+            np.ascontiguousarray(peak.T),
+            buffers,
+            slot_s,
+            np.array([p.max_hover_s for p in params], float),
+            np.array([p.priority == "initial" for p in params], bool),
+        )
+    else:
+        tours = GreedyTours(geometry, np.array([m.visit_radius_m for m in missions], float))
+    signal = BatchSignal(missions)
+
+    t_max = int(n_slots.max())
+    position = geometry.home_m.copy()
+    remaining = buffers.copy()
+    home_bound = np.zeros(n_missions)  # >= in-fence distance home (return_home missions)
+    position_log = np.empty((t_max + 1, n_missions, 2))
+    served_log = np.full((t_max, n_missions), NO_SENSOR, np.int64)
+    downloaded_log = np.zeros((t_max, n_missions))
+    hovering_log = np.zeros((t_max, n_missions), bool)
+    target_log = np.full((t_max, n_missions), NO_SENSOR, np.int64)
+    shape = (t_max, n_sensors, n_missions) if keep_logs else (0, n_sensors, n_missions)
+    snr_log, rate_log, remaining_log = np.zeros(shape), np.zeros(shape), np.zeros(shape)
+    n_active = (n_slots[None, :] > np.arange(t_max)[:, None]).sum(axis=1)
+
+    for slot in range(t_max):
+        active = int(n_active[slot])
+        position_log[slot] = position
+        here = position[:active]
+        snr = signal.snr_db(here, slot)
+        rate = signal.rate_bps(snr)
+        left = remaining[:, :active]
+        serve, goal, target = tours.act(here, np.nan_to_num(snr, nan=-np.inf), rate, left)
+        sensor = np.where(slot >= window[:active], NO_SENSOR, serve)
+        cols = np.flatnonzero(sensor >= 0)
+        rows = sensor[cols]
+        bits = np.zeros(active)
+        bits[cols] = contract.served_bits(rate[rows, cols], left[rows, cols], slot_s[cols])
+        left[rows, cols] -= bits[cols]
+        moved = here.copy()
+        going = np.flatnonzero(goal >= 0)  # STAY: the step toward the position itself
+        if going.size:
+            g = goal[going]
+            moved[going] = nav.steps(
+                here[going],
+                legal[g, going],
+                step_m[going],
+                (legal_sight[0][g, going], legal_sight[1][g, going]),
+            )
+        overridden = np.zeros(active, bool)
+        if return_home[:active].any():
+            overridden = _return_home(
+                nav, slot, here, moved, n_slots, step_m, return_home, geometry.home_m,
+                home_sight, home_bound,
+            )  # fmt: skip
+        served_log[slot, :active] = sensor
+        downloaded_log[slot, :active] = bits
+        hovering_log[slot, :active] = (
+            (moved[:, 0] == here[:, 0]) & (moved[:, 1] == here[:, 1]) & ~overridden
+        )
+        target_log[slot, :active] = target
+        if keep_logs:
+            snr_log[slot, :, :active] = snr
+            rate_log[slot, :, :active] = rate
+            remaining_log[slot, :, :active] = left
+        position[:active] = moved
+    position_log[t_max] = position
+
+    def per_mission(log: np.ndarray) -> np.ndarray | None:
+        return log.transpose(2, 0, 1) if keep_logs else None
+
+    return TourResult(
+        n_slots=n_slots,
+        position_m=position_log.transpose(1, 0, 2),
+        served=served_log.T,
+        downloaded_bit=downloaded_log.T,
+        hovering=hovering_log.T,
+        target=target_log.T,
+        left_bit=remaining.T,
+        snr_db=per_mission(snr_log),
+        rate_bps=per_mission(rate_log),
+        remaining_bit=per_mission(remaining_log),
+    )
+
+
+def _return_home(
+    nav: Any,
+    slot: int,
+    here: np.ndarray,
+    moved: np.ndarray,
+    n_slots: np.ndarray,
+    step_m: np.ndarray,
+    return_home: np.ndarray,
+    home_m: np.ndarray,
+    home_sight: tuple[np.ndarray, np.ndarray],
+    home_bound: np.ndarray,
+) -> np.ndarray:
+    """The reference's return-home override for the first A missions; (A,) True where it
+    overrode the goal (``moved`` then steps toward home, in place).
+
+    ``home_bound`` (B,) is an upper bound on each UAV's in-fence distance home, updated in
+    place: exact where computed, plus one step per slot (no slot moves the UAV farther).
+    """
+    active = here.shape[0]
+    step = step_m[:active]
+    budget = (n_slots[:active] - slot - 1) * step + FEASIBILITY_SLACK_M
+    bound = home_bound[:active]
+    overridden = np.zeros(active, bool)
+    check = np.flatnonzero(return_home[:active] & ~(bound + step < budget - BOUND_SLACK_M))
+    if check.size:
+        sight = (home_sight[0][check], home_sight[1][check])
+        now = nav.travel_distances(here[check], home_m[check], sight)
+        bound[check] = now
+        # d_home(moved) <= d_home(position) + step: test exactly only when it may bind
+        near = now + step[check] > budget[check]
+        if near.any():
+            rows = check[near]
+            after = nav.travel_distances(moved[rows], home_m[rows], (sight[0][near], sight[1][near]))
+            back = rows[after > budget[rows]]
+            if back.size:
+                moved[back] = nav.steps(
+                    here[back], home_m[back], step[back], (home_sight[0][back], home_sight[1][back])
+                )
+                overridden[back] = True
+    bound += step
+    return overridden
+
+
+def mission_log(result: TourResult, b: int, mission: Mission, policy: str) -> MissionLog:
+    """Mission b's :class:`MissionLog`, field for field as the reference engine makes it."""
+    if result.snr_db is None or result.rate_bps is None or result.remaining_bit is None:
+        raise ValueError("run_tours(..., keep_logs=True) for logs")
+    n = int(result.n_slots[b])
+    altitude = mission.altitude_m
+    end = result.position_m[b, n]
+    return MissionLog(
+        **log_fields(mission, policy),
+        position_m=np.hstack([result.position_m[b, :n], np.full((n, 1), altitude)]),
+        end_position_m=np.array([end[0], end[1], altitude]),
+        snr_db=result.snr_db[b, :n].copy(),
+        rate_bps=result.rate_bps[b, :n].copy(),
+        served=result.served[b, :n].copy(),
+        downloaded_bit=result.downloaded_bit[b, :n].copy(),
+        remaining_bit=result.remaining_bit[b, :n].copy(),
+        hovering=result.hovering[b, :n].copy(),
+        target=result.target[b, :n].copy(),
+    )
+
+
+def tour_flights(result: TourResult, missions: Sequence[Mission]) -> Flights:
+    """The batch as :class:`~skymule.metrics.Flights`: each mission's path is its own track."""
+    n_missions, t_max = result.served.shape
+    altitude = np.array([m.altitude_m for m in missions], float)
+    track = np.concatenate(
+        [result.position_m, np.broadcast_to(altitude[:, None, None], (n_missions, t_max + 1, 1))],
+        axis=2,
+    )
+    return Flights(
+        n_run=result.n_slots,
+        slot_s=np.array([m.slot_s for m in missions], float),
+        buffers_bit=np.array([m.buffers_bit for m in missions], float).reshape(n_missions, -1),
+        left_bit=result.left_bit,
+        served=result.served,
+        downloaded_bit=result.downloaded_bit,
+        hovering=result.hovering,
+        track_position_m=track,
+        track_samples=result.n_slots + 1,
+        track_id=np.arange(n_missions),
+        sample=np.minimum(np.arange(t_max)[None, :], result.n_slots[:, None]),
+        end_sample=result.n_slots,
+        home_m=np.array([m.home_m for m in missions], float).reshape(n_missions, 2),
+        hover_points_m=np.array([m.hover_points_m for m in missions], float).reshape(
+            n_missions, -1, 2
+        ),
+        visit_radius_m=np.array([m.visit_radius_m for m in missions], float),
+        target=result.target,
+        aadm_window_s=np.array([m.score_window_s for m in missions], float),
+    )
+
+
+def tour_params(spec: PolicySpec) -> TourParams:
+    """The batched tours' parameters of a ``[policy]`` section (SkymuleError if none)."""
+    factory = AUTONOMOUS_POLICIES.get(spec.name)
+    if factory is None:
+        raise SkymuleError(
+            f"policy.name = {spec.name!r} has no batched autonomous engine; "
+            f"allowed: {', '.join(sorted(AUTONOMOUS_POLICIES))}"
+        )
+    return factory(spec)
+
+
+def _batches(
+    missions: Sequence[Mission], params: Sequence[TourParams], batch_size: int
+) -> Iterator[list[int]]:
+    """Indices of missions that can share a batch (fence, sensor count, policy), at most
+    ``batch_size`` each."""
+    groups: dict[tuple[bytes, int, bool], list[int]] = {}
+    fences: dict[int, bytes] = {}  # missions built together share one navigator object
+    for index, (mission, param) in enumerate(zip(missions, params, strict=True)):
+        nav = mission.navigator
+        assert nav is not None
+        if id(nav) not in fences:
+            fences[id(nav)] = shapely.to_wkb(nav.fence)
+        key = (fences[id(nav)], mission.n_sensors, param.hgad)
+        groups.setdefault(key, []).append(index)
+    for indices in groups.values():
+        for start in range(0, len(indices), batch_size):
+            yield indices[start : start + batch_size]
+
+
+def _params(specs: Sequence[PolicySpec]) -> list[TourParams]:
+    by_spec: dict[int, TourParams] = {}  # sweeps repeat a few spec objects many times
+    for spec in specs:
+        if id(spec) not in by_spec:
+            by_spec[id(spec)] = tour_params(spec)
+    return [by_spec[id(spec)] for spec in specs]
+
+
+def run_autonomous_batch(
+    missions: Sequence[Mission], specs: Sequence[PolicySpec], batch_size: int = 1000
+) -> list[MissionLog]:
+    """Logs of autonomous Greedy/HGAD missions (one policy spec each), in input order.
+
+    Equal to ``[run_autonomous(m, make_policy(s)) for m, s in zip(missions, specs)]``.
+    """
+    params = _params(specs)
+    logs: list[MissionLog | None] = [None] * len(missions)
+    for part in _batches(missions, params, batch_size):
+        result = run_tours([missions[i] for i in part], [params[i] for i in part])
+        for b, i in enumerate(part):
+            logs[i] = mission_log(result, b, missions[i], specs[i].name)
+    return [log for log in logs if log is not None]
+
+
+def summarize_autonomous_batch(
+    missions: Sequence[Mission],
+    specs: Sequence[PolicySpec],
+    scenario_names: Sequence[str],
+    batch_size: int = 1000,
+) -> list[dict[str, Any]]:
+    """``metrics.summarize`` dictionaries of autonomous Greedy/HGAD missions, in input order,
+    straight from the batch arrays (no per-mission log)."""
+    params = _params(specs)
+    rows: list[dict[str, Any] | None] = [None] * len(missions)
+    for part in _batches(missions, params, batch_size):
+        chosen = [missions[i] for i in part]
+        result = run_tours(chosen, [params[i] for i in part], keep_logs=False)
+        dicts = summary_dicts(
+            summaries(tour_flights(result, chosen)),
+            [m.sensor_names for m in chosen],
+            [specs[i].name for i in part],
+            [scenario_names[i] for i in part],
+        )
+        for i, row in zip(part, dicts, strict=True):
+            rows[i] = row
+    return [row for row in rows if row is not None]

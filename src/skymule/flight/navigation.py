@@ -47,6 +47,10 @@ _HOVER_HALVINGS = 10
 #: :meth:`Navigator.steps` must land on the same floats.
 _math_hypot = np.frompyfunc(math.hypot, 2, 1)
 
+#: :meth:`Navigator.shortest_paths` tests this many start-side vertices one at a time (nearest
+#: total first: almost every path bends at one of them) before testing all of them at once.
+_LAZY_RANKS = 4
+
 
 def _as_xy(p: XY | np.ndarray) -> XY:
     return (float(p[0]), float(p[1]))
@@ -226,6 +230,11 @@ class Navigator:
         """
         return bool(shapely.intersects_xy(self._goal_cover, xy[0], xy[1]))
 
+    def covers_goals(self, points_xy: np.ndarray) -> np.ndarray:
+        """(P,) :meth:`covers_goal` of P points (P, 2), one vectorised call."""
+        p = np.asarray(points_xy, float).reshape(-1, 2)
+        return np.asarray(shapely.intersects_xy(self._goal_cover, p[:, 0], p[:, 1]), bool)
+
     def _check_inside(self, xy: XY, name: str) -> None:
         if not shapely.intersects_xy(self._cover, xy[0], xy[1]):
             raise ValueError(f"{name} {xy} is outside the fence")
@@ -344,17 +353,20 @@ class Navigator:
         starts_xy: np.ndarray,
         goals_xy: np.ndarray,
         goal_sight: tuple[np.ndarray, np.ndarray] | None = None,
+        checked: bool = True,
     ) -> tuple[np.ndarray, np.ndarray]:
         """P shortest paths at once: (P, L, 2) points padded with the goal, (P,) point counts.
 
         Row p holds exactly the points of ``shortest_path(starts_xy[p], goals_xy[p])``; the
         start-side vertices are tested lazily, nearest total first, which finds the same
         minimiser (ties: lowest vertex pair) as testing them all. ``goal_sight``: (P, k)
-        :meth:`sights` of the goals, if known. Raises ValueError where no path exists.
+        :meth:`sights` of the goals, if known. ``checked=False`` skips the test that every
+        point is inside the fence (for callers whose points are by construction). Raises
+        ValueError where no path exists.
         """
         starts = np.asarray(starts_xy, float).reshape(-1, 2)
         goals = np.asarray(goals_xy, float).reshape(-1, 2)
-        for name, xy in (("start", starts), ("goal", goals)):
+        for name, xy in (("start", starts), ("goal", goals)) if checked else ():
             outside = ~shapely.intersects_xy(self._cover, xy[:, 0], xy[:, 1])
             if outside.any():
                 raise ValueError(f"{name} {_as_xy(xy[np.argmax(outside)])} is outside the fence")
@@ -372,18 +384,21 @@ class Navigator:
         row_min = total.min(axis=2)
         order = np.argsort(row_min, axis=1, kind="stable")
         first = np.full(rest.size, -1, np.int64)
-        for rank in range(len(verts)):
+        for rank in range(min(_LAZY_RANKS, len(verts))):
             todo = np.flatnonzero(first < 0)
-            if not todo.size:
-                break
             vertex = order[todo, rank]
-            if not np.all(np.isfinite(row_min[todo, vertex])):
-                raise ValueError("no in-fence path between start and goal")
             seen = self._segments_visible(start[todo], verts[vertex]) | (d_s[todo, vertex] == 0)
+            seen &= np.isfinite(row_min[todo, vertex])
             first[todo[seen]] = vertex[seen]
-        if np.any(first < 0):
+        rows = np.arange(rest.size)
+        last = np.argmin(total[rows, np.maximum(first, 0)], axis=1)
+        todo = np.flatnonzero(first < 0)
+        if todo.size:  # the rest as the scalar method: every vertex, one covers call
+            vis_s = self.sights(start[todo])[0]
+            flat = np.argmin(np.where(vis_s[:, :, None], total[todo], np.inf).reshape(todo.size, -1), axis=1)
+            first[todo], last[todo] = np.divmod(flat, len(verts))
+        if not np.all(np.isfinite(total[rows, first, last])):
             raise ValueError("no in-fence path between start and goal")
-        last = np.argmin(total[np.arange(rest.size), first], axis=1)
         route_nodes, route_count = self._routes
         count = np.full(len(starts), 2, np.int64)
         count[rest] += route_count[first, last]
@@ -401,11 +416,14 @@ class Navigator:
         starts_xy: np.ndarray,
         goals_xy: np.ndarray,
         goal_sight: tuple[np.ndarray, np.ndarray] | None = None,
+        checked: bool = True,
     ) -> np.ndarray:
         """(P,) :meth:`travel_distance` of P (start, goal) pairs [m], float for float."""
-        points, count = self.shortest_paths(starts_xy, goals_xy, goal_sight)
+        points, count = self.shortest_paths(starts_xy, goals_xy, goal_sight, checked)
         diff = np.diff(points, axis=1)
         lengths = np.hypot(diff[..., 0], diff[..., 1])
+        if lengths.shape[1] == 1:
+            return lengths[:, 0]
         out = np.empty(len(count))
         for n in np.unique(count):  # path_length sums one row at a time (pairwise summation)
             rows = np.flatnonzero(count == n)
@@ -418,9 +436,10 @@ class Navigator:
         goals_xy: np.ndarray,
         max_step_m: np.ndarray | float,
         goal_sight: tuple[np.ndarray, np.ndarray] | None = None,
+        checked: bool = True,
     ) -> np.ndarray:
         """(P, 2) :meth:`step` of P (position, goal) pairs, each with its own step [m]."""
-        points, count = self.shortest_paths(positions_xy, goals_xy, goal_sight)
+        points, count = self.shortest_paths(positions_xy, goals_xy, goal_sight, checked)
         left = np.array(np.broadcast_to(np.asarray(max_step_m, float), count.shape))
         if np.any(left < 0):
             raise ValueError(f"max_step_m must be >= 0, got {left.min()}")

@@ -27,13 +27,14 @@ fading included); everything else runs through the reference engine
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 import shapely
 
 from skymule.errors import SkymuleError
+from skymule.flight.navigation import Navigator
 from skymule.metrics import Flights, summaries, summary_dicts
 from skymule.policies.autonomous import Priority
 from skymule.scenario import PolicySpec
@@ -90,12 +91,13 @@ def batchable(mission: Mission, spec: PolicySpec) -> bool:
 
 @dataclass(frozen=True)
 class TourResult:
-    """What happened in B missions of one batch, slot by slot (T = max n_slots), input order.
+    """What happened in B missions of one batch, slot by slot (T = max n_slots).
 
-    Row b holds mission b; only its first ``n_slots[b]`` slots happened (padding: NO_SENSOR,
-    0 bits, not hovering, the end position).
+    Input mission b is row ``row[b]`` (rows run longest mission first); only the row's first
+    ``n_slots`` slots happened (padding: NO_SENSOR, 0 bits, not hovering, the end position).
 
     Attributes:
+        row: (B,) the row of each input mission.
         n_slots: (B,) slots each mission ran.
         position_m: (B, T + 1, 2) UAV position at the start of each slot, then the end [m].
         served: (B, T) served sensor, or NO_SENSOR.
@@ -118,6 +120,7 @@ class TourResult:
     snr_db: np.ndarray | None
     rate_bps: np.ndarray | None
     remaining_bit: np.ndarray | None
+    row: np.ndarray
 
 
 def _xy(point: np.ndarray) -> tuple[float, float]:
@@ -134,20 +137,24 @@ def _geometry(missions: Sequence[Mission]) -> tuple[TourGeometry, np.ndarray, An
     known = np.all(np.isfinite(hover), axis=2)
     # unknown hover points are never goals; home stands in for them in the sight tables
     places = np.where(known[..., None], hover, home[None])
-    legal = np.empty((hover.shape[0] + 1, len(missions), 2))
-    for b in range(len(missions)):
-        for i in range(hover.shape[0]):
-            legal[i, b] = legal_goal(nav, _xy(places[i, b]))
-        legal[-1, b] = legal_goal(nav, _xy(home[b]))
-    n_vertices = len(nav.vertices)
-
-    def sight(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        vis, dist = nav.sights(points.reshape(-1, 2))
-        shape = (*points.shape[:-1], n_vertices)
-        return vis.reshape(shape), dist.reshape(shape)
-
-    geometry = TourGeometry(nav, hover, known, home, sight(places))
-    return geometry, legal, sight(legal), sight(home)
+    # legal_goal of every hover point and home: kept where the fence covers it, else the
+    # nearest fence point (rare: one scalar call each)
+    legal = np.concatenate([places, home[None]], axis=0)
+    flat = legal.reshape(-1, 2)
+    for index in np.flatnonzero(~nav.covers_goals(flat)):
+        flat[index] = legal_goal(nav, _xy(flat[index]))
+    # sights of the legal goals; the raw hover points and homes are almost always the same
+    # points, computed again only where legal_goal moved them
+    vis, dist = nav.sights(flat)
+    legal_sight = (vis.reshape(*legal.shape[:-1], -1), dist.reshape(*legal.shape[:-1], -1))
+    raw = np.concatenate([places, home[None]], axis=0)
+    raw_sight = (legal_sight[0].copy(), legal_sight[1].copy())
+    moved = np.any(raw != legal, axis=2)
+    if moved.any():
+        raw_sight[0][moved], raw_sight[1][moved] = nav.sights(raw[moved])
+    hover_sight = (raw_sight[0][:-1], raw_sight[1][:-1])
+    geometry = TourGeometry(nav, hover, known, home, hover_sight)
+    return geometry, legal, legal_sight, (raw_sight[0][-1], raw_sight[1][-1])
 
 
 def _stack(missions: Sequence[Mission]) -> None:
@@ -185,13 +192,7 @@ def run_tours(
     order = np.argsort(-lengths, kind="stable")  # active missions are a prefix of the columns
     sorted_missions = [missions[i] for i in order]
     result = _slot_loop(sorted_missions, [params[i] for i in order], keep_logs)
-    back = np.argsort(order)
-    return TourResult(
-        **{
-            name: None if value is None else value[back]
-            for name, value in vars(result).items()
-        }
-    )
+    return replace(result, row=np.argsort(order))
 
 
 def _slot_loop(
@@ -205,7 +206,6 @@ def _slot_loop(
     slot_s = np.array([m.slot_s for m in missions], float)
     step_m = np.array([m.max_step_m for m in missions], float)
     window = np.array([m.n_slots if m.window_slots is None else m.window_slots for m in missions])
-    return_home = np.array([m.return_home for m in missions], bool)
     buffers = np.array([m.buffers_bit for m in missions], float).reshape(-1, n_sensors).T
     tours: GreedyTours | HGADTours
     if params[0].hgad:
@@ -225,7 +225,9 @@ def _slot_loop(
     t_max = int(n_slots.max())
     position = geometry.home_m.copy()
     remaining = buffers.copy()
-    home_bound = np.zeros(n_missions)  # >= in-fence distance home (return_home missions)
+    deadline = _HomeDeadline(nav, missions, geometry.home_m, home_sight)
+    # where the policy's home (made legal) is the home itself, flying home is the override's move
+    home_is_legal = np.all(legal[n_sensors] == geometry.home_m, axis=1)
     position_log = np.empty((t_max + 1, n_missions, 2))
     served_log = np.full((t_max, n_missions), NO_SENSOR, np.int64)
     downloaded_log = np.zeros((t_max, n_missions))
@@ -258,13 +260,13 @@ def _slot_loop(
                 legal[g, going],
                 step_m[going],
                 (legal_sight[0][g, going], legal_sight[1][g, going]),
+                checked=False,  # positions and legal goals are in the fence by construction
             )
-        overridden = np.zeros(active, bool)
-        if return_home[:active].any():
-            overridden = _return_home(
-                nav, slot, here, moved, n_slots, step_m, return_home, geometry.home_m,
-                home_sight, home_bound,
-            )  # fmt: skip
+        overridden = (
+            deadline.apply(slot, here, moved, (goal == n_sensors) & home_is_legal[:active])
+            if deadline.on[:active].any()
+            else np.zeros(active, bool)
+        )
         served_log[slot, :active] = sensor
         downloaded_log[slot, :active] = bits
         hovering_log[slot, :active] = (
@@ -292,56 +294,86 @@ def _slot_loop(
         snr_db=per_mission(snr_log),
         rate_bps=per_mission(rate_log),
         remaining_bit=per_mission(remaining_log),
+        row=np.arange(n_missions),
     )
 
 
-def _return_home(
-    nav: Any,
-    slot: int,
-    here: np.ndarray,
-    moved: np.ndarray,
-    n_slots: np.ndarray,
-    step_m: np.ndarray,
-    return_home: np.ndarray,
-    home_m: np.ndarray,
-    home_sight: tuple[np.ndarray, np.ndarray],
-    home_bound: np.ndarray,
-) -> np.ndarray:
-    """The reference's return-home override for the first A missions; (A,) True where it
-    overrode the goal (``moved`` then steps toward home, in place).
+class _HomeDeadline:
+    """The reference's return-home override, for B missions (``return_home`` ones only).
 
-    ``home_bound`` (B,) is an upper bound on each UAV's in-fence distance home, updated in
-    place: exact where computed, plus one step per slot (no slot moves the UAV farther).
+    The in-fence distance home is computed only where the override may bind: ``bound`` is an
+    upper bound on it (exact where computed, plus one step per slot: no slot takes the UAV
+    farther), and the distance from where a UAV ends a slot, computed to test the override,
+    is kept as the exact distance at the start of the next one (the same query, the same
+    float). A UAV that flies home anyway is left alone: the override would make the same move
+    (only the ``hovering`` flag could differ, and only if it did not move).
     """
-    active = here.shape[0]
-    step = step_m[:active]
-    budget = (n_slots[:active] - slot - 1) * step + FEASIBILITY_SLACK_M
-    bound = home_bound[:active]
-    overridden = np.zeros(active, bool)
-    check = np.flatnonzero(return_home[:active] & ~(bound + step < budget - BOUND_SLACK_M))
-    if check.size:
-        sight = (home_sight[0][check], home_sight[1][check])
-        now = nav.travel_distances(here[check], home_m[check], sight)
+
+    def __init__(
+        self,
+        navigator: Navigator,
+        missions: Sequence[Mission],
+        home_m: np.ndarray,
+        home_sight: tuple[np.ndarray, np.ndarray],
+    ) -> None:
+        self._nav = navigator
+        self._home = home_m
+        self._sight = home_sight
+        self._n_slots = np.array([m.n_slots for m in missions], np.int64)
+        self._step = np.array([m.max_step_m for m in missions], float)
+        self.on = np.array([m.return_home for m in missions], bool)
+        self._bound = np.zeros(len(missions))
+        self._exact = np.full(len(missions), np.nan)
+
+    def _distances(self, rows: np.ndarray, points: np.ndarray) -> np.ndarray:
+        sight = (self._sight[0][rows], self._sight[1][rows])
+        return self._nav.travel_distances(points, self._home[rows], sight, checked=False)
+
+    def apply(
+        self, slot: int, here: np.ndarray, moved: np.ndarray, flying_home: np.ndarray
+    ) -> np.ndarray:
+        """(A,) True where the override binds for the first A missions; ``moved`` (A, 2) then
+        steps toward home instead (in place). ``flying_home``: (A,) the goal is home."""
+        active = here.shape[0]
+        step = self._step[:active]
+        budget = (self._n_slots[:active] - slot - 1) * step + FEASIBILITY_SLACK_M
+        bound, exact = self._bound[:active], self._exact[:active]
+        overridden = np.zeros(active, bool)
+        same_move = flying_home & ((moved[:, 0] != here[:, 0]) | (moved[:, 1] != here[:, 1]))
+        check = np.flatnonzero(
+            self.on[:active] & ~same_move & ~(bound + step < budget - BOUND_SLACK_M)
+        )
+        now = exact[check]
+        unknown = np.isnan(now)
+        if unknown.any():
+            now[unknown] = self._distances(check[unknown], here[check[unknown]])
+        exact[:] = np.nan  # every UAV moves on
         bound[check] = now
         # d_home(moved) <= d_home(position) + step: test exactly only when it may bind
-        near = now + step[check] > budget[check]
-        if near.any():
-            rows = check[near]
-            after = nav.travel_distances(moved[rows], home_m[rows], (sight[0][near], sight[1][near]))
-            back = rows[after > budget[rows]]
-            if back.size:
-                moved[back] = nav.steps(
-                    here[back], home_m[back], step[back], (home_sight[0][back], home_sight[1][back])
+        rows = check[now + step[check] > budget[check]]
+        if rows.size:
+            after = self._distances(rows, moved[rows])
+            back = after > budget[rows]
+            exact[rows[~back]] = after[~back]
+            back_rows = rows[back]
+            if back_rows.size:
+                moved[back_rows] = self._nav.steps(
+                    here[back_rows],
+                    self._home[back_rows],
+                    step[back_rows],
+                    (self._sight[0][back_rows], self._sight[1][back_rows]),
+                    checked=False,
                 )
-                overridden[back] = True
-    bound += step
-    return overridden
+                overridden[back_rows] = True
+        bound += step
+        return overridden
 
 
 def mission_log(result: TourResult, b: int, mission: Mission, policy: str) -> MissionLog:
     """Mission b's :class:`MissionLog`, field for field as the reference engine makes it."""
     if result.snr_db is None or result.rate_bps is None or result.remaining_bit is None:
         raise ValueError("run_tours(..., keep_logs=True) for logs")
+    b = int(result.row[b])
     n = int(result.n_slots[b])
     altitude = mission.altitude_m
     end = result.position_m[b, n]
@@ -360,7 +392,8 @@ def mission_log(result: TourResult, b: int, mission: Mission, policy: str) -> Mi
 
 
 def tour_flights(result: TourResult, missions: Sequence[Mission]) -> Flights:
-    """The batch as :class:`~skymule.metrics.Flights`: each mission's path is its own track."""
+    """The batch as :class:`~skymule.metrics.Flights`, in row order (``missions`` given in
+    row order too): each mission's path is its own track."""
     n_missions, t_max = result.served.shape
     altitude = np.array([m.altitude_m for m in missions], float)
     track = np.concatenate(
@@ -455,14 +488,14 @@ def summarize_autonomous_batch(
     params = _params(specs)
     rows: list[dict[str, Any] | None] = [None] * len(missions)
     for part in _batches(missions, params, batch_size):
-        chosen = [missions[i] for i in part]
-        result = run_tours(chosen, [params[i] for i in part], keep_logs=False)
+        result = run_tours([missions[i] for i in part], [params[i] for i in part], False)
+        by_row = [part[b] for b in np.argsort(result.row)]  # the input mission of each row
         dicts = summary_dicts(
-            summaries(tour_flights(result, chosen)),
-            [m.sensor_names for m in chosen],
-            [specs[i].name for i in part],
-            [scenario_names[i] for i in part],
+            summaries(tour_flights(result, [missions[i] for i in by_row])),
+            [missions[i].sensor_names for i in by_row],
+            [specs[i].name for i in by_row],
+            [scenario_names[i] for i in by_row],
         )
-        for i, row in zip(part, dicts, strict=True):
+        for i, row in zip(by_row, dicts, strict=True):
             rows[i] = row
     return [row for row in rows if row is not None]

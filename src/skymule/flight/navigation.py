@@ -47,10 +47,6 @@ _HOVER_HALVINGS = 10
 #: :meth:`Navigator.steps` must land on the same floats.
 _math_hypot = np.frompyfunc(math.hypot, 2, 1)
 
-#: :meth:`Navigator.shortest_paths` tests this many start-side vertices one at a time (nearest
-#: total first: almost every path bends at one of them) before testing all of them at once.
-_LAZY_RANKS = 4
-
 
 def _as_xy(p: XY | np.ndarray) -> XY:
     return (float(p[0]), float(p[1]))
@@ -384,21 +380,17 @@ class Navigator:
         row_min = total.min(axis=2)
         order = np.argsort(row_min, axis=1, kind="stable")
         first = np.full(rest.size, -1, np.int64)
-        for rank in range(min(_LAZY_RANKS, len(verts))):
+        for rank in range(len(verts)):
             todo = np.flatnonzero(first < 0)
+            if not todo.size:
+                break
             vertex = order[todo, rank]
             seen = self._segments_visible(start[todo], verts[vertex]) | (d_s[todo, vertex] == 0)
             seen &= np.isfinite(row_min[todo, vertex])
             first[todo[seen]] = vertex[seen]
-        rows = np.arange(rest.size)
-        last = np.argmin(total[rows, np.maximum(first, 0)], axis=1)
-        todo = np.flatnonzero(first < 0)
-        if todo.size:  # the rest as the scalar method: every vertex, one covers call
-            vis_s = self.sights(start[todo])[0]
-            flat = np.argmin(np.where(vis_s[:, :, None], total[todo], np.inf).reshape(todo.size, -1), axis=1)
-            first[todo], last[todo] = np.divmod(flat, len(verts))
-        if not np.all(np.isfinite(total[rows, first, last])):
+        if np.any(first < 0):
             raise ValueError("no in-fence path between start and goal")
+        last = np.argmin(total[np.arange(rest.size), first], axis=1)
         route_nodes, route_count = self._routes
         count = np.full(len(starts), 2, np.int64)
         count[rest] += route_count[first, last]

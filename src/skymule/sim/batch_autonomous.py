@@ -127,13 +127,25 @@ def _xy(point: np.ndarray) -> tuple[float, float]:
     return (float(point[0]), float(point[1]))
 
 
+def padded(values: Sequence[np.ndarray], n_sensors: int, fill: float) -> np.ndarray:
+    """(N, B, ...) per-sensor arrays of B missions, missions with fewer sensors padded with
+    ``fill``: padded sensors have no data and no hover point, so no tour or choice ever
+    picks them, and the logs drop them."""
+    first = np.asarray(values[0], float)
+    out = np.full((n_sensors, len(values), *first.shape[1:]), fill)
+    for b, value in enumerate(values):
+        out[: len(value), b] = value
+    return out
+
+
 def _geometry(missions: Sequence[Mission]) -> tuple[TourGeometry, np.ndarray, Any, Any]:
     """The tours' geometry, the legal goals (N + 1, B, 2) (hover points, then home) and the
     sights of the legal goals and of the (raw) homes."""
     nav = missions[0].navigator
     assert nav is not None
     home = np.array([m.home_m for m in missions], float).reshape(-1, 2)
-    hover = np.stack([np.asarray(m.hover_points_m, float) for m in missions], axis=1)
+    n_sensors = max(m.n_sensors for m in missions)
+    hover = padded([np.asarray(m.hover_points_m, float) for m in missions], n_sensors, np.nan)
     known = np.all(np.isfinite(hover), axis=2)
     # unknown hover points are never goals; home stands in for them in the sight tables
     places = np.where(known[..., None], hover, home[None])
@@ -158,10 +170,9 @@ def _geometry(missions: Sequence[Mission]) -> tuple[TourGeometry, np.ndarray, An
 
 
 def _stack(missions: Sequence[Mission]) -> None:
-    """Check that ``missions`` can share a batch (one fence, one sensor count)."""
+    """Check that ``missions`` can share a batch (one fence)."""
     if not missions:
         raise ValueError("a batch needs at least one mission")
-    first = missions[0]
     for mission in missions:
         if mission.mode != "autonomous" or mission.navigator is None or mission.source is None:
             raise SkymuleError("the batched autonomous engine needs autonomous missions")
@@ -170,8 +181,6 @@ def _stack(missions: Sequence[Mission]) -> None:
                 "the batched autonomous engine does not apply faults: run such missions with "
                 "skymule.sim.run.run_mission (the reference engines)"
             )
-        if mission.n_sensors != first.n_sensors:
-            raise ValueError("a batch needs one sensor count")
     fences = {shapely.to_wkb(m.navigator.fence) for m in missions if m.navigator is not None}
     if len(fences) != 1:
         raise ValueError("a batch needs one geofence")
@@ -180,7 +189,7 @@ def _stack(missions: Sequence[Mission]) -> None:
 def run_tours(
     missions: Sequence[Mission], params: Sequence[TourParams], keep_logs: bool = True
 ) -> TourResult:
-    """Run B autonomous missions (one fence, one sensor count, all Greedy or all HGAD).
+    """Run B autonomous missions (one fence, all Greedy or all HGAD; sensor counts may differ).
 
     ``keep_logs=False`` skips the (B, T, N) SNR, rate and buffer logs (summaries do not need
     them).
@@ -199,20 +208,20 @@ def _slot_loop(
     missions: Sequence[Mission], params: Sequence[TourParams], keep_logs: bool
 ) -> TourResult:
     """:func:`run_tours` on missions sorted by length, longest first."""
-    n_missions, n_sensors = len(missions), missions[0].n_sensors
+    n_missions, n_sensors = len(missions), max(m.n_sensors for m in missions)
     geometry, legal, legal_sight, home_sight = _geometry(missions)
     nav = geometry.navigator
     n_slots = np.array([m.n_slots for m in missions], np.int64)
     slot_s = np.array([m.slot_s for m in missions], float)
     step_m = np.array([m.max_step_m for m in missions], float)
     window = np.array([m.n_slots if m.window_slots is None else m.window_slots for m in missions])
-    buffers = np.array([m.buffers_bit for m in missions], float).reshape(-1, n_sensors).T
+    buffers = padded([m.buffers_bit for m in missions], n_sensors, 0.0)
     tours: GreedyTours | HGADTours
     if params[0].hgad:
-        peak = np.array([autonomous_peak_rate_bps(m) for m in missions]).reshape(-1, n_sensors)
+        peak = padded([autonomous_peak_rate_bps(m) for m in missions], n_sensors, 0.0)
         tours = HGADTours(
             geometry,
-            np.ascontiguousarray(peak.T),
+            peak,
             buffers,
             slot_s,
             np.array([p.max_hover_s for p in params], float),
@@ -220,7 +229,7 @@ def _slot_loop(
         )
     else:
         tours = GreedyTours(geometry, np.array([m.visit_radius_m for m in missions], float))
-    signal = BatchSignal(missions)
+    signal = BatchSignal(missions, n_sensors)
 
     t_max = int(n_slots.max())
     position = geometry.home_m.copy()
@@ -329,6 +338,10 @@ class _HomeDeadline:
         sight = (self._sight[0][rows], self._sight[1][rows])
         return self._nav.travel_distances(points, self._home[rows], sight, checked=False)
 
+    def _beeline(self, rows: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """Straight-line distance home [m]: a lower bound on the in-fence distance."""
+        return np.hypot(points[:, 0] - self._home[rows, 0], points[:, 1] - self._home[rows, 1])
+
     def apply(
         self, slot: int, here: np.ndarray, moved: np.ndarray, flying_home: np.ndarray
     ) -> np.ndarray:
@@ -343,18 +356,24 @@ class _HomeDeadline:
         check = np.flatnonzero(
             self.on[:active] & ~same_move & ~(bound + step < budget - BOUND_SLACK_M)
         )
+        # the test is d_home(position) + step > budget; the straight line is a lower bound
+        # on d_home, so well past the budget it holds without the exact distance
+        sure = self._beeline(check, here[check]) + step[check] > budget[check] + BOUND_SLACK_M
         now = exact[check]
-        unknown = np.isnan(now)
-        if unknown.any():
-            now[unknown] = self._distances(check[unknown], here[check[unknown]])
         exact[:] = np.nan  # every UAV moves on
-        bound[check] = now
+        unknown = np.flatnonzero(np.isnan(now) & ~sure)
+        if unknown.size:
+            now[unknown] = self._distances(check[unknown], here[check[unknown]])
+        bound[check[~sure]] = now[~sure]
         # d_home(moved) <= d_home(position) + step: test exactly only when it may bind
-        rows = check[now + step[check] > budget[check]]
+        rows = check[sure | (now + step[check] > budget[check])]
         if rows.size:
-            after = self._distances(rows, moved[rows])
-            back = after > budget[rows]
-            exact[rows[~back]] = after[~back]
+            back = self._beeline(rows, moved[rows]) > budget[rows] + BOUND_SLACK_M
+            maybe = np.flatnonzero(~back)
+            if maybe.size:
+                after = self._distances(rows[maybe], moved[rows[maybe]])
+                back[maybe] = after > budget[rows[maybe]]
+                exact[rows[maybe[~back[maybe]]]] = after[~back[maybe]]
             back_rows = rows[back]
             if back_rows.size:
                 moved[back_rows] = self._nav.steps(
@@ -374,51 +393,56 @@ def mission_log(result: TourResult, b: int, mission: Mission, policy: str) -> Mi
     if result.snr_db is None or result.rate_bps is None or result.remaining_bit is None:
         raise ValueError("run_tours(..., keep_logs=True) for logs")
     b = int(result.row[b])
-    n = int(result.n_slots[b])
+    n, sensors = int(result.n_slots[b]), mission.n_sensors
     altitude = mission.altitude_m
     end = result.position_m[b, n]
     return MissionLog(
         **log_fields(mission, policy),
         position_m=np.hstack([result.position_m[b, :n], np.full((n, 1), altitude)]),
         end_position_m=np.array([end[0], end[1], altitude]),
-        snr_db=result.snr_db[b, :n].copy(),
-        rate_bps=result.rate_bps[b, :n].copy(),
+        snr_db=result.snr_db[b, :n, :sensors].copy(),
+        rate_bps=result.rate_bps[b, :n, :sensors].copy(),
         served=result.served[b, :n].copy(),
         downloaded_bit=result.downloaded_bit[b, :n].copy(),
-        remaining_bit=result.remaining_bit[b, :n].copy(),
+        remaining_bit=result.remaining_bit[b, :n, :sensors].copy(),
         hovering=result.hovering[b, :n].copy(),
         target=result.target[b, :n].copy(),
     )
 
 
-def tour_flights(result: TourResult, missions: Sequence[Mission]) -> Flights:
-    """The batch as :class:`~skymule.metrics.Flights`, in row order (``missions`` given in
-    row order too): each mission's path is its own track."""
-    n_missions, t_max = result.served.shape
+def tour_flights(result: TourResult, rows: np.ndarray, missions: Sequence[Mission]) -> Flights:
+    """Rows ``rows`` of the batch, missions ``missions`` (one sensor count N), as
+    :class:`~skymule.metrics.Flights`: each mission's path is its own track."""
+    n_missions, n_sensors = len(rows), missions[0].n_sensors
+    t_max = result.served.shape[1]
     altitude = np.array([m.altitude_m for m in missions], float)
     track = np.concatenate(
-        [result.position_m, np.broadcast_to(altitude[:, None, None], (n_missions, t_max + 1, 1))],
+        [
+            result.position_m[rows],
+            np.broadcast_to(altitude[:, None, None], (n_missions, t_max + 1, 1)),
+        ],
         axis=2,
     )
+    n_run = result.n_slots[rows]
     return Flights(
-        n_run=result.n_slots,
+        n_run=n_run,
         slot_s=np.array([m.slot_s for m in missions], float),
         buffers_bit=np.array([m.buffers_bit for m in missions], float).reshape(n_missions, -1),
-        left_bit=result.left_bit,
-        served=result.served,
-        downloaded_bit=result.downloaded_bit,
-        hovering=result.hovering,
+        left_bit=result.left_bit[rows, :n_sensors],
+        served=result.served[rows],
+        downloaded_bit=result.downloaded_bit[rows],
+        hovering=result.hovering[rows],
         track_position_m=track,
-        track_samples=result.n_slots + 1,
+        track_samples=n_run + 1,
         track_id=np.arange(n_missions),
-        sample=np.minimum(np.arange(t_max)[None, :], result.n_slots[:, None]),
-        end_sample=result.n_slots,
+        sample=np.minimum(np.arange(t_max)[None, :], n_run[:, None]),
+        end_sample=n_run,
         home_m=np.array([m.home_m for m in missions], float).reshape(n_missions, 2),
         hover_points_m=np.array([m.hover_points_m for m in missions], float).reshape(
             n_missions, -1, 2
         ),
         visit_radius_m=np.array([m.visit_radius_m for m in missions], float),
-        target=result.target,
+        target=result.target[rows],
         aadm_window_s=np.array([m.score_window_s for m in missions], float),
     )
 
@@ -437,16 +461,16 @@ def tour_params(spec: PolicySpec) -> TourParams:
 def _batches(
     missions: Sequence[Mission], params: Sequence[TourParams], batch_size: int
 ) -> Iterator[list[int]]:
-    """Indices of missions that can share a batch (fence, sensor count, policy), at most
-    ``batch_size`` each."""
-    groups: dict[tuple[bytes, int, bool], list[int]] = {}
+    """Indices of missions that can share a batch (fence, policy), at most ``batch_size``
+    each."""
+    groups: dict[tuple[bytes, bool], list[int]] = {}
     fences: dict[int, bytes] = {}  # missions built together share one navigator object
     for index, (mission, param) in enumerate(zip(missions, params, strict=True)):
         nav = mission.navigator
         assert nav is not None
         if id(nav) not in fences:
             fences[id(nav)] = shapely.to_wkb(nav.fence)
-        key = (fences[id(nav)], mission.n_sensors, param.hgad)
+        key = (fences[id(nav)], param.hgad)
         groups.setdefault(key, []).append(index)
     for indices in groups.values():
         for start in range(0, len(indices), batch_size):
@@ -489,13 +513,17 @@ def summarize_autonomous_batch(
     rows: list[dict[str, Any] | None] = [None] * len(missions)
     for part in _batches(missions, params, batch_size):
         result = run_tours([missions[i] for i in part], [params[i] for i in part], False)
-        by_row = [part[b] for b in np.argsort(result.row)]  # the input mission of each row
-        dicts = summary_dicts(
-            summaries(tour_flights(result, [missions[i] for i in by_row])),
-            [missions[i].sensor_names for i in by_row],
-            [specs[i].name for i in by_row],
-            [scenario_names[i] for i in by_row],
-        )
-        for i, row in zip(by_row, dicts, strict=True):
-            rows[i] = row
+        by_row = np.array(part)[np.argsort(result.row)]  # the input mission of each row
+        sizes = np.array([missions[i].n_sensors for i in by_row])
+        for n_sensors in np.unique(sizes):  # metrics per sensor count: no padded sensors
+            chosen = np.flatnonzero(sizes == n_sensors)
+            inputs = [int(i) for i in by_row[chosen]]
+            dicts = summary_dicts(
+                summaries(tour_flights(result, chosen, [missions[i] for i in inputs])),
+                [missions[i].sensor_names for i in inputs],
+                [specs[i].name for i in inputs],
+                [scenario_names[i] for i in inputs],
+            )
+            for i, row in zip(inputs, dicts, strict=True):
+                rows[i] = row
     return [row for row in rows if row is not None]

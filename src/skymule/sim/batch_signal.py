@@ -24,7 +24,6 @@ import numpy as np
 from skymule.radio.pathloss import AlHourani, Aerial3GPP, FreeSpace, LogDistance, TwoRay
 from skymule.radio.rates import rate_bps
 from skymule.radio.sources import ModelSource
-from skymule.sim.batch_fading import stack_fading
 from skymule.world import Mission
 
 #: Path-loss models that depend on the UAV-sensor offset and the two heights only.
@@ -40,16 +39,20 @@ def _groups(keys: Sequence[object]) -> list[np.ndarray]:
 
 
 class BatchSignal:
-    """What the UAVs of B missions (N sensors each) observe at their positions.
+    """What the UAVs of B missions observe at their positions.
 
     Missions are columns, in the order given; the first A columns are the active ones.
+    Missions with fewer than N sensors are padded (their extra rows are never read): model
+    sources see copies of the first sensor there, other sources NaN (no link).
     """
 
-    def __init__(self, missions: Sequence[Mission]) -> None:
-        n_sensors = missions[0].n_sensors
+    def __init__(self, missions: Sequence[Mission], n_sensors: int) -> None:
         self._altitude = np.array([m.altitude_m for m in missions], float)
         # (N, B, 3) sensor antennas for the offset groups
-        self._sensor_m = np.stack([np.asarray(m.sensor_m, float) for m in missions], axis=1)
+        self._sensor_m = np.empty((n_sensors, len(missions), 3))
+        for b, mission in enumerate(missions):
+            self._sensor_m[:, b] = mission.sensor_m[0]
+            self._sensor_m[: mission.n_sensors, b] = mission.sensor_m
         offset_keys: list[object] = []
         other_keys: list[object] = []
         for mission in missions:
@@ -65,14 +68,19 @@ class BatchSignal:
         self._missions = missions
         self._rate_groups = _groups([(id(m.rate_table), m.bandwidth_hz) for m in missions])
         self._n_sensors = n_sensors
-        # (T_max, N, F) per-slot fading of the F missions that have it
-        self._fading_cols, self._fading_db, _, _ = stack_fading(missions, n_sensors)
+        # (T_max, N, F) per-slot fading of the F missions that have it (0 when padded)
+        self._fading_cols = np.flatnonzero([m.fading_db is not None for m in missions])
+        t_max = max(m.n_slots for m in missions)
+        self._fading_db = np.zeros((t_max, n_sensors, self._fading_cols.size))
+        for f, col in enumerate(self._fading_cols):
+            gains = np.asarray(missions[col].fading_db, float)
+            self._fading_db[: gains.shape[0], : gains.shape[1], f] = gains
 
     def snr_db(self, position_m: np.ndarray, slot: int) -> np.ndarray:
         """(N, A) SNR [dB] each of the first A missions sees at its position (A, 2) in slot
         ``slot``, per-slot fading included (NaN: no link)."""
         active = position_m.shape[0]
-        snr = np.empty((self._n_sensors, active))
+        snr = np.full((self._n_sensors, active), np.nan)
         for cols in self._offset:
             cols = cols[cols < active]
             if not cols.size:
@@ -93,7 +101,7 @@ class BatchSignal:
             source = self._missions[int(cols[0])].source
             assert source is not None
             here = np.column_stack([position_m[cols], self._altitude[cols]])
-            snr[:, cols] = source.snr_db(here).T
+            snr[: self._missions[int(cols[0])].n_sensors, cols] = source.snr_db(here).T
         faded = self._fading_cols < active
         if faded.any():
             cols = self._fading_cols[faded]

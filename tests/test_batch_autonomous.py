@@ -36,7 +36,12 @@ from skymule.world import build_mission
 
 PRESET = "paper-sim-autonomous"
 # paper Table II: the four buffer cases [Mbit] of LW1..LW4 (benchmarks/bench_autonomous.py)
-TABLE_II = [(700, 500, 800, 1000), (500, 800, 1000, 700), (800, 500, 700, 1000), (500, 1000, 700, 800)]
+TABLE_II = [
+    (700, 500, 800, 1000),
+    (500, 800, 1000, 700),
+    (800, 500, 700, 1000),
+    (500, 1000, 700, 800),
+]
 U_FENCE = Polygon([(0, 0), (30, 0), (30, 30), (20, 30), (20, 10), (10, 10), (10, 30), (0, 30)])
 
 
@@ -85,7 +90,7 @@ def layouts(preset):
     """Random layouts: 3..6 sensors (padded in one batch), return home or not, some with
     fading, some short enough that the return-home override binds."""
     rng = np.random.default_rng(7)
-    ranges = LayoutRanges(return_home_probability=0.5, duration_s=(150, 400))
+    ranges = LayoutRanges(return_home_probability=0.5, duration_s=(120, 300))
     scenarios = [random_autonomous_scenario(rng, preset, ranges) for _ in range(18)]
     for k in (2, 5, 11):
         radio = scenarios[k].radio.model_copy(update={"fading": "rician"})
@@ -124,6 +129,7 @@ def test_navigator_batched_queries_reject_points_outside_the_fence():
 
 
 def test_preset_and_table_ii_cases_equal_reference(preset):
+    assert_batched_equal([build_mission(preset)], [lambda: HGAD(max_hover_s=7.0)])
     cases = [build_mission(preset)]
     for buffers in TABLE_II:
         sensors = [
@@ -131,9 +137,7 @@ def test_preset_and_table_ii_cases_equal_reference(preset):
             for sensor, b in zip(preset.sensors, buffers, strict=True)
         ]
         cases.append(build_mission(preset.model_copy(update={"sensors": sensors})))
-    assert_batched_equal(
-        cases, [Greedy, HGAD, lambda: HGAD(priority="remaining"), lambda: HGAD(max_hover_s=7.0)]
-    )
+    assert_batched_equal(cases, [Greedy, HGAD, lambda: HGAD(priority="remaining")])
 
 
 def test_random_layouts_equal_reference(layouts):
@@ -185,7 +189,7 @@ def assert_rows_equal(got: dict, want: dict) -> None:
 
 
 def test_summaries_equal_reference_summaries(preset, layouts):
-    missions = [build_mission(preset), *layouts[:8]]
+    missions = [build_mission(preset), *layouts[:5]]
     specs = [PolicySpec(name=("greedy", "hgad")[k % 2]) for k in range(len(missions))]
     names = [f"m{k}" for k in range(len(missions))]
     rows = summarize_autonomous_batch(missions, specs, names, batch_size=4)

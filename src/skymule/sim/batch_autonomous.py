@@ -262,17 +262,27 @@ def _slot_loop(
         left[rows, cols] -= bits[cols]
         moved = here.copy()
         going = np.flatnonzero(goal >= 0)  # STAY: the step toward the position itself
-        if going.size:
+        likely = deadline.likely(active)  # their step home, in the same query
+        home_move = np.full((active, 2), np.nan)
+        if going.size or likely.size:
             g = goal[going]
-            moved[going] = nav.steps(
-                here[going],
-                legal[g, going],
-                step_m[going],
-                (legal_sight[0][g, going], legal_sight[1][g, going]),
+            rows = np.concatenate([going, likely])
+            found = nav.steps(
+                here[rows],
+                np.concatenate([legal[g, going], geometry.home_m[likely]]),
+                step_m[rows],
+                (
+                    np.concatenate([legal_sight[0][g, going], home_sight[0][likely]]),
+                    np.concatenate([legal_sight[1][g, going], home_sight[1][likely]]),
+                ),
                 checked=False,  # positions and legal goals are in the fence by construction
             )
+            moved[going] = found[: going.size]
+            home_move[likely] = found[going.size :]
         overridden = (
-            deadline.apply(slot, here, moved, (goal == n_sensors) & home_is_legal[:active])
+            deadline.apply(
+                slot, here, moved, (goal == n_sensors) & home_is_legal[:active], home_move
+            )
             if deadline.on[:active].any()
             else np.zeros(active, bool)
         )
@@ -333,6 +343,7 @@ class _HomeDeadline:
         self.on = np.array([m.return_home for m in missions], bool)
         self._bound = np.zeros(len(missions))
         self._exact = np.full(len(missions), np.nan)
+        self._last = np.zeros(len(missions), bool)  # overridden in the last slot
 
     def _distances(self, rows: np.ndarray, points: np.ndarray) -> np.ndarray:
         sight = (self._sight[0][rows], self._sight[1][rows])
@@ -342,11 +353,22 @@ class _HomeDeadline:
         """Straight-line distance home [m]: a lower bound on the in-fence distance."""
         return np.hypot(points[:, 0] - self._home[rows, 0], points[:, 1] - self._home[rows, 1])
 
+    def likely(self, active: int) -> np.ndarray:
+        """Rows among the first A whose goal was overridden last slot (likely again now): the
+        engine computes their step home together with the policy's steps."""
+        return np.flatnonzero(self._last[:active])
+
     def apply(
-        self, slot: int, here: np.ndarray, moved: np.ndarray, flying_home: np.ndarray
+        self,
+        slot: int,
+        here: np.ndarray,
+        moved: np.ndarray,
+        flying_home: np.ndarray,
+        home_move: np.ndarray,
     ) -> np.ndarray:
         """(A,) True where the override binds for the first A missions; ``moved`` (A, 2) then
-        steps toward home instead (in place). ``flying_home``: (A,) the goal is home."""
+        steps toward home instead (in place). ``flying_home``: (A,) the goal is home;
+        ``home_move``: (A, 2) the step home where already computed, else NaN."""
         active = here.shape[0]
         step = self._step[:active]
         budget = (self._n_slots[:active] - slot - 1) * step + FEASIBILITY_SLACK_M
@@ -356,35 +378,45 @@ class _HomeDeadline:
         check = np.flatnonzero(
             self.on[:active] & ~same_move & ~(bound + step < budget - BOUND_SLACK_M)
         )
+        limit = budget[check]
         # the test is d_home(position) + step > budget; the straight line is a lower bound
         # on d_home, so well past the budget it holds without the exact distance
-        sure = self._beeline(check, here[check]) + step[check] > budget[check] + BOUND_SLACK_M
+        sure = self._beeline(check, here[check]) + step[check] > limit + BOUND_SLACK_M
         now = exact[check]
         exact[:] = np.nan  # every UAV moves on
-        unknown = np.flatnonzero(np.isnan(now) & ~sure)
-        if unknown.size:
-            now[unknown] = self._distances(check[unknown], here[check[unknown]])
+        unknown = np.isnan(now) & ~sure
+        # then d_home(moved) > budget; the same lower bound decides most rows, the others
+        # (speculatively, with the unknown d_home(position), in one query) need the distance
+        back_sure = self._beeline(check, moved[check]) > limit + BOUND_SLACK_M
+        ask = ~back_sure & (sure | unknown | (now + step[check] > limit))
+        first, then = check[unknown], check[ask]
+        found = self._distances(
+            np.concatenate([first, then]), np.concatenate([here[first], moved[then]])
+        )
+        now[unknown] = found[: first.size]
+        after = np.full(check.size, np.nan)
+        after[ask] = found[first.size :]
         bound[check[~sure]] = now[~sure]
-        # d_home(moved) <= d_home(position) + step: test exactly only when it may bind
-        rows = check[sure | (now + step[check] > budget[check])]
+        near = sure | (now + step[check] > limit)
+        back = near & (back_sure | (after > limit))
+        keep = ask & ~back  # where the UAV ends this slot: the exact distance for the next one
+        exact[check[keep]] = after[keep]
+        rows = check[back]
         if rows.size:
-            back = self._beeline(rows, moved[rows]) > budget[rows] + BOUND_SLACK_M
-            maybe = np.flatnonzero(~back)
-            if maybe.size:
-                after = self._distances(rows[maybe], moved[rows[maybe]])
-                back[maybe] = after > budget[rows[maybe]]
-                exact[rows[maybe[~back[maybe]]]] = after[~back[maybe]]
-            back_rows = rows[back]
-            if back_rows.size:
-                moved[back_rows] = self._nav.steps(
-                    here[back_rows],
-                    self._home[back_rows],
-                    step[back_rows],
-                    (self._sight[0][back_rows], self._sight[1][back_rows]),
+            todo = rows[np.isnan(home_move[rows, 0])]
+            if todo.size:
+                home_move[todo] = self._nav.steps(
+                    here[todo],
+                    self._home[todo],
+                    step[todo],
+                    (self._sight[0][todo], self._sight[1][todo]),
                     checked=False,
                 )
-                overridden[back_rows] = True
+            moved[rows] = home_move[rows]
+            overridden[rows] = True
         bound += step
+        self._last[:] = False
+        self._last[rows] = True
         return overridden
 
 

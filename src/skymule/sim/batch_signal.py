@@ -21,7 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from skymule.radio.pathloss import AlHourani, Aerial3GPP, FreeSpace, LogDistance, TwoRay
+from skymule.radio.pathloss import Aerial3GPP, AlHourani, FreeSpace, LogDistance, TwoRay
 from skymule.radio.rates import rate_bps
 from skymule.radio.sources import ModelSource
 from skymule.world import Mission
@@ -72,8 +72,9 @@ class BatchSignal:
         self._fading_cols = np.flatnonzero([m.fading_db is not None for m in missions])
         t_max = max(m.n_slots for m in missions)
         self._fading_db = np.zeros((t_max, n_sensors, self._fading_cols.size))
-        for f, col in enumerate(self._fading_cols):
-            gains = np.asarray(missions[col].fading_db, float)
+        for f, col in enumerate(self._fading_cols.tolist()):
+            gains = missions[col].fading_db
+            assert gains is not None
             self._fading_db[: gains.shape[0], : gains.shape[1], f] = gains
 
     def snr_db(self, position_m: np.ndarray, slot: int) -> np.ndarray:

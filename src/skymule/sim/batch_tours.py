@@ -189,9 +189,7 @@ class HGADTours:
         """
         n_sensors, active = remaining.shape
         hover = self._geo.hover_m
-        en_route = contract.hgad_choice(
-            rate_bps, snr_db, contract.servable(rate_bps, remaining)
-        )
+        en_route = contract.hgad_choice(rate_bps, snr_db, contract.servable(rate_bps, remaining))
         serve = np.full(active, NO_SENSOR, np.int64)
         goal = np.full(active, n_sensors, np.int64)  # home
         shown = np.full(active, NO_SENSOR, np.int64)

@@ -47,6 +47,10 @@ _HOVER_HALVINGS = 10
 #: :meth:`Navigator.steps` must land on the same floats.
 _math_hypot = np.frompyfunc(math.hypot, 2, 1)
 
+#: :meth:`Navigator.shortest_paths` tests the start's view of this many vertices one at a time
+#: (smallest total first) before testing all of them at once for the rows left.
+_LAZY_RANKS = 3
+
 
 def _as_xy(p: XY | np.ndarray) -> XY:
     return (float(p[0]), float(p[1]))
@@ -353,9 +357,9 @@ class Navigator:
     ) -> tuple[np.ndarray, np.ndarray]:
         """P shortest paths at once: (P, L, 2) points padded with the goal, (P,) point counts.
 
-        Row p holds exactly the points of ``shortest_path(starts_xy[p], goals_xy[p])``; the
-        start-side vertices are tested lazily, nearest total first, which finds the same
-        minimiser (ties: lowest vertex pair) as testing them all. ``goal_sight``: (P, k)
+        Row p holds exactly the points of ``shortest_path(starts_xy[p], goals_xy[p])``. Where
+        the start sees the vertex of the smallest total, that is the scalar method's minimiser
+        (ties: lowest vertex pair) without testing the others. ``goal_sight``: (P, k)
         :meth:`sights` of the goals, if known. ``checked=False`` skips the test that every
         point is inside the fence (for callers whose points are by construction). Raises
         ValueError where no path exists.
@@ -378,9 +382,12 @@ class Navigator:
         d_s = np.hypot(verts[None, :, 0] - start[:, None, 0], verts[None, :, 1] - start[:, None, 1])
         total = d_s[:, :, None] + self._dist[None] + np.where(vis_g, d_g, np.inf)[:, None, :]
         row_min = total.min(axis=2)
-        order = np.argsort(row_min, axis=1, kind="stable")
+        rows = np.arange(rest.size)
+        order = np.argsort(row_min, axis=1, kind="stable")  # ties: the lower vertex first
         first = np.full(rest.size, -1, np.int64)
-        for rank in range(len(verts)):
+        # most paths bend at one of the vertices of the smallest totals: test those first,
+        # nearest first, then the few rows left against every vertex at once
+        for rank in range(min(_LAZY_RANKS, len(verts))):
             todo = np.flatnonzero(first < 0)
             if not todo.size:
                 break
@@ -388,9 +395,14 @@ class Navigator:
             seen = self._segments_visible(start[todo], verts[vertex]) | (d_s[todo, vertex] == 0)
             seen &= np.isfinite(row_min[todo, vertex])
             first[todo[seen]] = vertex[seen]
-        if np.any(first < 0):
+        last = np.argmin(total[rows, np.maximum(first, 0)], axis=1)
+        todo = np.flatnonzero(first < 0)
+        if todo.size:
+            masked = np.where(self.sights(start[todo])[0][:, :, None], total[todo], np.inf)
+            flat = np.argmin(masked.reshape(todo.size, -1), axis=1)
+            first[todo], last[todo] = np.divmod(flat, len(verts))
+        if not np.all(np.isfinite(total[rows, first, last])):
             raise ValueError("no in-fence path between start and goal")
-        last = np.argmin(total[np.arange(rest.size), first], axis=1)
         route_nodes, route_count = self._routes
         count = np.full(len(starts), 2, np.int64)
         count[rest] += route_count[first, last]

@@ -11,17 +11,21 @@ for value (the test suite compares every log field). Every slot t (``docs/contra
    rate en route or its hover target, through :mod:`skymule.sim.contract`; each names a goal;
 3. the served sensor delivers min(R dt, Q) bits (nothing once the download window closed);
 4. the UAV moves at most ``max_step_m`` along the in-fence shortest path toward the legal goal
-   (:meth:`~skymule.flight.navigation.Navigator.steps`: one vectorised shapely ``covers`` call
-   per query over all missions, against the same prepared polygon, so the same decisions);
-   with ``return_home`` the goal is overridden by home when the reference would override it.
-   The in-fence distance home is computed only in slots where the override may bind: it grows
-   by at most one step per slot, so an upper bound well inside the time left rules it out.
+   (:meth:`~skymule.flight.navigation.Navigator.steps`: vectorised shapely ``covers`` calls
+   over all missions' segments, against the same prepared polygon as the scalar queries, so
+   the same decisions); with ``return_home`` the goal is overridden by home where the
+   reference would override it (:class:`~skymule.sim.batch_home.HomeDeadline`, which asks for
+   the distance home only where a bound cannot decide).
 
-Missions of one batch share the geofence (one :class:`Navigator`) and the sensor count, and run
-one policy; :func:`run_autonomous_batch` and :func:`summarize_autonomous_batch` group them.
-Scope (:func:`batchable`): fault-free autonomous missions under ``greedy`` or ``hgad`` (per-slot
-fading included); everything else runs through the reference engine
-(:func:`skymule.sim.run.run_mission`).
+Missions of one batch share the geofence (one :class:`Navigator`; missions built separately
+on the same fence are grouped by its geometry) and run one policy; missions with fewer sensors
+are padded (no data, no hover point: never chosen, dropped from the logs).
+:func:`run_autonomous_batch` (logs) and :func:`summarize_autonomous_batch` (the sweep path:
+``metrics.summarize`` rows straight from the batch arrays) group and batch them. Scope
+(:func:`batchable`): fault-free autonomous missions under ``greedy`` or ``hgad`` (per-slot
+fading included); missions with faults and other policies run through the reference engine
+(:func:`skymule.sim.run.run_mission`). The slot contract these rules implement is
+``docs/contract.md``; speed and what falls back: ``docs/speed-notes.md``.
 """
 
 from __future__ import annotations
@@ -34,12 +38,12 @@ import numpy as np
 import shapely
 
 from skymule.errors import SkymuleError
-from skymule.flight.navigation import Navigator
 from skymule.metrics import Flights, summaries, summary_dicts
 from skymule.policies.autonomous import Priority
 from skymule.scenario import PolicySpec
 from skymule.sim import contract
-from skymule.sim.autonomous import FEASIBILITY_SLACK_M, legal_goal
+from skymule.sim.autonomous import legal_goal
+from skymule.sim.batch_home import HomeDeadline
 from skymule.sim.batch_signal import BatchSignal
 from skymule.sim.batch_tours import GreedyTours, HGADTours, TourGeometry
 from skymule.sim.context import autonomous_peak_rate_bps
@@ -47,10 +51,6 @@ from skymule.sim.contract import NO_SENSOR
 from skymule.sim.engine import log_fields
 from skymule.sim.log import MissionLog
 from skymule.world import Mission
-
-#: Margin [m] by which an upper bound on the distance home must clear the time left before the
-#: exact distance is skipped (far above float round-off, far below a step).
-BOUND_SLACK_M = 1e-3
 
 
 @dataclass(frozen=True)
@@ -234,7 +234,7 @@ def _slot_loop(
     t_max = int(n_slots.max())
     position = geometry.home_m.copy()
     remaining = buffers.copy()
-    deadline = _HomeDeadline(nav, missions, geometry.home_m, home_sight)
+    deadline = HomeDeadline(nav, missions, geometry.home_m, home_sight)
     # where the policy's home (made legal) is the home itself, flying home is the override's move
     home_is_legal = np.all(legal[n_sensors] == geometry.home_m, axis=1)
     position_log = np.empty((t_max + 1, n_missions, 2))
@@ -315,109 +315,6 @@ def _slot_loop(
         remaining_bit=per_mission(remaining_log),
         row=np.arange(n_missions),
     )
-
-
-class _HomeDeadline:
-    """The reference's return-home override, for B missions (``return_home`` ones only).
-
-    The in-fence distance home is computed only where the override may bind: ``bound`` is an
-    upper bound on it (exact where computed, plus one step per slot: no slot takes the UAV
-    farther), and the distance from where a UAV ends a slot, computed to test the override,
-    is kept as the exact distance at the start of the next one (the same query, the same
-    float). A UAV that flies home anyway is left alone: the override would make the same move
-    (only the ``hovering`` flag could differ, and only if it did not move).
-    """
-
-    def __init__(
-        self,
-        navigator: Navigator,
-        missions: Sequence[Mission],
-        home_m: np.ndarray,
-        home_sight: tuple[np.ndarray, np.ndarray],
-    ) -> None:
-        self._nav = navigator
-        self._home = home_m
-        self._sight = home_sight
-        self._n_slots = np.array([m.n_slots for m in missions], np.int64)
-        self._step = np.array([m.max_step_m for m in missions], float)
-        self.on = np.array([m.return_home for m in missions], bool)
-        self._bound = np.zeros(len(missions))
-        self._exact = np.full(len(missions), np.nan)
-        self._last = np.zeros(len(missions), bool)  # overridden in the last slot
-
-    def _distances(self, rows: np.ndarray, points: np.ndarray) -> np.ndarray:
-        sight = (self._sight[0][rows], self._sight[1][rows])
-        return self._nav.travel_distances(points, self._home[rows], sight, checked=False)
-
-    def _beeline(self, rows: np.ndarray, points: np.ndarray) -> np.ndarray:
-        """Straight-line distance home [m]: a lower bound on the in-fence distance."""
-        return np.hypot(points[:, 0] - self._home[rows, 0], points[:, 1] - self._home[rows, 1])
-
-    def likely(self, active: int) -> np.ndarray:
-        """Rows among the first A whose goal was overridden last slot (likely again now): the
-        engine computes their step home together with the policy's steps."""
-        return np.flatnonzero(self._last[:active])
-
-    def apply(
-        self,
-        slot: int,
-        here: np.ndarray,
-        moved: np.ndarray,
-        flying_home: np.ndarray,
-        home_move: np.ndarray,
-    ) -> np.ndarray:
-        """(A,) True where the override binds for the first A missions; ``moved`` (A, 2) then
-        steps toward home instead (in place). ``flying_home``: (A,) the goal is home;
-        ``home_move``: (A, 2) the step home where already computed, else NaN."""
-        active = here.shape[0]
-        step = self._step[:active]
-        budget = (self._n_slots[:active] - slot - 1) * step + FEASIBILITY_SLACK_M
-        bound, exact = self._bound[:active], self._exact[:active]
-        overridden = np.zeros(active, bool)
-        same_move = flying_home & ((moved[:, 0] != here[:, 0]) | (moved[:, 1] != here[:, 1]))
-        check = np.flatnonzero(
-            self.on[:active] & ~same_move & ~(bound + step < budget - BOUND_SLACK_M)
-        )
-        limit = budget[check]
-        # the test is d_home(position) + step > budget; the straight line is a lower bound
-        # on d_home, so well past the budget it holds without the exact distance
-        sure = self._beeline(check, here[check]) + step[check] > limit + BOUND_SLACK_M
-        now = exact[check]
-        exact[:] = np.nan  # every UAV moves on
-        unknown = np.isnan(now) & ~sure
-        # then d_home(moved) > budget; the same lower bound decides most rows, the others
-        # (speculatively, with the unknown d_home(position), in one query) need the distance
-        back_sure = self._beeline(check, moved[check]) > limit + BOUND_SLACK_M
-        ask = ~back_sure & (sure | unknown | (now + step[check] > limit))
-        first, then = check[unknown], check[ask]
-        found = self._distances(
-            np.concatenate([first, then]), np.concatenate([here[first], moved[then]])
-        )
-        now[unknown] = found[: first.size]
-        after = np.full(check.size, np.nan)
-        after[ask] = found[first.size :]
-        bound[check[~sure]] = now[~sure]
-        near = sure | (now + step[check] > limit)
-        back = near & (back_sure | (after > limit))
-        keep = ask & ~back  # where the UAV ends this slot: the exact distance for the next one
-        exact[check[keep]] = after[keep]
-        rows = check[back]
-        if rows.size:
-            todo = rows[np.isnan(home_move[rows, 0])]
-            if todo.size:
-                home_move[todo] = self._nav.steps(
-                    here[todo],
-                    self._home[todo],
-                    step[todo],
-                    (self._sight[0][todo], self._sight[1][todo]),
-                    checked=False,
-                )
-            moved[rows] = home_move[rows]
-            overridden[rows] = True
-        bound += step
-        self._last[:] = False
-        self._last[rows] = True
-        return overridden
 
 
 def mission_log(result: TourResult, b: int, mission: Mission, policy: str) -> MissionLog:

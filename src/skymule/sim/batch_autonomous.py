@@ -261,7 +261,10 @@ def _slot_loop(
         bits[cols] = contract.served_bits(rate[rows, cols], left[rows, cols], slot_s[cols])
         left[rows, cols] -= bits[cols]
         moved = here.copy()
-        going = np.flatnonzero(goal >= 0)  # STAY: the step toward the position itself
+        # a step toward the position itself (STAY, or a UAV already at its goal) stays put
+        going = np.flatnonzero(goal >= 0)
+        there = legal[goal[going], going]
+        going = going[(there[:, 0] != here[going, 0]) | (there[:, 1] != here[going, 1])]
         likely = deadline.likely(active)  # their step home, in the same query
         home_move = np.full((active, 2), np.nan)
         if going.size or likely.size:

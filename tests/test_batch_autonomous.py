@@ -88,14 +88,25 @@ def preset():
 @pytest.fixture(scope="module")
 def layouts(preset):
     """Random layouts: 3..6 sensors (padded in one batch), return home or not, some with
-    fading, some short enough that the return-home override binds."""
+    fading, shadowing, another path-loss model, altitude or download window, some short
+    enough that the return-home override binds."""
     rng = np.random.default_rng(7)
     ranges = LayoutRanges(return_home_probability=0.5, duration_s=(120, 300))
     scenarios = [random_autonomous_scenario(rng, preset, ranges) for _ in range(18)]
-    for k in (2, 5, 11):
-        radio = scenarios[k].radio.model_copy(update={"fading": "rician"})
+    changes = {
+        2: {"fading": "rician"},
+        5: {"fading": "rayleigh", "shadowing_std_db": 6.0},
+        8: {"shadowing_std_db": 4.0},
+        11: {"model": "two-ray"},
+    }
+    for k, change in changes.items():
+        radio = scenarios[k].radio.model_copy(update=change)
         scenarios[k] = scenarios[k].model_copy(update={"radio": radio})
-    return [build_mission(s) for s in scenarios]
+    higher = scenarios[13].trajectory.model_copy(update={"altitude_m": 60.0})
+    scenarios[13] = scenarios[13].model_copy(update={"trajectory": higher})
+    missions = [build_mission(s) for s in scenarios]
+    missions[15] = replace(missions[15], aadm_window_s=60.0)
+    return missions
 
 
 def test_navigator_batched_queries_equal_scalar_ones(preset):

@@ -222,6 +222,8 @@ def test_batchable_scope(preset):
     assert not batchable(build_mission(load_scenario("paper-sim-fixed")), PolicySpec(name="hgad"))
     with pytest.raises(SkymuleError, match="no batched autonomous engine"):
         run_autonomous_batch([mission], [PolicySpec(name="planner")])
+    with pytest.raises(SkymuleError, match="needs autonomous missions"):
+        run_autonomous_batch([build_mission(load_scenario("paper-sim-fixed"))], [PolicySpec()])
     with pytest.raises(SkymuleError, match="does not apply faults"):
         run_tours([faulty], [TourParams(hgad=True)])
 

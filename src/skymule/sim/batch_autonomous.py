@@ -399,7 +399,8 @@ def _batches(
     fences: dict[int, bytes] = {}  # missions built together share one navigator object
     for index, (mission, param) in enumerate(zip(missions, params, strict=True)):
         nav = mission.navigator
-        assert nav is not None
+        if nav is None:
+            raise SkymuleError("the batched autonomous engine needs autonomous missions")
         if id(nav) not in fences:
             fences[id(nav)] = shapely.to_wkb(nav.fence)
         key = (fences[id(nav)], param.hgad)

@@ -4,7 +4,9 @@ Run: python benchmarks/bench_autonomous.py (SKYMULE_BENCH_TINY=1: first Table II
 
 Last, the reference engine's speed (sim/autonomous.py + the tours): missions and mission-slots
 per CPU-second of Greedy and HGAD on the preset plus ``n_random`` random layouts
-(skymule.experiments.layouts), the baseline a batched autonomous engine is measured against.
+(skymule.experiments.layouts), then the batched autonomous engine's (sim/batch_autonomous.py)
+on ``n_batched`` more, with the ratio per mission, measured in the same run.
+Run: python benchmarks/bench_autonomous.py [n_random [n_batched]]
 """
 
 from __future__ import annotations
@@ -20,7 +22,8 @@ from skymule.metrics import summarize
 from skymule.policies.greedy import Greedy
 from skymule.policies.hgad import HGAD
 from skymule.runner import simulate
-from skymule.scenario import load_scenario
+from skymule.scenario import PolicySpec, load_scenario
+from skymule.sim.batch_autonomous import summarize_autonomous_batch
 from skymule.sim.run import run_mission
 from skymule.world import build_mission
 
@@ -33,26 +36,46 @@ TABLE_II = [
 ]
 
 
-def reference_speed(n_random: int) -> None:
-    """Missions and mission-slots per CPU-second of the reference autonomous engine."""
+def reference_speed(n_random: int, n_batched: int) -> None:
+    """Missions and mission-slots per CPU-second of the reference autonomous engine, and of the
+    batched one (sim/batch_autonomous.py, the sweep path: summaries straight from the batch
+    arrays) on ``n_batched`` further random layouts, with the ratio per mission."""
     base = load_scenario(PRESET)
     rng = np.random.default_rng(0)
     scenarios = [base, *(random_autonomous_scenario(rng, base) for _ in range(n_random))]
     missions = [build_mission(s) for s in scenarios]
     slots = sum(m.n_slots for m in missions)
     print(f"reference engine, {len(missions)} missions ({PRESET} + random layouts), per CPU-s:")
+    reference = {}
     for policy in (Greedy, HGAD):
         start = time.process_time()
         for mission in missions:
             run_mission(mission, policy())
         seconds = time.process_time() - start
+        reference[policy.name] = len(missions) / seconds
         print(
             f"  {policy.name:6s} {len(missions) / seconds:6.2f} missions, "
             f"{slots / seconds:8,.0f} mission-slots"
         )
+    layouts = [random_autonomous_scenario(rng, base) for _ in range(n_batched)]
+    batch = [build_mission(s) for s in layouts]
+    slots = sum(m.n_slots for m in batch)
+    print(
+        f"batched engine (summaries), {len(batch)} random layouts "
+        f"({len({m.n_sensors for m in batch})} sensor counts), per CPU-s, ratio to reference:"
+    )
+    for name in ("greedy", "hgad"):
+        spec = PolicySpec(name=name)
+        start = time.process_time()
+        summarize_autonomous_batch(batch, [spec] * len(batch), [s.name for s in layouts])
+        seconds = time.process_time() - start
+        print(
+            f"  {name:6s} {len(batch) / seconds:8.1f} missions, {slots / seconds:10,.0f} "
+            f"mission-slots, {len(batch) / seconds / reference[name]:5.1f}x the reference"
+        )
 
 
-def main(n_random: int = size(10, 1)) -> None:
+def main(n_random: int = size(10, 1), n_batched: int = size(1000, 8)) -> None:
     scenario = load_scenario(PRESET)
     mission = build_mission(scenario)
     print(f"{PRESET}: policy, Mbit, completion, hover s, distance m, energy kJ, AADM score, s/run")
@@ -77,7 +100,7 @@ def main(n_random: int = size(10, 1)) -> None:
             for p in ("initial", "remaining")
         ]
         print(f"  {buffers}  {paper}  {orders[0]} ({orders[0] == paper})  {orders[1]}")
-    reference_speed(n_random)
+    reference_speed(n_random, n_batched)
 
 
 if __name__ == "__main__":

@@ -8,10 +8,11 @@ writes its own part. Chunks are at most ``chunk_size`` missions and within a mem
 
 Fixed-trajectory Greedy/HGAD missions (per-slot fading included) run through the batched
 engine (:mod:`skymule.sim.batch`), whose summaries come straight from the batch arrays
-(``summarize_fixed_batch``: no per-mission log is built); every other mission (other policies,
-autonomous flights) runs through the reference engine, one at a time, in the worker. Either way
-the row is ``metrics.summarize`` of the mission's log, value for value, as ``skymule run``
-gives.
+(``summarize_fixed_batch``: no per-mission log is built); fault-free autonomous Greedy/HGAD
+missions likewise through the batched autonomous engine (:mod:`skymule.sim.batch_autonomous`,
+batched per geofence); every other mission (other policies, faults on autonomous flights) runs
+through the reference engine, one at a time, in the worker. Either way the row is
+``metrics.summarize`` of the mission's log, value for value, as ``skymule run`` gives.
 """
 
 from __future__ import annotations
@@ -188,6 +189,7 @@ def _run_items(items: Sequence[_Item]) -> pd.DataFrame:
     """Build each geometry once, batch what the batched engine can run, summarise every row."""
     from skymule.metrics import summarize
     from skymule.policies import make_policy
+    from skymule.sim import batch_autonomous
     from skymule.sim.batch import batchable, summarize_fixed_batch
     from skymule.sim.run import run_mission
     from skymule.world import build_mission
@@ -195,6 +197,7 @@ def _run_items(items: Sequence[_Item]) -> pd.DataFrame:
     built: dict[Hashable, Mission] = {}
     summaries: list[dict[str, Any] | None] = [None] * len(items)
     batched: list[tuple[int, Mission, PolicySpec, Hashable]] = []
+    autonomous: list[tuple[int, Mission, PolicySpec]] = []
     for position, item in enumerate(items):
         shared = built.get(item.key)
         if shared is None:
@@ -207,6 +210,8 @@ def _run_items(items: Sequence[_Item]) -> pd.DataFrame:
         mission = _per_mission(shared, item.scenario)
         if batchable(mission, item.scenario.policy):
             batched.append((position, mission, item.scenario.policy, item.key))
+        elif batch_autonomous.batchable(mission, item.scenario.policy):
+            autonomous.append((position, mission, item.scenario.policy))
         else:
             log = run_mission(mission, make_policy(item.scenario.policy))
             summaries[position] = summarize(log, item.scenario.name)
@@ -218,6 +223,14 @@ def _run_items(items: Sequence[_Item]) -> pd.DataFrame:
         )
         for (position, _, _, _), batch_summary in zip(batched, rows_batched, strict=True):
             summaries[position] = batch_summary
+    if autonomous:
+        rows_autonomous = batch_autonomous.summarize_autonomous_batch(
+            [m for _, m, _ in autonomous],
+            [s for _, _, s in autonomous],
+            [m.scenario.name for _, m, _ in autonomous],
+        )
+        for (position, _, _), row in zip(autonomous, rows_autonomous, strict=True):
+            summaries[position] = row
     rows = []
     for item, summary in zip(items, summaries, strict=True):
         assert summary is not None

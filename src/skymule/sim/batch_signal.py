@@ -1,0 +1,121 @@
+"""SNR and rates at B UAV positions at once, for missions with different sensors and sources.
+
+The batched autonomous engine (:mod:`skymule.sim.batch_autonomous`) needs, every slot, what
+``mission.source.snr_db`` and ``mission.rate_bps`` give each mission at its UAV's position.
+Missions of one batch may have their own sensors and signal sources:
+
+* model sources (:class:`~skymule.radio.sources.ModelSource`) whose path-loss model depends
+  only on the UAV-sensor offset and heights (every registered model) are evaluated together,
+  one call per (model, link budget, altitude): each sensor is moved by minus its mission's UAV
+  position, so that one UAV at (0, 0, altitude) sees every mission's sensors where its own UAV
+  does. The differences are the same floats (x - u = -(u - x) exactly), so the SNR is too;
+* any other source (shadowing, radio maps) is asked once per distinct source object, with the
+  positions of the missions that share it.
+
+Rates follow the same way, one call per distinct (rate table, bandwidth).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from skymule.radio.pathloss import Aerial3GPP, AlHourani, FreeSpace, LogDistance, TwoRay
+from skymule.radio.rates import rate_bps
+from skymule.radio.sources import ModelSource
+from skymule.world import Mission
+
+#: Path-loss models that depend on the UAV-sensor offset and the two heights only.
+OFFSET_MODELS = (FreeSpace, LogDistance, TwoRay, AlHourani, Aerial3GPP)
+
+
+def _groups(keys: Sequence[object]) -> list[np.ndarray]:
+    """Column indices of equal keys, in order of first appearance."""
+    index: dict[object, list[int]] = {}
+    for column, key in enumerate(keys):
+        index.setdefault(key, []).append(column)
+    return [np.asarray(cols, np.int64) for cols in index.values()]
+
+
+class BatchSignal:
+    """What the UAVs of B missions observe at their positions.
+
+    Missions are columns, in the order given; the first A columns are the active ones.
+    Missions with fewer than N sensors are padded (their extra rows are never read): model
+    sources see copies of the first sensor there, other sources NaN (no link).
+    """
+
+    def __init__(self, missions: Sequence[Mission], n_sensors: int) -> None:
+        self._altitude = np.array([m.altitude_m for m in missions], float)
+        # (N, B, 3) sensor antennas for the offset groups
+        self._sensor_m = np.empty((n_sensors, len(missions), 3))
+        for b, mission in enumerate(missions):
+            self._sensor_m[:, b] = mission.sensor_m[0]
+            self._sensor_m[: mission.n_sensors, b] = mission.sensor_m
+        offset_keys: list[object] = []
+        other_keys: list[object] = []
+        for mission in missions:
+            source = mission.source
+            if type(source) is ModelSource and type(source.pathloss) in OFFSET_MODELS:
+                offset_keys.append((source.pathloss, source.budget, mission.altitude_m))
+                other_keys.append(None)
+            else:
+                offset_keys.append(None)
+                other_keys.append(id(source))
+        self._offset = [g for g in _groups(offset_keys) if offset_keys[g[0]] is not None]
+        self._other = [g for g in _groups(other_keys) if other_keys[g[0]] is not None]
+        self._missions = missions
+        self._rate_groups = _groups([(id(m.rate_table), m.bandwidth_hz) for m in missions])
+        self._n_sensors = n_sensors
+        # (T_max, N, F) per-slot fading of the F missions that have it (0 when padded)
+        self._fading_cols = np.flatnonzero([m.fading_db is not None for m in missions])
+        t_max = max(m.n_slots for m in missions)
+        self._fading_db = np.zeros((t_max, n_sensors, self._fading_cols.size))
+        for f, col in enumerate(self._fading_cols.tolist()):
+            gains = missions[col].fading_db
+            assert gains is not None
+            self._fading_db[: gains.shape[0], : gains.shape[1], f] = gains
+
+    def snr_db(self, position_m: np.ndarray, slot: int) -> np.ndarray:
+        """(N, A) SNR [dB] each of the first A missions sees at its position (A, 2) in slot
+        ``slot``, per-slot fading included (NaN: no link)."""
+        active = position_m.shape[0]
+        snr = np.full((self._n_sensors, active), np.nan)
+        for cols in self._offset:
+            cols = cols[cols < active]
+            if not cols.size:
+                continue
+            mission = self._missions[int(cols[0])]
+            source = mission.source
+            assert isinstance(source, ModelSource)
+            sensors = self._sensor_m[:, cols].copy()
+            sensors[..., 0] -= position_m[cols, 0]
+            sensors[..., 1] -= position_m[cols, 1]
+            uav = np.array([[0.0, 0.0, mission.altitude_m]])
+            loss = source.pathloss.loss_db(uav, sensors.reshape(-1, 3))
+            snr[:, cols] = source.budget.snr_db(loss).reshape(self._n_sensors, cols.size)
+        for cols in self._other:
+            cols = cols[cols < active]
+            if not cols.size:
+                continue
+            source = self._missions[int(cols[0])].source
+            assert source is not None
+            here = np.column_stack([position_m[cols], self._altitude[cols]])
+            snr[: self._missions[int(cols[0])].n_sensors, cols] = source.snr_db(here).T
+        faded = self._fading_cols < active
+        if faded.any():
+            cols = self._fading_cols[faded]
+            snr[:, cols] = snr[:, cols] + self._fading_db[slot][:, faded]
+        return snr
+
+    def rate_bps(self, snr_db: np.ndarray) -> np.ndarray:
+        """(N, A) rates [bit/s] for the SNR (N, A) of the first A missions."""
+        active = snr_db.shape[1]
+        rate = np.empty_like(snr_db)
+        for cols in self._rate_groups:
+            cols = cols[cols < active]
+            if cols.size:
+                mission = self._missions[int(cols[0])]
+                rate[:, cols] = rate_bps(mission.rate_table, snr_db[:, cols], mission.bandwidth_hz)
+        return rate

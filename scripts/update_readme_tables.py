@@ -22,8 +22,9 @@ Tables, what they run and roughly how long on the 2-core machine they were writt
   autonomous    skymule compare paper-sim-autonomous                                     ~2 s
   sources       skymule compare paper-sim-fixed --sources fspl,two-ray,al-hourani,...    ~3 s
   sweep-example skymule sweep examples/sweep-paper.toml (1,000 missions)                 ~10 s
-  speed         benchmarks/bench_{single,engine,sweep,channel,bound,autonomous}.py      ~60 s
-                (+ bench_sweep.py 50000 with --all: ~260 s)
+  speed         benchmarks/bench_{engine,sweep,channel,bound,autonomous,planner}.py     ~15 min
+                (SPEED_BENCHES; sweeps and planner against the v0.1 tag in the same run;
+                the 100,000-mission sweep only with --all: +10 min)
   suite         python -m pytest -q (only with --all)                                     ~3 min
 Rows that are not re-run keep their current text.
 """
@@ -170,66 +171,199 @@ def _f(text: str) -> float:
     return float(text.replace(",", ""))
 
 
-def speed_rows(ctx: Context) -> dict[str, str]:
-    """The ``figure`` cell of every speed row that is re-measured, by a pattern of its
-    ``what`` cell."""
-    cells: dict[str, str] = {}
-    single = _numbers(
-        r"([\d,]+) slots/s \(([\d.]+) ms per (\d+)-slot", ctx.bench("bench_single.py")
-    )
-    rates = [_f(r) for r, _, _ in single[:2]]  # paper-sim-fixed: greedy, hgad
-    ms = [_f(m) for _, m, _ in single[:2]]
-    cells["^reference engine"] = (
-        f"{min(rates):,.0f}–{max(rates):,.0f} slots/s ({min(ms):.0f}–{max(ms):.0f} ms per "
-        f"{single[0][2]}-slot mission)"
-    )
-    engine = ctx.bench("bench_engine.py")
-    for policy, row in (("hgad", "HGAD"), ("greedy", "Greedy")):
-        get = {
-            label.strip(): (_f(rate), _f(times))
-            for label, rate, times in _numbers(
-                rf"{policy}\s+(batched, \w+)\s+([\d,]+)\s+\([\d.]+ s\)\s+x(\d+)", engine
-            )
-        }
-        summaries, logs = get["batched, summaries"], get["batched, logs"]
-        cells[f"^batched engine.*{row}$"] = (
-            f"{summaries[0] / 1e6:.1f} M mission-slots/s with summaries (**×{summaries[1]:.0f}** "
-            f"the reference engine in the same run), {logs[0] / 1e6:.1f} M with full logs "
-            f"(×{logs[1]:.0f})"
-        )
-    for layouts, row in ((5000, "^sweep, 10,000 missions"), (50000, "^sweep, 100,000 missions")):
-        if layouts > 5000 and not ctx.slow:
-            continue
-        args = ("5",) if ctx.tiny else (str(layouts),)
-        (seconds, rate, rss), *_ = _numbers(
-            r"missions \(.*?\): ([\d.]+) s, ([\d,]+) missions/s, peak RSS ([\d,]+) MiB",
-            ctx.bench("bench_sweep.py", *args),
-        )
-        cells[row] = f"{_f(seconds):.1f} s ({rate} missions/s), peak RSS {rss} MiB"
-    channel = ctx.bench("bench_channel.py")
-    (fspl,), *_ = _numbers(r"\n  fspl\s+([\d.]+)", channel)
-    (draw, query, total), *_ = _numbers(
-        r"field draw ([\d.]+), query ([\d.]+), total ([\d.]+)", channel
-    )
-    cells["^SNR, 4 sensors"] = (
-        f"{_f(total):.2f} s (field draw {_f(draw):.2f} s + query {_f(query):.2f} s); "
-        f"fspl alone {_f(fspl):.2f} s"
-    )
-    bound = {
-        int(slots): _f(s)
-        for slots, s in _numbers(
-            r"bound (\d+) slots x \d+ sensors \(hover\): ([\d.]+) s", ctx.bench("bench_bound.py")
+BASELINE_REV = "v0.1"
+"""The release the speed rows' "previous implementation" figures are measured against (the
+code before the one-engine-core rewrite), run in the same benchmark run."""
+
+
+def _m(text: str) -> float:
+    return _f(text) / 1e6
+
+
+def engine_cells(out: str) -> dict[str, str]:
+    """Reference, numpy and compiled batched engine rows from ``bench_engine.py``."""
+    rate = {
+        (policy, label.strip()): _f(value)
+        for policy, label, value in _numbers(
+            r"(greedy|hgad)\s+(single|numpy loop|numpy \+ summaries|compiled loop|"
+            r"compiled \+ summaries)[^\n]*?\s([\d.]+) M",
+            out,
         )
     }
-    small, large = sorted(bound)[0], sorted(bound)[-1]
-    cells["^fixed-path bound"] = f"{bound[small]:.2f} s / {bound[large]:.1f} s"
-    per_run = [_f(s) for (s,) in _numbers(r" ([\d.]+)  order ", ctx.bench("bench_autonomous.py"))]
-    cells["^autonomous mission"] = f"{min(per_run):.2f}–{max(per_run):.2f} s"
+    (written,), *_ = _numbers(r"bytes written per mission-slot: (\d+)", out)
+    (bandwidth,), *_ = _numbers(r"memory bandwidth .*?: ([\d.]+) GB/s", out)
+    cells = {
+        "^reference engine": (
+            f"{rate['greedy', 'single'] * 1e6:,.0f} (Greedy) / {rate['hgad', 'single'] * 1e6:,.0f} "
+            "(HGAD) mission-slots per CPU-s"
+        ),
+        "^batched engine, numpy": (
+            f"Greedy {rate['greedy', 'numpy + summaries']:.1f} M mission-slots/CPU-s with "
+            f"summaries ({rate['greedy', 'numpy loop']:.1f} M slot loop only), HGAD "
+            f"{rate['hgad', 'numpy + summaries']:.1f} M ({rate['hgad', 'numpy loop']:.1f} M)"
+        ),
+    }
+    compiled = []
+    for policy, name in (("greedy", "Greedy"), ("hgad", "HGAD")):
+        loop, summaries = rate[policy, "compiled loop"], rate[policy, "compiled + summaries"]
+        ratio = summaries / rate[policy, "numpy + summaries"]
+        compiled.append(
+            f"{name} {summaries:.1f} M with summaries (**×{ratio:.1f}** numpy), {loop:.1f} M loop"
+        )
+    cells["^batched engine, compiled"] = (
+        f"{'; '.join(compiled)}; {written} bytes written per mission-slot against "
+        f"{_f(bandwidth):.1f} GB/s measured memory bandwidth"
+    )
+    return cells
+
+
+def sweep_cells(out: str) -> dict[str, str]:
+    """Sweep rows from ``bench_sweep.py --old-rev BASELINE_REV`` (100k only with --all)."""
+    line = r"(\S+)\s+(\d+) missions:\s+([\d.]+) s CPU .*?(\d+) us CPU/mission, peak\s+(\d+) MiB"
+    cases = {
+        case: (int(n), _f(cpu), int(us), int(mib)) for case, n, cpu, us, mib in _numbers(line, out)
+    }
+    previous = dict(_numbers(r"(\S+)\s+\d+ missions:.*\| previous\s+([\d.]+) s CPU", out))
+    cells = {}
+    _, cpu, us, mib = cases["sample-10k"]
+    old = f"previous implementation ({BASELINE_REV}) in the same run: "
+    if "sample-10k" in previous:
+        old += f"{_f(previous['sample-10k']):.1f} s, **×{_f(previous['sample-10k']) / cpu:.1f}**"
+    cells["^sweep, 10,000 missions"] = (
+        f"{cpu:.1f} s CPU, {us} µs per mission ({old}), peak RSS {mib} MiB"
+    )
+    seeds = cases["seeds-10k"]
+    cells["^sweep over 5,000 seeds"] = (
+        f"{seeds[1]:.1f} s CPU: {seeds[1] / cpu:.2f}× the same sweep without a seed axis"
+        + (
+            f" (previous: {_f(previous['seeds-10k']):.1f} s, "
+            f"{_f(previous['seeds-10k']) / _f(previous['sample-10k']):.1f}×)"
+            if "seeds-10k" in previous and "sample-10k" in previous
+            else ""
+        )
+    )
+    scale = "100k" if "process-100k" in cases else "10k"
+    ((wall_ratio, load, ideal, main_s, all_s),) = [
+        row
+        for row in _numbers(
+            rf"process executor, 2 workers, {scale}: ([\d.]+)x in-process in wall time "
+            r"\(target >= 1.7; load ([\d.]+) .*?\), ([\d.]+)x on two idle cores from the CPU "
+            r"split \(main ([\d.]+) s, all ([\d.]+) s\)",
+            out,
+        )
+    ]
+    cells["^sweep, `process` executor"] = (
+        f"{scale.replace('k', ',000')} missions: **×{_f(wall_ratio):.2f}** in-process wall time "
+        f"(load {_f(load):.1f} on 2 cores); the sweep process uses {_f(main_s):.1f} s of the "
+        f"{_f(all_s):.1f} s CPU, so two idle cores allow ×{_f(ideal):.2f}"
+    )
+    if "sample-100k" in cases:
+        large = cases["sample-100k"]
+        cells["^sweep, 100,000 missions"] = (
+            f"{large[2]} µs CPU per mission ({large[2] / us:.2f}× the 10,000-mission cost), "
+            f"peak RSS {large[3]} MiB"
+        )
+    return cells
+
+
+def channel_cells(out: str) -> dict[str, str]:
+    (fspl,), *_ = _numbers(r"\n  fspl\s+([\d.]+)", out)
+    (draw, query, total), *_ = _numbers(r"field draw ([\d.]+), query ([\d.]+), total ([\d.]+)", out)
+    return {
+        "^SNR, 4 sensors": (
+            f"{_f(total):.2f} s (field draw {_f(draw):.2f} s + query {_f(query):.2f} s); "
+            f"fspl alone {_f(fspl):.2f} s"
+        )
+    }
+
+
+def bound_cells(out: str) -> dict[str, str]:
+    """The three scale cases of ``bench_bound.py`` (column generation vs every column)."""
+    found = _numbers(
+        r"bound (\d+) slots x (\d+) sensors \(hover\): column generation ([\d.]+) s CPU.*?"
+        r"previous \(every column\) ([\d.]+) s -> x[\d.]+, bounds differ by ([\d.e+-]+)",
+        out,
+    )
+    new = " / ".join(f"{_f(cg):.2f} s" for _, _, cg, _, _ in found)
+    old = " / ".join(f"{_f(full):.2f} s" for _, _, _, full, _ in found)
+    what = " / ".join(f"{int(slots):,} × {sensors}" for slots, sensors, _, _, _ in found)
+    worst = max(abs(_f(d)) for *_, d in found)
+    return {
+        "^fixed-path bound": (
+            f"{what}: {new} CPU (every-column LPs in the same run: {old}); bounds differ by at "
+            f"most {worst:.0e} (relative)"
+        )
+    }
+
+
+def autonomous_cells(out: str) -> dict[str, str]:
+    reference = dict(
+        (p, (_f(m), _f(s)))
+        for p, m, s in _numbers(
+            r"(?m)^  (greedy|hgad)\s+([\d.]+) missions,\s+([\d,]+) mission-slots$", out
+        )
+    )
+    batched = {
+        p: (_f(m), _f(s), _f(x))
+        for p, m, s, x in _numbers(
+            r"(?m)^  (greedy|hgad)\s+([\d.]+) missions,\s+([\d,]+) mission-slots,\s+([\d.]+)x", out
+        )
+    }
+    return {
+        "^autonomous missions, reference engine": (
+            f"Greedy {reference['greedy'][0]:.0f}, HGAD {reference['hgad'][0]:.0f} "
+            "missions per CPU-s"
+        ),
+        "^autonomous missions, batched engine": (
+            f"Greedy {batched['greedy'][0]:,.0f} missions per CPU-s "
+            f"(**×{batched['greedy'][2]:.0f}** the reference in the same run), "
+            f"HGAD {batched['hgad'][0]:,.0f} (×{batched['hgad'][2]:.0f})"
+        ),
+    }
+
+
+def planner_cells(out: str) -> dict[str, str]:
+    ((before,),) = _numbers(r"before \(.*?\): ([\d.]+)", out)
+    ((now, same, total),) = _numbers(
+        r"\n  now: ([\d.]+)  x[\d.]+, identical logs: (\d+) of (\d+)", out
+    )
+    ((plain,),) = _numbers(r"no numba\): ([\d.]+)", out)
+    return {
+        "^planner": (
+            f"{_f(now):.1f} missions per CPU-s ({BASELINE_REV} in the same run: {_f(before):.1f}, "
+            f"×{_f(now) / _f(before):.1f}; {_f(plain):.1f} without numba); identical plans in "
+            f"{same} of {total} missions"
+        )
+    }
+
+
+SPEED_BENCHES: dict[str, tuple[tuple[str, ...], Callable[[str], dict[str, str]]]] = {
+    "bench_engine.py": ((), engine_cells),
+    "bench_sweep.py": (("--old-rev", BASELINE_REV), sweep_cells),
+    "bench_channel.py": ((), channel_cells),
+    "bench_bound.py": ((), bound_cells),
+    "bench_autonomous.py": ((), autonomous_cells),
+    "bench_planner.py": (("--speed", "20", "--before", BASELINE_REV), planner_cells),
+}
+"""Benchmark -> (its arguments for the README, the parser of its output into speed cells).
+``tests/test_benchmarks_smoke.py`` feeds each parser the tiny run's output, so none rots."""
+
+
+def speed_rows(ctx: Context) -> dict[str, str]:
+    """The ``figure`` cell of every speed row, by a pattern of its ``what`` cell."""
+    cells: dict[str, str] = {}
+    for name, (args, parse) in SPEED_BENCHES.items():
+        if name == "bench_sweep.py" and not ctx.slow:
+            args = (*args, "--quick")
+        if ctx.tiny and name == "bench_planner.py":
+            args = ("--speed", "2", "--before", BASELINE_REV)
+        cells.update(parse(ctx.bench(name, *args)))
     return cells
 
 
 def speed_table(ctx: Context, old: list[str]) -> list[str]:
-    """Rewrite the figure cell of each row whose ``what`` matches a measured row's pattern."""
+    """Rewrite the figure cell of each row whose ``what`` matches a measured row's pattern;
+    a row no benchmark measured this time (the 100k sweep without --all) keeps its text."""
     cells = speed_rows(ctx)
     out = []
     for line in old:

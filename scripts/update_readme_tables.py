@@ -223,7 +223,8 @@ def sweep_cells(out: str) -> dict[str, str]:
     cases = {
         case: (int(n), _f(cpu), int(us), int(mib)) for case, n, cpu, us, mib in _numbers(line, out)
     }
-    previous = dict(_numbers(r"(\S+)\s+\d+ missions:.*\| previous\s+([\d.]+) s CPU", out))
+    # "| previous ..." only with --old-rev
+    previous = dict(re.findall(r"(\S+)\s+\d+ missions:.*\| previous\s+([\d.]+) s CPU", out))
     cells = {}
     _, cpu, us, mib = cases["sample-10k"]
     old = f"previous implementation ({BASELINE_REV}) in the same run: "

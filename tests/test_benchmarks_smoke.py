@@ -15,7 +15,9 @@ from pathlib import Path
 
 import pytest
 
-BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+ROOT = Path(__file__).resolve().parents[1]
+BENCHMARKS = ROOT / "benchmarks"
+README_TABLES = runpy.run_path(str(ROOT / "scripts" / "update_readme_tables.py"))
 
 # what each benchmark must print (a label of each figure it reports)
 EXPECTED = {
@@ -36,6 +38,9 @@ EXPECTED = {
 
 NEEDS = {"train_ppo.py": "stable_baselines3"}
 """Benchmarks of an optional extra (``skymule[rl]``): skipped where it is not installed."""
+
+NOT_PARSED_HERE = {"bench_planner.py": "its README row comes from --speed N, not the default run"}
+"""Benchmarks whose README speed cells this test does not parse from the default tiny run."""
 
 
 def test_every_benchmark_is_smoke_tested() -> None:
@@ -58,3 +63,8 @@ def test_benchmark_runs_at_tiny_size(
         assert label in out, f"{name} no longer prints {label!r}:\n{out}"
     assert re.search(r"\d+\.\d+", out), f"{name} printed no figures:\n{out}"
     assert not re.search(r"\bnan\b", out, flags=re.I), f"{name} printed NaN:\n{out}"
+    if name in README_TABLES["SPEED_BENCHES"] and name not in NOT_PARSED_HERE:
+        # the README's speed cells are parsed from this output: the parser must still fit it
+        _, parse = README_TABLES["SPEED_BENCHES"][name]
+        cells = parse(out)
+        assert cells and all(cells.values()), f"{name}: README speed cells {cells}"

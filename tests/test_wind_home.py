@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from shapely.geometry import box
+from shapely.geometry import Point, box
 
 from skymule.errors import ScenarioError
 from skymule.faults import Battery, Wind, no_faults
@@ -190,3 +190,24 @@ def test_a_one_uav_fleet_with_faults_is_the_single_uav_engine(policy: str) -> No
     log = fleet.log.logs[0]
     for field in ("served", "chosen", "downloaded_bit", "remaining_bit", "position_m"):
         assert np.array_equal(getattr(single.log, field), getattr(log, field)), field
+
+
+@pytest.mark.parametrize("policy", ["greedy", "hgad", "hgad-robust", "planner"])
+def test_policies_see_a_gps_reading_outside_the_fence_as_reported(policy: str) -> None:
+    from skymule.policies import make_policy
+    from skymule.scenario import PolicySpec
+
+    base = load_scenario("paper-sim-autonomous")
+    data = base.to_toml_dict()
+    data["faults"] = [{"kind": "gps-error", "params": {"bias_m": [150.0, 0.0], "std_m": 20.0}}]
+    mission = build_mission(scenario_from_dict(data, "gps", Path(base.base_dir)))
+    assert mission.faults is not None and mission.home_m is not None and mission.fence
+    flight = AutonomousFlight(mission)
+    seen = flight.observe().position_m
+    error = mission.faults.gps_error_m[0]
+    assert seen[:2] == pytest.approx(mission.home_m + error)  # not moved into the fence
+    assert not mission.fence.buffer(1.0).contains(Point(*seen[:2]))
+    log = run_mission(mission, make_policy(PolicySpec(name=policy)))
+    path = np.vstack([log.position_m[:, :2], log.end_position_m[None, :2]])
+    assert all(mission.fence.buffer(1e-5).covers(Point(x, y)) for x, y in path)
+    assert log.end_position_m[:2] == pytest.approx(mission.home_m, abs=1e-6)

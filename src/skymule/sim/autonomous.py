@@ -153,14 +153,9 @@ class AutonomousFlight(ServingFlight):
             self._deliver, seen_snr = now.deliver_bps, now.snr_seen_db
             seen_rate = mission.rate_bps(seen_snr)
             seen_rate.flags.writeable = False
-            # the reported position, projected into the fence: a policy plans in-fence paths
-            # from it (the autopilot knows its fence; a reading outside it is clipped)
-            assert mission.navigator is not None
-            x, y = legal_goal(
-                mission.navigator,
-                (here[0] + now.position_error_m[0], here[1] + now.position_error_m[1]),
-            )
-            here = np.array([x, y, here[2]])
+            # the position as reported, even just outside the fence: the Navigator plans
+            # from there (first the straight way in), so the policy sees the raw reading
+            here = here + now.position_error_m
         return Observation(
             slot=self.slot,
             position_m=here,

@@ -10,15 +10,15 @@ from typing import Any
 
 import numpy as np
 import pytest
-from shapely.geometry import Point, box
+from shapely.geometry import Point, Polygon, box
 
 from skymule.errors import ScenarioError
 from skymule.faults import Battery, Wind, no_faults
+from skymule.fleet_runner import simulate_fleet
 from skymule.flight.navigation import Navigator
 from skymule.policies.base import Action, MissionContext, Observation
 from skymule.scenario import load_scenario, scenario_from_dict
 from skymule.sim.autonomous import AutonomousFlight, next_position
-from skymule.fleet_runner import simulate_fleet
 from skymule.sim.fleet import build_fleet
 from skymule.sim.run import run_mission
 from skymule.world import Mission, build_mission
@@ -36,7 +36,9 @@ class _GoWest:
         return Action(serve=None, goto_m=(-900.0, 0.0))
 
 
-def _square_mission(wind: Wind | None, n_slots: int = 20, battery: Battery | None = None) -> Mission:
+def _square_mission(
+    wind: Wind | None, n_slots: int = 20, battery: Battery | None = None
+) -> Mission:
     """paper-sim-autonomous cut to ``n_slots`` 1-s slots, home (0, 0), in a 2 km square fence,
     10 m/s speed cap, with ``wind`` and ``battery``."""
     mission = build_mission(load_scenario("paper-sim-autonomous"))
@@ -77,31 +79,35 @@ def test_a_tailwind_out_is_a_headwind_back_and_the_engine_plans_for_it() -> None
     assert log.end_position_m[:2] == pytest.approx([0.0, 0.0], abs=1e-9)
 
 
-def test_a_crosswind_on_a_bent_way_home_is_timed_leg_by_leg() -> None:
-    # an L-shaped fence: the way home from the east arm bends at the corner; a 6 m/s wind
-    # from the north is a crosswind on the east-west leg (8 m/s) and a headwind north of it
-    fence_xy = [(-10, -10), (400, -10), (400, 10), (10, 10), (10, 400), (-10, 400)]
-    from shapely.geometry import Polygon
-
-    fence = Polygon(fence_xy)
-    mission = replace(_square_mission(Wind(6.0, 0.0), n_slots=60), fence=fence)
+def test_a_bent_way_home_is_timed_leg_by_leg() -> None:
+    # an L-shaped fence, home (0, 0) on the lower arm's top edge, the goal up the east arm.
+    # Every way bends at the reflex corner (380, 0); in a 6 m/s wind from the south the UAV
+    # makes sqrt(10^2 - 6^2) = 8 m/s east or west (crosswind), 10 m/s north (a tailwind
+    # never speeds it up) and 10 - 6 = 4 m/s south (headwind).
+    fence = Polygon([(-10, -10), (400, -10), (400, 400), (380, 400), (380, 0), (-10, 0)])
+    mission = replace(_square_mission(Wind(6.0, 180.0), n_slots=200), fence=fence)
     mission = replace(mission, navigator=Navigator(fence))
 
-    class _East(_GoWest):
+    class _UpTheArm(_GoWest):
         def act(self, observation: Observation) -> Action:
-            return Action(serve=None, goto_m=(390.0, 0.0))
+            return Action(serve=None, goto_m=(380.0, 390.0))
 
-    class _North(_GoWest):
-        def act(self, observation: Observation) -> Action:
-            return Action(serve=None, goto_m=(0.0, 390.0))
-
-    for policy in (_East(), _North()):
-        log = run_mission(mission, policy)
-        path = np.vstack([log.position_m[:, :2], log.end_position_m[None, :2]])
-        steps = np.hypot(*np.diff(path, axis=0).T)
-        assert steps.max() <= mission.max_step_m + 1e-9
-        assert log.end_position_m[:2] == pytest.approx([0.0, 0.0], abs=1e-6)
-        assert np.abs(path).max() > 100.0  # it did go far before turning back
+    log = run_mission(mission, _UpTheArm())
+    path = np.vstack([log.position_m[:, :2], log.end_position_m[None, :2]])
+    assert log.end_position_m[:2] == pytest.approx([0.0, 0.0], abs=1e-6)
+    step = np.diff(path, axis=0)
+    length = np.hypot(*step.T)
+    assert length.max() <= mission.max_step_m + 1e-9
+    # whole slots on one leg fly at that leg's speed (a slot spanning the corner is shorter)
+    east = (step[:, 1] == 0) & (step[:, 0] > 0)
+    west = (step[:, 1] == 0) & (step[:, 0] < 0)
+    north = (step[:, 0] == 0) & (step[:, 1] > 0)
+    south = (step[:, 0] == 0) & (step[:, 1] < 0)
+    for leg, speed in ((east, 8.0), (west, 8.0), (north, 10.0), (south, 4.0)):
+        assert np.isclose(length[leg], speed).sum() >= leg.sum() - 1 > 0
+    # 380 m east at 8 m/s (47.5 s) and back west: 95 s; the rest goes north and back south at
+    # 10 and 4 m/s: (200 - 95) s x (10 x 4 / 14) m/s = 300 m up the arm, give or take a slot
+    assert path[:, 1].max() == pytest.approx(300.0, abs=10.0)
 
 
 def test_a_wind_the_uav_cannot_fly_against_is_refused_in_one_line() -> None:
@@ -128,8 +134,10 @@ def test_the_battery_times_the_way_home_at_the_ground_speed_the_wind_allows() ->
         float(battery.return_energy_j(100.0))
     )
     assert battery.path_energy_j(east, np.array([0.0])) == math.inf
-    used = battery.usable_j - float(battery.return_energy_j(100.0)) - 1.5 * float(
-        battery.slot_energy_j(0.0, 1.0)
+    used = (
+        battery.usable_j
+        - float(battery.return_energy_j(100.0))
+        - 1.5 * float(battery.slot_energy_j(0.0, 1.0))
     )
     assert not battery.must_return(used, 100.0, 1.0)  # calm: one hover slot to spare
     assert battery.must_return(used, 100.0, 1.0, return_j=slow)  # headwind: turn now

@@ -12,13 +12,18 @@ and the largest airspeed :math:`V`, the air-relative velocity :math:`g \hat u - 
 
 (0 when the root is imaginary or the result negative: no headway), and the achieved
 ground speed is :math:`\min(g_c, g_{max})`. A headwind of 5 m/s against a 10 m/s UAV
-halves its ground speed; a tailwind never makes it fly faster than commanded.
+halves its ground speed; a tailwind never makes it fly faster than commanded. Along a
+polyline (the in-fence way to a goal or home) each leg is flown at its own ground speed:
+:func:`leg_speeds_mps`, :func:`path_time_s` (how long the way takes) and :func:`fly_for`
+(where one slot of it ends) are what the autonomous engine keeps its return home with.
 
 Battery. Energy used so far is the sum of propulsion power :math:`P(V_t)\,\Delta t`
 (:func:`skymule.energy.propulsion_power_w`). The UAV must turn home at the start of a slot
 when the usable energy left, capacity x (1 - reserve) - used, no longer covers flying home at
 the return speed, :math:`P(v_r)\,d_{home}/v_r`, plus one more slot at the hover power (the
-decision is taken at the slot's start and the slot is spent before the next check).
+decision is taken at the slot's start and the slot is spent before the next check). Under a
+wind the way home is priced leg by leg at the ground speed the wind allows
+(:meth:`Battery.path_energy_j`).
 """
 
 from __future__ import annotations

@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from skymule.errors import ScenarioError, SkymuleError
-from skymule.faults.motion import fly_for, leg_speeds_mps, path_time_s
+from skymule.faults.motion import Battery, fly_for, leg_speeds_mps, path_time_s
 from skymule.flight.navigation import Navigator, hover_point
 from skymule.policies.base import Action, Observation, Policy
 from skymule.sim.contract import NO_SENSOR
@@ -201,6 +201,17 @@ class AutonomousFlight(ServingFlight):
         slack_s = FEASIBILITY_SLACK_M / mission.max_speed_mps
         return path_time_s(*self._way_home(xy, mission.max_speed_mps)) <= budget_s + slack_s
 
+    def _battery_says_return(self, battery: Battery, back_mps: float) -> bool:
+        """True when the energy left only covers the way home (``Battery.must_return``); under
+        a wind the way home is priced leg by leg at the ground speed the wind allows."""
+        mission = self.mission
+        assert mission.navigator is not None and mission.faults is not None
+        if mission.faults.wind is None:  # the fault-free formula, P(v_r) d / v_r
+            distance = mission.navigator.travel_distance(self.position, self._home)
+            return bool(battery.must_return(self.used_j, distance, mission.slot_s))
+        way_j = battery.path_energy_j(*self._way_home(self.position, back_mps))
+        return bool(battery.must_return(self.used_j, 0.0, mission.slot_s, return_j=way_j))
+
     def _faulted_move(self, goto_m: XY | None) -> tuple[XY, bool]:
         """The move under wind and/or a battery limit (``docs/faults.md``, steps 5-6).
 
@@ -216,18 +227,10 @@ class AutonomousFlight(ServingFlight):
         battery, slot_s, cap = faults.battery, mission.slot_s, mission.max_speed_mps
         if self.landed:
             return self.position, True
-        returning = False
-        if battery is not None:
-            speed = min(battery.return_speed_mps, cap)
-            if faults.wind is None:  # the fault-free formula, P(v_r) d / v_r
-                way_j = None
-                distance = mission.navigator.travel_distance(self.position, self._home)
-            else:
-                way_j, distance = battery.path_energy_j(*self._way_home(self.position, speed)), 0.0
-            returning = bool(battery.must_return(self.used_j, distance, slot_s, way_j))
+        back_mps = cap if battery is None else min(battery.return_speed_mps, cap)
+        returning = battery is not None and self._battery_says_return(battery, back_mps)
         if returning:
-            assert battery is not None
-            moved, overridden = self._fly(self._home, min(battery.return_speed_mps, cap)), True
+            moved, overridden = self._fly(self._home, back_mps), True
         elif faults.wind is None:
             moved, overridden = next_position(mission, self.position, goto_m, self.slot)
         else:

@@ -97,12 +97,33 @@ def test_path_around_hole() -> None:
         assert not Polygon(hole).contains(Point(x, y))
 
 
-def test_endpoints_outside_raise() -> None:
+def test_goal_outside_raises() -> None:
     nav = Navigator(U_FENCE)
-    with pytest.raises(ValueError):
-        nav.shortest_path((15.0, 25.0), U_GOAL)  # inside the notch = outside the fence
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="goal"):
         nav.shortest_path(U_START, (31.0, 5.0))
+    with pytest.raises(ValueError, match="goal"):
+        nav.travel_distance(U_START, (15.0, 25.0))  # inside the notch = outside the fence
+
+
+def test_a_start_outside_first_flies_to_the_nearest_fence_point() -> None:
+    # a GPS reading in the notch, 3 m from its right edge: in at (20, 25), then on to the goal
+    nav = Navigator(U_FENCE)
+    outside = (17.0, 25.0)
+    assert nav.entry_point(outside) == pytest.approx((20.0, 25.0))
+    assert nav.entry_point(U_START) == U_START  # inside: unchanged
+    path = nav.shortest_path(outside, U_GOAL)
+    assert path[0] == outside and np.allclose(path[1:], [(20.0, 25.0), U_GOAL])
+    assert nav.travel_distance(outside, U_GOAL) == pytest.approx(3.0 + 5.0)
+    assert nav.step(outside, U_GOAL, 2.0) == pytest.approx((19.0, 25.0))  # still on the way in
+    assert nav.step(outside, U_GOAL, 4.0) == pytest.approx((21.0, 25.0))
+    # just beyond the outer edge: in at (25, 0), to the notch's corner (10, 10), up to (5, 25)
+    below = (25.0, -0.5)
+    assert nav.travel_distance(below, U_START) == pytest.approx(
+        0.5 + math.hypot(15.0, 10.0) + math.hypot(5.0, 15.0)
+    )
+    corners = nav.vertices
+    expected = [0.5 + nav.travel_distance((25.0, 0.0), tuple(c)) for c in corners]
+    assert np.allclose(nav.vertex_distances(below), expected)
 
 
 def test_start_equals_goal() -> None:

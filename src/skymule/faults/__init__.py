@@ -7,12 +7,16 @@ A scenario lists faults under ``[[faults]]`` (``kind`` + ``params``); all are of
 
 from skymule.faults.draws import (
     FAULT_STREAM,
+    TOWER_FIELDS,
+    UAV_FAULT_STREAM,
     FaultDraws,
     FaultEntry,
     draw_faults,
+    draw_uav_faults,
     fault_rng,
     no_faults,
     stack_draws,
+    uav_fault_rng,
 )
 from skymule.faults.motion import Battery, Wind
 from skymule.faults.specs import FAULT_KINDS, SINGLE_KINDS, fault_params
@@ -21,13 +25,17 @@ __all__ = [
     "FAULT_KINDS",
     "FAULT_STREAM",
     "SINGLE_KINDS",
+    "TOWER_FIELDS",
+    "UAV_FAULT_STREAM",
     "Battery",
     "FaultDraws",
     "FaultEntry",
     "Wind",
     "draw_faults",
+    "draw_uav_faults",
     "fault_params",
     "fault_rng",
     "no_faults",
     "stack_draws",
+    "uav_fault_rng",
 ]

@@ -11,7 +11,7 @@ arrays is the contract in ``docs/faults.md``; :meth:`FaultDraws.observed_snr_db`
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import Any, Protocol
 
 import numpy as np
@@ -40,9 +40,27 @@ FAULT_STREAM = 3
 fading (2) use their own streams, so turning faults on changes no other draw."""
 
 
+UAV_FAULT_STREAM = 5
+"""Spawn key of the per-UAV fault generators of a fleet's UAVs after the first:
+SeedSequence(seed, spawn_key=(5, uav)) (4 is taken by the resilience study's buffers)."""
+
+TOWER_FIELDS = ("outage", "burst_loss")
+"""Draws that belong to the towers (an outage, a link's Gilbert-Elliott state): every UAV of
+a fleet meets the same ones. The other per-slot draws (SNR error, missed polls, GPS error)
+belong to each UAV's own radio and receiver."""
+
+
 def fault_rng(seed: int) -> np.random.Generator:
     """The generator a mission's faults are drawn from, for scenario ``seed``."""
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(FAULT_STREAM,)))
+
+
+def uav_fault_rng(seed: int, uav: int) -> np.random.Generator:
+    """The generator of UAV ``uav``'s own faults in a fleet: UAV 0's is :func:`fault_rng`
+    (so a fleet of one is the single-UAV mission), the others' their own streams."""
+    if uav == 0:
+        return fault_rng(seed)
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(UAV_FAULT_STREAM, uav)))
 
 
 class FaultEntry(Protocol):
@@ -240,6 +258,24 @@ def draw_faults(
         wind=wind,
         battery=battery,
     )
+
+
+def draw_uav_faults(
+    specs: Sequence[FaultEntry],
+    n_slots: int,
+    sensor_names: Sequence[str],
+    slot_s: float,
+    seed: int,
+    uav: int,
+) -> FaultDraws:
+    """UAV ``uav``'s faults in a fleet of scenario ``seed``: the towers' draws
+    (:data:`TOWER_FIELDS`) shared by every UAV, the rest from the UAV's own generator
+    (:func:`uav_fault_rng`). UAV 0 gets exactly :func:`draw_faults` with :func:`fault_rng`."""
+    shared = draw_faults(specs, n_slots, sensor_names, slot_s, fault_rng(seed))
+    if uav == 0:
+        return shared
+    own = draw_faults(specs, n_slots, sensor_names, slot_s, uav_fault_rng(seed, uav))
+    return replace(own, **{name: getattr(shared, name) for name in TOWER_FIELDS})
 
 
 def stack_draws(draws: Sequence[FaultDraws]) -> FaultDraws:

@@ -12,13 +12,18 @@ and the largest airspeed :math:`V`, the air-relative velocity :math:`g \hat u - 
 
 (0 when the root is imaginary or the result negative: no headway), and the achieved
 ground speed is :math:`\min(g_c, g_{max})`. A headwind of 5 m/s against a 10 m/s UAV
-halves its ground speed; a tailwind never makes it fly faster than commanded.
+halves its ground speed; a tailwind never makes it fly faster than commanded. Along a
+polyline (the in-fence way to a goal or home) each leg is flown at its own ground speed:
+:func:`leg_speeds_mps`, :func:`path_time_s` (how long the way takes) and :func:`fly_for`
+(where one slot of it ends) are what the autonomous engine keeps its return home with.
 
 Battery. Energy used so far is the sum of propulsion power :math:`P(V_t)\,\Delta t`
 (:func:`skymule.energy.propulsion_power_w`). The UAV must turn home at the start of a slot
 when the usable energy left, capacity x (1 - reserve) - used, no longer covers flying home at
 the return speed, :math:`P(v_r)\,d_{home}/v_r`, plus one more slot at the hover power (the
-decision is taken at the slot's start and the slot is spent before the next check).
+decision is taken at the slot's start and the slot is spent before the next check). Under a
+wind the way home is priced leg by leg at the ground speed the wind allows
+(:meth:`Battery.path_energy_j`).
 """
 
 from __future__ import annotations
@@ -52,6 +57,23 @@ class Wind:
         toward = math.radians(self.from_deg + 180.0)
         return np.array([math.sin(toward), math.cos(toward)]) * self.speed_mps
 
+    def reachable_by(self, max_airspeed_mps: float) -> bool:
+        """True when a UAV of this largest airspeed makes headway in every direction (the wind
+        is slower than it): then every in-fence point, home included, stays reachable."""
+        return self.speed_mps < max_airspeed_mps
+
+    def max_ground_speed_mps(self, course: np.ndarray, max_airspeed_mps: float) -> np.ndarray:
+        """Largest ground speed [m/s] along unit course vector(s) ``(..., 2)`` (0: no headway).
+
+        g_max = u.w + sqrt(V^2 - |w|^2 + (u.w)^2), 0 when imaginary or negative; it grows with
+        u.w, so the direct headwind is the slowest course: V - |w|.
+        """
+        wind = self.vector_mps
+        along = np.asarray(course, dtype=float) @ wind
+        root = max_airspeed_mps**2 - float(wind @ wind) + along**2
+        g_max = np.where(root >= 0, along + np.sqrt(np.maximum(root, 0.0)), 0.0)
+        return np.asarray(np.maximum(g_max, 0.0))
+
     def achieved_step_m(
         self, commanded_step_m: np.ndarray, slot_s: float, max_airspeed_mps: float
     ) -> np.ndarray:
@@ -65,12 +87,53 @@ class Wind:
         course = np.divide(
             step, length[..., None], out=np.zeros_like(step), where=length[..., None] > 0
         )
-        wind = self.vector_mps
-        along = course @ wind
-        root = max_airspeed_mps**2 - float(wind @ wind) + along**2
-        g_max = np.where(root >= 0, along + np.sqrt(np.maximum(root, 0.0)), 0.0)
-        achieved = np.minimum(length / slot_s, np.maximum(g_max, 0.0)) * slot_s
+        g_max = self.max_ground_speed_mps(course, max_airspeed_mps)
+        achieved = np.minimum(length / slot_s, g_max) * slot_s
         return course * achieved[..., None]
+
+
+def leg_speeds_mps(
+    path_m: np.ndarray, wind: Wind | None, speed_mps: float, max_airspeed_mps: float
+) -> np.ndarray:
+    """(K - 1,) ground speed [m/s] on each leg of a polyline ``(K, 2)`` flown at the commanded
+    ``speed_mps``: min(speed, g_max of the leg's course) under ``wind``, the speed without."""
+    legs = np.diff(np.asarray(path_m, dtype=float).reshape(-1, 2), axis=0)
+    if wind is None:
+        return np.full(len(legs), float(speed_mps))
+    length = np.hypot(legs[:, 0], legs[:, 1])
+    course = np.divide(legs, length[:, None], out=np.zeros_like(legs), where=length[:, None] > 0)
+    return np.minimum(float(speed_mps), wind.max_ground_speed_mps(course, max_airspeed_mps))
+
+
+def path_time_s(path_m: np.ndarray, speeds_mps: np.ndarray) -> float:
+    """Time [s] to fly a polyline ``(K, 2)`` with ground speed ``speeds_mps[k]`` on leg k
+    (``inf`` when a leg of positive length has no headway)."""
+    legs = np.diff(np.asarray(path_m, dtype=float).reshape(-1, 2), axis=0)
+    length = np.hypot(legs[:, 0], legs[:, 1])
+    moving = length > 0
+    if np.any(moving & (speeds_mps <= 0)):
+        return math.inf
+    return float(np.sum(length[moving] / speeds_mps[moving]))
+
+
+def fly_for(path_m: np.ndarray, seconds: float, speeds_mps: np.ndarray) -> tuple[float, float]:
+    """Point reached after flying ``seconds`` along a polyline ``(K, 2)`` at ``speeds_mps[k]``
+    on leg k: exactly the last point once the time covers the whole path."""
+    path = np.asarray(path_m, dtype=float).reshape(-1, 2)
+    left = float(seconds)
+    for k in range(len(path) - 1):
+        a, b = path[k], path[k + 1]
+        length = math.hypot(b[0] - a[0], b[1] - a[1])
+        if length == 0.0:
+            continue
+        if speeds_mps[k] <= 0:
+            return float(a[0]), float(a[1])  # no headway on this leg: held at its start
+        need = length / speeds_mps[k]
+        if left < need:
+            t = left / need
+            return float(a[0] + t * (b[0] - a[0])), float(a[1] + t * (b[1] - a[1]))
+        left -= need
+    return float(path[-1, 0]), float(path[-1, 1])
 
 
 @dataclass(frozen=True)
@@ -102,13 +165,36 @@ class Battery:
         power = float(propulsion_power_w(self.return_speed_mps, self.airframe))
         return power * np.asarray(distance_home_m, dtype=float) / self.return_speed_mps
 
+    def path_energy_j(self, path_m: np.ndarray, speeds_mps: np.ndarray) -> float:
+        """Energy [J] to fly a polyline ``(K, 2)`` at ground speed ``speeds_mps[k]`` on leg k
+        (the way home under a wind: :func:`leg_speeds_mps`); ``inf`` without headway.
+
+        Power is taken at the ground speed, as the engine accounts it per slot."""
+        legs = np.diff(np.asarray(path_m, dtype=float).reshape(-1, 2), axis=0)
+        length = np.hypot(legs[:, 0], legs[:, 1])
+        moving = length > 0
+        if np.any(moving & (speeds_mps <= 0)):
+            return math.inf
+        speeds = speeds_mps[moving]
+        power = propulsion_power_w(speeds, self.airframe)
+        return float(np.sum(power * length[moving] / speeds))
+
     def must_return(
-        self, used_j: np.ndarray | float, distance_home_m: np.ndarray | float, slot_s: float
+        self,
+        used_j: np.ndarray | float,
+        distance_home_m: np.ndarray | float,
+        slot_s: float,
+        return_j: np.ndarray | float | None = None,
     ) -> np.ndarray:
-        """True where the UAV must head home now (vectorised over missions)."""
+        """True where the UAV must head home now (vectorised over missions).
+
+        ``return_j``: the energy of the way home when known otherwise (under a wind,
+        :meth:`path_energy_j`); by default :meth:`return_energy_j` of ``distance_home_m``.
+        """
         margin = float(propulsion_power_w(0.0, self.airframe)) * slot_s  # one more slot
         left = self.usable_j - np.asarray(used_j, dtype=float)
-        return np.asarray(left <= self.return_energy_j(distance_home_m) + margin)
+        way_home = self.return_energy_j(distance_home_m) if return_j is None else return_j
+        return np.asarray(left <= np.asarray(way_home, dtype=float) + margin)
 
     def exhausted(self, used_j: np.ndarray | float) -> np.ndarray:
         """True where the usable energy is spent: the UAV lands where it is."""

@@ -239,6 +239,18 @@ class Navigator:
         if not shapely.intersects_xy(self._cover, xy[0], xy[1]):
             raise ValueError(f"{name} {xy} is outside the fence")
 
+    def entry_point(self, xy: XY) -> XY:
+        """``xy`` itself when inside the fence (within 1e-6 m), else the nearest fence point.
+
+        A start outside the fence is normal: a GPS reading near the fence's edge may lie just
+        beyond it, and a policy plans from what it reads. Paths from such a start first fly
+        straight to this point (the shortest way back in), then on inside the fence.
+        """
+        point = _as_xy(xy)
+        if shapely.intersects_xy(self._cover, point[0], point[1]):
+            return point
+        return _as_xy(nearest_points(self.fence, Point(point))[0].coords[0])
+
     def _visible_from(self, xy: XY) -> tuple[np.ndarray, np.ndarray]:
         """(visible mask (k,), distances (k,) in m) from ``xy`` to every graph vertex."""
         p = np.asarray(xy, dtype=float)
@@ -265,11 +277,16 @@ class Navigator:
     def shortest_path(self, start_xy: XY, goal_xy: XY) -> list[XY]:
         """Shortest in-fence polyline ``[start, ..., goal]`` (metres).
 
+        A start outside the fence is accepted: the path first runs straight to the nearest
+        fence point (:meth:`entry_point`), so it reads ``[start, entry, ..., goal]``.
+
         Raises:
-            ValueError: if either endpoint is outside the fence or no path exists.
+            ValueError: if the goal is outside the fence or no path exists.
         """
         start, goal = _as_xy(start_xy), _as_xy(goal_xy)
-        self._check_inside(start, "start")
+        entry = self.entry_point(start)
+        if entry != start:
+            return [start, *self.shortest_path(entry, goal)]
         self._check_inside(goal, "goal")
         if self._segment_visible(start, goal):
             return [start, goal]
@@ -291,11 +308,12 @@ class Navigator:
 
         In the order of :attr:`vertices`; ``inf`` where a vertex cannot be reached.
 
-        Raises:
-            ValueError: if ``xy`` is outside the fence.
+        A point outside the fence counts the straight way in to :meth:`entry_point`.
         """
         point = _as_xy(xy)
-        self._check_inside(point, "point")
+        entry = self.entry_point(point)
+        if entry != point:
+            return math.dist(point, entry) + self.vertex_distances(entry)
         if not len(self._vertices):
             return np.empty(0)
         vis, d = self._visible_from(point)
@@ -466,13 +484,15 @@ class Navigator:
         return moved
 
     def travel_distance(self, a_xy: XY, b_xy: XY) -> float:
-        """Length (m) of the shortest in-fence path from ``a_xy`` to ``b_xy``."""
+        """Length (m) of the shortest in-fence path from ``a_xy`` to ``b_xy`` (from outside
+        the fence: the straight way in to :meth:`entry_point` plus the path on from there)."""
         return path_length(self.shortest_path(a_xy, b_xy))
 
     def step(self, position_xy: XY, goal_xy: XY, max_step_m: float) -> XY:
         """New position after flying at most ``max_step_m`` metres toward ``goal_xy``.
 
-        Follows the shortest in-fence path; returns exactly ``goal_xy`` when it is within
+        Follows the shortest in-fence path (from a position outside the fence, first the
+        straight way in: :meth:`shortest_path`); returns exactly ``goal_xy`` when it is within
         ``max_step_m`` of path distance.
         """
         if max_step_m < 0:
@@ -488,6 +508,6 @@ def shortest_path(fence: Polygon, start_xy: XY, goal_xy: XY) -> list[XY]:
     queries on the same fence.
 
     Raises:
-        ValueError: if either endpoint lies outside the fence.
+        ValueError: if the goal lies outside the fence (a start outside first flies in).
     """
     return Navigator(fence).shortest_path(start_xy, goal_xy)

@@ -13,7 +13,10 @@ Every slot t (the slot contract of ``docs/contract.md``, plus motion):
 5. with ``return_home`` the engine overrides the goal with home whenever flying to it would
    leave too little time to get back: the invariant ``d_home(r_{t+1}) <= (T-t-1) * step``
    (``d_home`` the in-fence travel distance) holds after every slot, so the UAV is at home
-   at the end of the mission, r_T = home (the formulation's r_end).
+   at the end of the mission, r_T = home (the formulation's r_end). Under a wind fault the
+   UAV flies each leg of the path at the ground speed the wind allows, and the invariant is
+   kept in time instead: ``time_home(r_{t+1}) <= (T-t-1) * dt`` with the way home timed leg
+   by leg the same way (``docs/faults.md``, step 5; the autopilot knows the steady wind).
 
 The UAV starts at home. A slot in which the UAV stays put by the policy's choice (not because
 the engine overrode it) is logged as ``hovering``. The engine reads only the :class:`Mission`
@@ -27,7 +30,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from skymule.errors import SkymuleError
+from skymule.errors import ScenarioError, SkymuleError
+from skymule.faults.motion import Battery, fly_for, leg_speeds_mps, path_time_s
 from skymule.flight.navigation import Navigator, hover_point
 from skymule.policies.base import Action, Observation, Policy
 from skymule.sim.contract import NO_SENSOR
@@ -71,6 +75,23 @@ def next_position(mission: Mission, position: XY, goto_m: XY | None, slot: int) 
     return moved, False
 
 
+def check_wind(mission: Mission) -> None:
+    """Refuse a steady wind at least as fast as the UAV (ScenarioError, one line).
+
+    Against such a wind the UAV makes no headway on some courses, so once it leaves home it
+    may never get back (and it could not hold position: drift is not modelled). Scenarios
+    refuse it when loaded; this catches a Mission built otherwise and a fleet UAV slower than
+    the scenario's speed.
+    """
+    wind = None if mission.faults is None else mission.faults.wind
+    if wind is not None and not wind.reachable_by(mission.max_speed_mps):
+        raise ScenarioError(
+            f"faults (wind): speed_mps = {wind.speed_mps:g} is not below the UAV's "
+            f"max_speed_mps = {mission.max_speed_mps:g}: home would be unreachable against "
+            "it; give a slower wind or a faster UAV"
+        )
+
+
 class AutonomousFlight(ServingFlight):
     """One autonomous mission in progress: the policy steers, the engine keeps it legal.
 
@@ -85,6 +106,8 @@ class AutonomousFlight(ServingFlight):
             raise SkymuleError("autonomous missions need signal.source = 'model' or 'radiomap'")
         self.mission = mission
         home: XY = (float(mission.home_m[0]), float(mission.home_m[1]))
+        self._home = home
+        check_wind(mission)
         # buffers_bit: a (N,) array shared with other UAVs (sim.fleet), updated in place
         self._remaining = (
             np.array(mission.buffers_bit, float) if buffers_bit is None else buffers_bit
@@ -133,14 +156,9 @@ class AutonomousFlight(ServingFlight):
             self._deliver, seen_snr = now.deliver_bps, now.snr_seen_db
             seen_rate = mission.rate_bps(seen_snr)
             seen_rate.flags.writeable = False
-            # the reported position, projected into the fence: a policy plans in-fence paths
-            # from it (the autopilot knows its fence; a reading outside it is clipped)
-            assert mission.navigator is not None
-            x, y = legal_goal(
-                mission.navigator,
-                (here[0] + now.position_error_m[0], here[1] + now.position_error_m[1]),
-            )
-            here = np.array([x, y, here[2]])
+            # the position as reported, even just outside the fence: the Navigator plans
+            # from there (first the straight way in), so the policy sees the raw reading
+            here = here + now.position_error_m
         return Observation(
             slot=self.slot,
             position_m=here,
@@ -155,32 +173,73 @@ class AutonomousFlight(ServingFlight):
             return next_position(self.mission, self.position, goto_m, self.slot)
         return self._faulted_move(goto_m)
 
+    def _fly(self, goal: XY, speed_mps: float) -> XY:
+        """Where one slot of flight toward ``goal`` at ``speed_mps`` ends: along the in-fence
+        path, each leg at the ground speed the wind allows (the plain step without wind)."""
+        mission = self.mission
+        nav, faults = mission.navigator, mission.faults
+        assert nav is not None and faults is not None
+        if faults.wind is None:
+            return nav.step(self.position, goal, speed_mps * mission.slot_s)
+        path = np.asarray(nav.shortest_path(self.position, goal), float)
+        speeds = leg_speeds_mps(path, faults.wind, speed_mps, mission.max_speed_mps)
+        return fly_for(path, mission.slot_s, speeds)
+
+    def _way_home(self, xy: XY, speed_mps: float) -> tuple[np.ndarray, np.ndarray]:
+        """The in-fence path home from ``xy`` and its legs' ground speeds at ``speed_mps``."""
+        mission = self.mission
+        assert mission.navigator is not None and mission.faults is not None
+        path = np.asarray(mission.navigator.shortest_path(xy, self._home), float)
+        speeds = leg_speeds_mps(path, mission.faults.wind, speed_mps, mission.max_speed_mps)
+        return path, speeds
+
+    def _in_time(self, xy: XY) -> bool:
+        """True when home is still reachable from ``xy`` (the position after this slot) by the
+        mission's end, at the speed cap and the ground speed the wind allows on each leg."""
+        mission = self.mission
+        budget_s = (mission.n_slots - self.slot - 1) * mission.slot_s
+        slack_s = FEASIBILITY_SLACK_M / mission.max_speed_mps
+        return path_time_s(*self._way_home(xy, mission.max_speed_mps)) <= budget_s + slack_s
+
+    def _battery_says_return(self, battery: Battery, back_mps: float) -> bool:
+        """True when the energy left only covers the way home (``Battery.must_return``); under
+        a wind the way home is priced leg by leg at the ground speed the wind allows."""
+        mission = self.mission
+        assert mission.navigator is not None and mission.faults is not None
+        if mission.faults.wind is None:  # the fault-free formula, P(v_r) d / v_r
+            distance = mission.navigator.travel_distance(self.position, self._home)
+            return bool(battery.must_return(self.used_j, distance, mission.slot_s))
+        way_j = battery.path_energy_j(*self._way_home(self.position, back_mps))
+        return bool(battery.must_return(self.used_j, 0.0, mission.slot_s, return_j=way_j))
+
     def _faulted_move(self, goto_m: XY | None) -> tuple[XY, bool]:
         """The move under wind and/or a battery limit (``docs/faults.md``, steps 5-6).
 
-        A battery that no longer covers the way home overrides the goal with home (at the
-        return speed, never above the speed cap); a spent battery keeps the UAV where it is.
-        The wind then shortens the step (never lengthens it), along the in-fence path.
+        A battery that no longer covers the way home (flown at the return speed, each leg at
+        the ground speed the wind allows) overrides the goal with home; a spent battery keeps
+        the UAV where it is. The UAV flies along the in-fence path, each leg at the ground
+        speed the wind allows; with ``return_home`` the engine sends it home instead whenever
+        the move would leave too little time to get back at those speeds, so
+        ``time_home(r_{t+1}) <= (T - t - 1) dt`` holds after every slot and r_T = home.
         """
         mission, faults = self.mission, self.mission.faults
-        nav, home = mission.navigator, mission.home_m
-        assert faults is not None and nav is not None and home is not None
-        battery, wind, slot_s = faults.battery, faults.wind, mission.slot_s
+        assert faults is not None and mission.navigator is not None
+        battery, slot_s, cap = faults.battery, mission.slot_s, mission.max_speed_mps
         if self.landed:
             return self.position, True
-        home_xy: XY = (float(home[0]), float(home[1]))
-        if battery is not None and bool(
-            battery.must_return(self.used_j, nav.travel_distance(self.position, home_xy), slot_s)
-        ):
-            speed = min(battery.return_speed_mps, mission.max_speed_mps)
-            moved, overridden = nav.step(self.position, home_xy, speed * slot_s), True
-        else:
+        back_mps = cap if battery is None else min(battery.return_speed_mps, cap)
+        returning = battery is not None and self._battery_says_return(battery, back_mps)
+        if returning:
+            moved, overridden = self._fly(self._home, back_mps), True
+        elif faults.wind is None:
             moved, overridden = next_position(mission, self.position, goto_m, self.slot)
-        if wind is not None:
-            step = np.subtract(moved, self.position)
-            length = float(np.hypot(*wind.achieved_step_m(step, slot_s, mission.max_speed_mps)))
-            if length < float(np.hypot(*step)):
-                moved = nav.step(self.position, moved, length)
+        else:
+            goal = self.position if goto_m is None else legal_goal(mission.navigator, goto_m)
+            moved, overridden = self._fly(goal, cap), False
+        # (a calm move by the policy was checked by next_position already)
+        timed = returning or faults.wind is not None
+        if mission.return_home and timed and not self._in_time(moved):
+            moved, overridden = self._fly(self._home, cap), True  # too late: home at the cap
         if battery is not None:
             speed = float(np.hypot(*np.subtract(moved, self.position))) / slot_s
             self.used_j += float(battery.slot_energy_j(speed, slot_s))

@@ -25,12 +25,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from skymule.errors import ScenarioError
+from skymule.faults.draws import FaultDraws, draw_uav_faults
 from skymule.policies.base import Action, Observation
 from skymule.radio.channel import FADING_STREAM
 from skymule.radio.fading import draw_fading_db
 from skymule.scenario import PolicySpec, Scenario
 from skymule.sim import contract
-from skymule.sim.autonomous import AutonomousFlight
+from skymule.sim.autonomous import AutonomousFlight, check_wind
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.engine import FixedFlight, check_serve
 from skymule.sim.log import MissionLog
@@ -103,6 +104,23 @@ def uav_fading_db(scenario: Scenario, mission: Mission, index: int) -> np.ndarra
     )
 
 
+def uav_faults(scenario: Scenario, mission: Mission, index: int) -> FaultDraws | None:
+    """UAV ``index``'s fault draws: UAV 0 keeps the mission's; the others share the towers'
+    (outages, Gilbert-Elliott link states) and draw their own SNR errors, missed polls and GPS
+    errors from their own generator (``docs/faults.md``, "Several UAVs")."""
+    if index == 0 or not scenario.faults:
+        return mission.faults
+    draws = draw_uav_faults(
+        scenario.faults,
+        mission.n_slots,
+        mission.sensor_names,
+        mission.slot_s,
+        scenario.seed,
+        index,
+    )
+    return None if draws.is_empty else draws
+
+
 def build_fleet(scenario: Scenario) -> Fleet:
     """Resolve a scenario into a :class:`Fleet` (one UAV when it has no ``[[uavs]]``)."""
     if not scenario.uavs:
@@ -120,9 +138,13 @@ def build_fleet(scenario: Scenario) -> Fleet:
             mission = build_mission(single)
             if uav.home is not None:
                 check_home_inside(mission.fence, home_xy(single, mission.frame))
+            if mission.mode == "autonomous":
+                check_wind(mission)  # this UAV may be slower than the scenario's speed
         except ScenarioError as exc:
             raise ScenarioError(f"uavs[{index}] ({uav.name}): {exc}") from None
-        missions.append(replace(mission, fading_db=uav_fading_db(scenario, mission, index)))
+        fading = uav_fading_db(scenario, mission, index)
+        faults = uav_faults(scenario, mission, index)
+        missions.append(replace(mission, fading_db=fading, faults=faults))
     names = tuple(u.name for u in scenario.uavs)
     specs = tuple(u.policy or scenario.policy for u in scenario.uavs)
     return Fleet(scenario, names, tuple(missions), specs)

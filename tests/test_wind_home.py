@@ -1,0 +1,221 @@
+"""Return home under wind and a battery (docs/faults.md, steps 5-6), hand-worked; per-UAV
+fault draws in a fleet."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from shapely.geometry import Point, Polygon, box
+
+from skymule.errors import ScenarioError
+from skymule.faults import Battery, Wind, no_faults
+from skymule.fleet_runner import simulate_fleet
+from skymule.flight.navigation import Navigator
+from skymule.policies.base import Action, MissionContext, Observation
+from skymule.scenario import load_scenario, scenario_from_dict
+from skymule.sim.autonomous import AutonomousFlight, next_position
+from skymule.sim.fleet import build_fleet
+from skymule.sim.run import run_mission
+from skymule.world import Mission, build_mission
+
+
+class _GoWest:
+    """Always flies toward a point 900 m west of home; never serves."""
+
+    name = "go-west"
+
+    def reset(self, context: MissionContext) -> None:
+        pass
+
+    def act(self, observation: Observation) -> Action:
+        return Action(serve=None, goto_m=(-900.0, 0.0))
+
+
+def _square_mission(
+    wind: Wind | None, n_slots: int = 20, battery: Battery | None = None
+) -> Mission:
+    """paper-sim-autonomous cut to ``n_slots`` 1-s slots, home (0, 0), in a 2 km square fence,
+    10 m/s speed cap, with ``wind`` and ``battery``."""
+    mission = build_mission(load_scenario("paper-sim-autonomous"))
+    fence = box(-1000.0, -1000.0, 1000.0, 1000.0)
+    faults = replace(no_faults(n_slots, mission.n_sensors), wind=wind, battery=battery)
+    assert mission.fading_db is None and mission.max_speed_mps == 10.0
+    return replace(
+        mission,
+        n_slots=n_slots,
+        fence=fence,
+        navigator=Navigator(fence),
+        home_m=np.array([0.0, 0.0]),
+        faults=faults,
+    )
+
+
+def test_a_tailwind_out_is_a_headwind_back_and_the_engine_plans_for_it() -> None:
+    # 5 m/s from the east: flying west the UAV holds its 10 m/s (a tailwind never speeds it
+    # up), flying east (home) it makes 10 - 5 = 5 m/s. 20 slots.
+    wind = Wind(5.0, 90.0)
+    mission = _square_mission(wind)
+    # the old rule: return home when d_home(next) > (T - t - 1) x 10 m, wind applied after.
+    # Out 10 slots to x = -100 m, then 10 slots back at 5 m/s: it ends 50 m short of home.
+    calm = replace(mission, faults=None)
+    old = (0.0, 0.0)
+    for slot in range(mission.n_slots):
+        moved, _ = next_position(calm, old, (-900.0, 0.0), slot)
+        step = wind.achieved_step_m(np.subtract(moved, old), 1.0, 10.0)
+        old = (old[0] + float(step[0]), old[1] + float(step[1]))
+    assert old == pytest.approx((-50.0, 0.0))
+    # the new rule: time home at 5 m/s. Leaving x = -60 for -70 at slot 6 would need 14 s
+    # back with 13 left: home instead, 5 m a slot for 12 slots, then it stays home.
+    log = run_mission(mission, _GoWest())
+    x = np.append(log.position_m[:, 0], log.end_position_m[0])
+    expected = [-10.0 * t for t in range(7)] + [-60.0 + 5.0 * k for k in range(1, 13)] + [0, 0]
+    assert x == pytest.approx(expected)
+    assert np.all(log.position_m[:, 1] == 0.0)
+    assert log.end_position_m[:2] == pytest.approx([0.0, 0.0], abs=1e-9)
+
+
+def test_a_bent_way_home_is_timed_leg_by_leg() -> None:
+    # an L-shaped fence, home (0, 0) on the lower arm's top edge, the goal up the east arm.
+    # Every way bends at the reflex corner (380, 0); in a 6 m/s wind from the south the UAV
+    # makes sqrt(10^2 - 6^2) = 8 m/s east or west (crosswind), 10 m/s north (a tailwind
+    # never speeds it up) and 10 - 6 = 4 m/s south (headwind).
+    fence = Polygon([(-10, -10), (400, -10), (400, 400), (380, 400), (380, 0), (-10, 0)])
+    mission = replace(_square_mission(Wind(6.0, 180.0), n_slots=200), fence=fence)
+    mission = replace(mission, navigator=Navigator(fence))
+
+    class _UpTheArm(_GoWest):
+        def act(self, observation: Observation) -> Action:
+            return Action(serve=None, goto_m=(380.0, 390.0))
+
+    log = run_mission(mission, _UpTheArm())
+    path = np.vstack([log.position_m[:, :2], log.end_position_m[None, :2]])
+    assert log.end_position_m[:2] == pytest.approx([0.0, 0.0], abs=1e-6)
+    step = np.diff(path, axis=0)
+    length = np.hypot(*step.T)
+    assert length.max() <= mission.max_step_m + 1e-9
+    # whole slots on one leg fly at that leg's speed (a slot spanning the corner is shorter)
+    east = (step[:, 1] == 0) & (step[:, 0] > 0)
+    west = (step[:, 1] == 0) & (step[:, 0] < 0)
+    north = (step[:, 0] == 0) & (step[:, 1] > 0)
+    south = (step[:, 0] == 0) & (step[:, 1] < 0)
+    for leg, speed in ((east, 8.0), (west, 8.0), (north, 10.0), (south, 4.0)):
+        assert np.isclose(length[leg], speed).sum() >= leg.sum() - 1 > 0
+    # 380 m east at 8 m/s (47.5 s) and back west: 95 s; the rest goes north and back south at
+    # 10 and 4 m/s: (200 - 95) s x (10 x 4 / 14) m/s = 300 m up the arm, give or take a slot
+    assert path[:, 1].max() == pytest.approx(300.0, abs=10.0)
+
+
+def test_a_wind_the_uav_cannot_fly_against_is_refused_in_one_line() -> None:
+    mission = _square_mission(Wind(12.0, 0.0))
+    with pytest.raises(ScenarioError, match=r"speed_mps = 12 is not below .* = 10: home"):
+        AutonomousFlight(mission)
+    # a fleet UAV slower than the scenario's speed meets the same check, naming the UAV
+    base = load_scenario("paper-sim-autonomous")
+    data = base.to_toml_dict()
+    data["faults"] = [{"kind": "wind", "params": {"speed_mps": 5.0}}]
+    data["uavs"] = [{"name": "fast"}, {"name": "slow", "max_speed_mps": 4.0}]
+    scenario = scenario_from_dict(data, "fleet", Path(base.base_dir))
+    with pytest.raises(ScenarioError, match=r"uavs\[1\] \(slow\): .*speed_mps = 5 .* = 4"):
+        build_fleet(scenario)
+
+
+def test_the_battery_times_the_way_home_at_the_ground_speed_the_wind_allows() -> None:
+    battery = Battery(capacity_j=3600.0 * 10.0, reserve_fraction=0.5, return_speed_mps=10.0)
+    east = np.array([[0.0, 0.0], [100.0, 0.0]])
+    # against a 5 m/s headwind the way home takes twice as long at P(5) instead of P(10)
+    slow = battery.path_energy_j(east, np.array([5.0]))
+    assert slow == pytest.approx(float(battery.slot_energy_j(5.0, 20.0)))
+    assert battery.path_energy_j(east, np.array([10.0])) == pytest.approx(
+        float(battery.return_energy_j(100.0))
+    )
+    assert battery.path_energy_j(east, np.array([0.0])) == math.inf
+    used = (
+        battery.usable_j
+        - float(battery.return_energy_j(100.0))
+        - 1.5 * float(battery.slot_energy_j(0.0, 1.0))
+    )
+    assert not battery.must_return(used, 100.0, 1.0)  # calm: one hover slot to spare
+    assert battery.must_return(used, 100.0, 1.0, return_j=slow)  # headwind: turn now
+
+
+@pytest.mark.parametrize("from_deg", [90.0, 270.0])
+def test_a_windy_battery_mission_gets_home_before_the_pack_is_spent(from_deg: float) -> None:
+    battery = Battery(capacity_j=3600.0 * 4.0, reserve_fraction=0.2, return_speed_mps=10.0)
+    mission = _square_mission(Wind(5.0, from_deg), n_slots=300, battery=battery)
+    flight = AutonomousFlight(mission)
+    policy = _GoWest()
+    while not flight.done:
+        flight.apply(policy.act(flight.observe()))
+    log = flight.log("go-west")
+    assert log.end_position_m[:2] == pytest.approx([0.0, 0.0], abs=1e-6)
+    assert flight.used_j <= battery.usable_j + float(battery.slot_energy_j(10.0, 1.0))
+    assert np.abs(log.position_m[:, 0]).max() > 100.0
+
+
+def _fleet_scenario(uavs: list[dict[str, Any]] | None) -> Any:
+    base = load_scenario("paper-sim-autonomous")
+    data = base.to_toml_dict()
+    data["mission"]["duration_s"] = 200
+    data["faults"] = [
+        {"kind": "outage", "params": {"mean_duration_s": 40.0}},
+        {"kind": "gilbert-elliott", "params": {"p_good_to_bad": 0.05, "p_bad_to_good": 0.3}},
+        {"kind": "snr-error", "params": {"std_db": 4.0, "correlation_s": 3.0}},
+        {"kind": "missed-polls", "params": {"probability": 0.1}},
+        {"kind": "gps-error", "params": {"std_m": 5.0}},
+    ]
+    if uavs is not None:
+        data["uavs"] = uavs
+    return scenario_from_dict(data, "fleet faults", Path(base.base_dir))
+
+
+def test_each_uav_draws_its_own_faults_and_shares_the_towers() -> None:
+    fleet = build_fleet(_fleet_scenario([{"name": "A"}, {"name": "B", "home": [-200, -100]}]))
+    a, b = (m.faults for m in fleet.missions)
+    assert a is not None and b is not None
+    alone = build_mission(_fleet_scenario(None)).faults
+    assert alone is not None
+    for name in ("outage", "burst_loss", "snr_error_db", "poll_missed", "gps_error_m"):
+        assert np.array_equal(getattr(a, name), getattr(alone, name)), name  # UAV 0 = alone
+    # the towers are the same for both UAVs; each UAV's receiver errs on its own
+    assert a.outage.any() and np.array_equal(a.outage, b.outage)
+    assert a.burst_loss.any() and np.array_equal(a.burst_loss, b.burst_loss)
+    for name in ("snr_error_db", "poll_missed", "gps_error_m"):
+        assert not np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert abs(np.corrcoef(a.snr_error_db.ravel(), b.snr_error_db.ravel())[0, 1]) < 0.1
+
+
+@pytest.mark.parametrize("policy", ["greedy", "hgad"])
+def test_a_one_uav_fleet_with_faults_is_the_single_uav_engine(policy: str) -> None:
+    from skymule.runner import simulate
+
+    single = simulate(_fleet_scenario(None), policy)
+    fleet = simulate_fleet(_fleet_scenario([{"name": "only"}]), policy)
+    log = fleet.log.logs[0]
+    for field in ("served", "chosen", "downloaded_bit", "remaining_bit", "position_m"):
+        assert np.array_equal(getattr(single.log, field), getattr(log, field)), field
+
+
+@pytest.mark.parametrize("policy", ["greedy", "hgad", "hgad-robust", "planner"])
+def test_policies_see_a_gps_reading_outside_the_fence_as_reported(policy: str) -> None:
+    from skymule.policies import make_policy
+    from skymule.scenario import PolicySpec
+
+    base = load_scenario("paper-sim-autonomous")
+    data = base.to_toml_dict()
+    data["faults"] = [{"kind": "gps-error", "params": {"bias_m": [150.0, 0.0], "std_m": 20.0}}]
+    mission = build_mission(scenario_from_dict(data, "gps", Path(base.base_dir)))
+    assert mission.faults is not None and mission.home_m is not None and mission.fence
+    flight = AutonomousFlight(mission)
+    seen = flight.observe().position_m
+    error = mission.faults.gps_error_m[0]
+    assert seen[:2] == pytest.approx(mission.home_m + error)  # not moved into the fence
+    assert not mission.fence.buffer(1.0).contains(Point(*seen[:2]))
+    log = run_mission(mission, make_policy(PolicySpec(name=policy)))
+    path = np.vstack([log.position_m[:, :2], log.end_position_m[None, :2]])
+    assert all(mission.fence.buffer(1e-5).covers(Point(x, y)) for x, y in path)
+    assert log.end_position_m[:2] == pytest.approx(mission.home_m, abs=1e-6)

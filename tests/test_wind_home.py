@@ -219,3 +219,17 @@ def test_policies_see_a_gps_reading_outside_the_fence_as_reported(policy: str) -
     path = np.vstack([log.position_m[:, :2], log.end_position_m[None, :2]])
     assert all(mission.fence.buffer(1e-5).covers(Point(x, y)) for x, y in path)
     assert log.end_position_m[:2] == pytest.approx(mission.home_m, abs=1e-6)
+
+
+def test_a_fleet_is_checked_against_its_own_uavs_speeds() -> None:
+    """The scenario's trajectory speed does not refuse a wind its UAVs all outfly."""
+    base = load_scenario("paper-sim-autonomous")
+    data = base.to_toml_dict()
+    data["trajectory"]["max_speed_mps"] = 4.0
+    data["faults"] = [{"kind": "wind", "params": {"speed_mps": 5.0}}]
+    data["uavs"] = [{"name": "a", "max_speed_mps": 12.0}, {"name": "b", "max_speed_mps": 10.0}]
+    scenario = scenario_from_dict(data, "fleet", Path(base.base_dir))
+    assert build_fleet(scenario).names == ("a", "b")
+    data.pop("uavs")  # one UAV at 4 m/s cannot fly against 5 m/s
+    with pytest.raises(ScenarioError, match=r"faults\[0\] \(wind\): speed_mps = 5.0 must be below"):
+        scenario_from_dict(data, "one", Path(base.base_dir))

@@ -383,7 +383,7 @@ class Scenario(_Spec):
                     f"faults[{index}] ({fault.kind}): sensor {unknown[0]!r} is not in the "
                     f"scenario; allowed: {', '.join(names)}"
                 )
-            if fault.kind == "wind":
+            if fault.kind == "wind" and not self.uavs:  # a fleet checks each UAV (sim.fleet)
                 uav = (
                     self.trajectory.max_speed_mps
                     if self.trajectory.mode == "autonomous"

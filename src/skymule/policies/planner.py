@@ -559,12 +559,28 @@ class Planner:
 
     # --- acting -------------------------------------------------------------------------------
 
+    def _snr_offset(self, observation: Observation) -> np.ndarray | None:
+        """(N,) observed minus predicted SNR [dB] here (None without a predictor)."""
+        predicted = self._predict_snr(observation.position_m[None, :2], observation.position_m[2])
+        return None if predicted is None else observation.snr_db - predicted[0]
+
+    def _seen_rate_bps(self, observation: Observation) -> np.ndarray:
+        """(N,) the rates [bit/s] this slot's choices follow: the observed ones."""
+        return observation.rate_bps
+
+    def _arrived(self, here: XY, goal: XY) -> bool:
+        """True when the reported position ``here`` counts as being at ``goal``."""
+        return math.dist(here, goal) <= SAME_POINT_M
+
+    def _hover_goto(self, goal: XY) -> XY | None:
+        """Where to fly while hovering at ``goal``: nowhere (the UAV is exactly there)."""
+        return None
+
     def _check_prediction(self, observation: Observation) -> bool:
         """Update the per-sensor SNR bias; True if the observation departs from the plan."""
-        predicted = self._predict_snr(observation.position_m[None, :2], observation.position_m[2])
-        if predicted is None:
+        offset = self._snr_offset(observation)
+        if offset is None:
             return False
-        offset = observation.snr_db - predicted[0]
         usable = np.isfinite(offset) & (observation.remaining_bit > 0)
         off = usable & (np.abs(offset - self._bias_db) > self.replan_db)
         if not off.any() or observation.slot - self._last_replan < self.replan_cooldown:
@@ -593,7 +609,7 @@ class Planner:
                 return Action(serve=en_route, goto_m=self._home)
             target = plan.order[self._position]
             goal = _xy(self._hover[target])
-            arrived = math.dist(here, goal) <= SAME_POINT_M
+            arrived = self._arrived(here, goal)
             if not arrived:
                 if remaining[target] <= 0 and observation.slot != self._last_replan:
                     self._replan(observation)  # emptied en route: no need to go there
@@ -607,13 +623,13 @@ class Planner:
                 self._at_target = True
             serve = target if remaining[target] > 0 else en_route
             left = remaining[target] - (
-                min(observation.rate_bps[target] * self._slot_s(), remaining[target])
+                min(self._seen_rate_bps(observation)[target] * self._slot_s(), remaining[target])
                 if serve == target
                 else 0.0
             )
             if self._stay_left > 0 and left > 0:
                 self._stay_left -= 1
-                return Action(serve=serve, hover=True, goto_m=None, target=target)
+                return Action(serve=serve, hover=True, goto_m=self._hover_goto(goal), target=target)
             # leave in this slot: on to the next target
             self._position += 1
             self._at_target = False
@@ -621,7 +637,7 @@ class Planner:
                 self._stay_left = plan.extra_slots[self._position]
             nxt = plan.order[self._position] if self._position < len(plan.order) else None
             goto = self._home if nxt is None else _xy(self._hover[nxt])
-            if nxt is not None and math.dist(here, goto) <= SAME_POINT_M:
+            if nxt is not None and self._arrived(here, goto):
                 continue  # next target served from the same point
             return Action(serve=serve, goto_m=goto, target=nxt)
 
@@ -629,9 +645,8 @@ class Planner:
         assert self._context is not None
         return self._context.slot_s
 
-    @staticmethod
-    def _en_route(observation: Observation) -> int | None:
-        """Highest observed rate among sensors with data (None if no link)."""
-        rates = np.where(observation.remaining_bit > 0, observation.rate_bps, -1.0)
+    def _en_route(self, observation: Observation) -> int | None:
+        """Highest seen rate among sensors with data (None if no link)."""
+        rates = np.where(observation.remaining_bit > 0, self._seen_rate_bps(observation), -1.0)
         best = int(np.argmax(rates))
         return best if rates[best] > 0 else None

@@ -11,6 +11,7 @@ import pytest
 from skymule.errors import ScenarioError
 from skymule.policies import make_policy
 from skymule.policies.base import Observation
+from skymule.policies.planner import ground_speed_mps
 from skymule.policies.planner_robust import RobustPlanner
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
 from skymule.sim.context import mission_context
@@ -159,4 +160,31 @@ def test_robust_planner_parameters_are_validated() -> None:
     data["policy"] = {"name": "planner-robust", "params": {"fail_slots": 2, "backoff_s": 30.0}}
     policy = make_policy(scenario_from_dict(data, "x", Path(".")).policy)
     assert isinstance(policy, RobustPlanner)
-    assert (policy.fail_slots, policy.backoff_s, policy.window_slots) == (2, 30.0, 3)
+    assert (policy.fail_slots, policy.backoff_s, policy.window_slots) == (2, 30.0, 5)
+
+
+def test_ground_speed_follows_the_wind_triangle() -> None:
+    """docs/faults.md: a 5 m/s headwind halves 10 m/s, 6 m/s across leaves 8, a tailwind
+    never speeds the UAV up."""
+    east = np.array([[1.0, 0.0]])
+    for wind, expected in (((-5.0, 0.0), 5.0), ((0.0, 6.0), 8.0), ((6.0, 0.0), 10.0)):
+        speed = ground_speed_mps(east, np.array(wind), 10.0)
+        np.testing.assert_allclose(speed, [expected])
+
+
+@pytest.mark.parametrize(("from_deg", "wind"), [(0.0, (0.0, -6.0)), (225.0, (4.2426, 4.2426))])
+def test_the_wind_is_estimated_from_slowed_steps_and_the_uav_gets_home(
+    from_deg: float, wind: tuple[float, float]
+) -> None:
+    """A steady 6 m/s wind the policy is not told about: the plain planner times its legs at
+    the full speed and ends the 500 s mission away from home; the robust one infers the wind
+    from its own slowed steps and is home at the end."""
+    faults = [{"kind": "wind", "params": {"speed_mps": 6.0, "from_deg": from_deg}}]
+    mission = build_mission(_with(faults))
+    plain = _run(mission, "planner")
+    policy = make_policy(PolicySpec(name="planner-robust", params={}))
+    robust = run_mission(mission, policy)
+    assert isinstance(policy, RobustPlanner) and policy._wind_mps is not None
+    np.testing.assert_allclose(policy._wind_mps, wind, atol=1e-3)
+    assert np.hypot(*(plain.end_position_m[:2] - plain.home_m)) > 5.0
+    assert np.hypot(*(robust.end_position_m[:2] - robust.home_m)) < 1e-6

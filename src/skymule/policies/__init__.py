@@ -71,7 +71,7 @@ class RobustPlannerParams(NoParams):
     """A sensor is marked down after this many consecutive served slots with no data."""
     backoff_s: Annotated[float, Field(gt=0, allow_inf_nan=False)] = 60.0
     """How long a sensor stays down [s] (doubled each further time; back up when it reports)."""
-    window_slots: Annotated[int, Field(ge=1)] = 3
+    window_slots: Annotated[int, Field(ge=1)] = 5
     """Slots in the moving mean of the observed - predicted SNR that choices follow."""
     arrive_m: Annotated[float, Field(ge=0, allow_inf_nan=False)] = 10.0
     """A reported position this close to a hover point counts as there [m]."""

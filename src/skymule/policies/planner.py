@@ -63,6 +63,10 @@ SAME_POINT_M = 1e-6
 #: Most plan simulations spent moving hover slots between targets per re-plan.
 REFINE_SIMULATIONS = 40
 
+#: Legs timed with a wind take this much longer than the wind triangle says (the engine
+#: turns corners and applies the wind per slot; a late return home costs more than a slot).
+WIND_MARGIN = 1.05
+
 #: Predicted downloads within this many bits count as equal (then finishing sooner wins).
 BITS_TOL = 1.0
 
@@ -195,6 +199,20 @@ def two_opt_order(start: np.ndarray, pair: np.ndarray, end: np.ndarray) -> list[
     return order
 
 
+def ground_speed_mps(direction: np.ndarray, wind_mps: np.ndarray, speed_mps: float) -> np.ndarray:
+    """(K,) ground speed [m/s] along each (K, 2) direction under the wind ``wind_mps`` (2,).
+
+    The wind triangle of ``docs/faults.md``: at most ``speed_mps`` (the commanded speed; a
+    tailwind never speeds the UAV up), ``u.w + sqrt(V^2 - |w|^2 + (u.w)^2)`` with airspeed
+    V = ``speed_mps``; never below 1 % of V, so that a leg always ends.
+    """
+    length = np.hypot(direction[:, 0], direction[:, 1])
+    unit = direction / np.maximum(length, 1e-12)[:, None]
+    along = unit @ wind_mps
+    root = np.maximum(speed_mps**2 - float(wind_mps @ wind_mps) + along**2, 0.0)
+    return np.clip(along + np.sqrt(root), 0.01 * speed_mps, speed_mps)
+
+
 def _better(plan: Plan, best: Plan) -> bool:
     """More predicted bits (beyond BITS_TOL), or as many and done sooner."""
     if plan.bits > best.bits + BITS_TOL:
@@ -252,6 +270,7 @@ class Planner:
         self._pair_slots = np.full_like(self._dist, np.inf)
         finite = np.isfinite(self._dist)
         self._pair_slots[finite] = [leg_slots(float(d), self._step) for d in self._dist[finite]]
+        self._wind_mps: np.ndarray | None = None  # (2,) the wind legs are timed with, if any
         self._altitude = 0.0
         self._homebound = False
         self._plan: Plan | None = None
@@ -296,6 +315,13 @@ class Planner:
             along = np.concatenate([[0.0], np.cumsum(seg)])
             slots = leg_slots(float(along[-1]), self._step)
             at = np.arange(1, max(slots, 1)) * self._step
+            if self._wind_mps is not None and slots > 0:
+                # slower or faster per segment: time along the path, points every slot
+                dt = self._context.slot_s
+                speed = ground_speed_mps(np.diff(path, axis=0), self._wind_mps, self._step / dt)
+                time = np.concatenate([[0.0], np.cumsum(WIND_MARGIN * seg / speed)])
+                slots = max(math.ceil(time[-1] / dt - 1e-9), 1)
+                at = np.interp(np.arange(1, slots) * dt, time, along)
             pts = np.column_stack(
                 [np.interp(at, along, path[:, 0]), np.interp(at, along, path[:, 1])]
             )
@@ -377,8 +403,21 @@ class Planner:
         out = np.full(self._n + 1, np.inf)
         for k, node in enumerate(nodes):
             if k == self._n or self._known[k]:
-                out[k] = leg_slots(nav.travel_distance(position, node), self._step)
+                if self._wind_mps is None:
+                    out[k] = leg_slots(nav.travel_distance(position, node), self._step)
+                else:
+                    out[k] = self._leg(position, node)[0]
         return out
+
+    def _set_wind(self, wind_mps: np.ndarray) -> None:
+        """Time every leg from now on with a steady wind ``wind_mps`` (2,) [m/s] (the vector
+        it blows toward), as the engine's wind triangle does (``docs/faults.md``)."""
+        self._wind_mps = np.asarray(wind_mps, float)
+        self._legs.clear()
+        nodes = [*(_xy(p) for p in self._hover), self._home]
+        for a, b in itertools.permutations(range(self._n + 1), 2):
+            if np.isfinite(self._dist[a, b]):
+                self._pair_slots[a, b] = self._leg(nodes[a], nodes[b])[0]
 
     def _candidate_orders(
         self, position: XY, slot: int, remaining: np.ndarray, rates: np.ndarray

@@ -24,10 +24,19 @@ serves what it sees; under faults that goes wrong in three ways, each fixed by o
   arrives (it keeps flying to the point, serving en route). Here a reported position within
   ``arrive_m`` of the hover point counts as arrived, and the hover keeps flying to the point.
 
-With ``window_slots = 1``, ``arrive_m = 0`` and no failed slots it is exactly the planner
-(tested). Wind and battery are not in what a policy may see (:class:`MissionContext`,
-:class:`Observation`): the engine's return-home override steers the UAV home in time under
-them, as for every policy; this planner adds nothing there.
+* **Wind.** Wind is not in what a policy is told (:class:`MissionContext`), but the UAV
+  sees its own positions: a slot in which it was sent a full straight step along the in-fence
+  path and moved *less*, in exactly that direction, is what the engine's wind triangle does
+  (``docs/faults.md``). Every such slot gives the ground velocity v (|v| < V, the speed cap)
+  and so one circle the wind w lies on, |v - w| = V; the estimate is the least-squares fit
+  (Gauss-Newton from the smallest wind that explains the first slots: a pure headwind).
+  From then on every leg is timed with that wind (``Planner._set_wind``; a tailwind never
+  speeds the UAV up), so tours and the way home fit the time left; without such slots
+  (no wind, or position reports too noisy to be parallel to the step) nothing changes.
+  The battery is not observable either: the engine's battery override brings the UAV home.
+
+With ``window_slots = 1``, ``arrive_m = 0`` and no failed or slowed slots it is exactly the
+planner (tested).
 """
 
 from __future__ import annotations
@@ -39,6 +48,12 @@ import numpy as np
 from skymule.policies.base import Action, MissionContext, Observation
 from skymule.policies.planner import XY, Planner
 
+#: Slowed slots the wind estimate keeps (the latest).
+WIND_SAMPLES = 200
+
+#: The legs are re-timed (and the tour re-planned) when the wind estimate moves this much [m/s].
+WIND_CHANGE_MPS = 0.25
+
 
 class RobustPlanner(Planner):
     """The tour planner plus the silent-tower, smoothing and arrival rules (module doc)."""
@@ -49,7 +64,7 @@ class RobustPlanner(Planner):
         self,
         fail_slots: int = 3,
         backoff_s: float = 60.0,
-        window_slots: int = 3,
+        window_slots: int = 5,
         arrive_m: float = 10.0,
     ) -> None:
         super().__init__()
@@ -69,6 +84,8 @@ class RobustPlanner(Planner):
         self._window: list[np.ndarray] = []  # last offsets [dB] (or rates without predictor)
         self._offset: np.ndarray | None = None
         self._seen = np.zeros(n)
+        self._sent: tuple[XY, XY] | None = None  # (reported position, goal) of the last slot
+        self._slowed: list[np.ndarray] = []  # ground velocities [m/s] of slowed slots
 
     # --- what the planner sees: masked by the down marks, smoothed -----------------------------
 
@@ -138,11 +155,91 @@ class RobustPlanner(Planner):
             self._up = up
         return changed
 
+    # --- wind ---------------------------------------------------------------------------------
+
+    def _slowed_velocity(self, here: XY) -> np.ndarray | None:
+        """Ground velocity [m/s] of the last slot if the wind slowed it (see the module doc)."""
+        if self._sent is None:
+            return None
+        assert self._context is not None and self._context.navigator is not None
+        start, goal = self._sent
+        path = np.asarray(self._context.navigator.shortest_path(start, goal), float)
+        if len(path) < 2:
+            return None
+        first = path[1] - path[0]
+        length = float(np.hypot(*first))
+        if length < self._step:  # not a full straight step (a corner, or the goal is close)
+            return None
+        unit = first / length
+        moved = np.subtract(here, start)
+        along = float(moved @ unit)
+        across = abs(float(moved[0] * unit[1] - moved[1] * unit[0]))
+        tol = 1e-6 * self._step
+        if across > tol or not tol < along < self._step - tol:
+            return None
+        velocity: np.ndarray = unit * along / self._slot_s()
+        return velocity
+
+    def _estimate_wind(self) -> np.ndarray:
+        """Least-squares wind w [m/s] with |v - w| = V for every slowed velocity v.
+
+        Two circles meet twice, so a local fit can settle on the wrong point: Gauss-Newton
+        starts from the best of a 1 m/s grid over |w| < V, the previous estimate and the
+        smallest wind that explains each slot (a headwind of V - |v|: exact when every slot
+        so far went the same way, where every point of that one circle fits).
+        """
+        speed = self._step / self._slot_s()
+        velocity = np.array(self._slowed)
+        norm = np.hypot(velocity[:, 0], velocity[:, 1])
+
+        def cost(wind: np.ndarray) -> np.ndarray:  # (P, 2) -> (P,) mean squared residual
+            diff = velocity[None, :, :] - wind[:, None, :]
+            return np.mean((np.hypot(diff[..., 0], diff[..., 1]) - speed) ** 2, axis=1)
+
+        axis = np.arange(-math.floor(speed), math.floor(speed) + 1.0)
+        grid = np.stack(np.meshgrid(axis, axis), axis=-1).reshape(-1, 2)
+        grid = grid[np.hypot(grid[:, 0], grid[:, 1]) < speed]
+        headwind = np.mean(velocity * ((norm - speed) / norm)[:, None], axis=0)
+        starts = [headwind[None], grid]
+        if self._wind_mps is not None:
+            starts.append(self._wind_mps[None])
+        candidates = np.vstack(starts)
+        wind = candidates[int(np.argmin(cost(candidates)))]
+        for _ in range(20):  # Gauss-Newton on r_k = |v_k - w| - V
+            diff = velocity - wind
+            dist = np.maximum(np.hypot(diff[:, 0], diff[:, 1]), 1e-9)
+            step = np.linalg.lstsq(-diff / dist[:, None], speed - dist, rcond=None)[0]
+            wind = wind + step
+            if float(np.hypot(*step)) < 1e-9:
+                break
+        size = float(np.hypot(*wind))
+        return wind * min(1.0, 0.95 * speed / size) if size > 0 else wind
+
+    def _update_wind(self, observation: Observation) -> bool:
+        """Add the last slot if the wind slowed it; True when the wind estimate moved."""
+        velocity = self._slowed_velocity(_xy2(observation.position_m))
+        if velocity is None:
+            return False
+        self._slowed = [*self._slowed, velocity][-WIND_SAMPLES:]
+        wind = self._estimate_wind()
+        if self._wind_mps is not None and np.hypot(*(wind - self._wind_mps)) < WIND_CHANGE_MPS:
+            return False
+        self._set_wind(wind)
+        return True
+
     def act(self, observation: Observation) -> Action:
         self._smooth(observation)
-        if self._update_links(observation) and self._plan is not None:
-            self._replan(observation)  # a sensor went down or came back: plan around it
+        links = self._update_links(observation)
+        wind = self._update_wind(observation)
+        if (links or wind) and self._plan is not None:
+            self._replan(observation)  # a sensor went down or came back, or the wind: re-plan
         action = super().act(observation)
         serve = action.serve
         self._last = None if serve is None else (serve, float(observation.remaining_bit[serve]))
+        here = _xy2(observation.position_m)
+        self._sent = None if action.goto_m is None else (here, action.goto_m)
         return action
+
+
+def _xy2(point: np.ndarray) -> XY:
+    return (float(point[0]), float(point[1]))

@@ -20,6 +20,7 @@ from skymule.sim.log import MissionLog
 from skymule.sim.run import run_mission
 from skymule.world import Mission, build_mission
 from test_autonomous_bound import random_scenario
+from test_fault_engines import MIXED_FAULTS, _true_yield_holds
 
 PRESET = "paper-sim-autonomous"
 
@@ -188,3 +189,19 @@ def test_the_wind_is_estimated_from_slowed_steps_and_the_uav_gets_home(
     np.testing.assert_allclose(policy._wind_mps, wind, atol=1e-3)
     assert np.hypot(*(plain.end_position_m[:2] - plain.home_m)) > 5.0
     assert np.hypot(*(robust.end_position_m[:2] - robust.home_m)) < 1e-6
+
+
+def test_robust_planner_runs_under_every_fault_at_once() -> None:
+    faults = [
+        *MIXED_FAULTS,
+        {"kind": "gps-error", "params": {"std_m": 30.0, "correlation_s": 5.0}},
+        {"kind": "wind", "params": {"speed_mps": 4.0, "from_deg": 90.0}},
+    ]
+    mission = build_mission(_with(faults))
+    policy = make_policy(PolicySpec(name="planner-robust", params={}))
+    log = run_mission(mission, policy)
+    _true_yield_holds(log)
+    steps = np.diff(np.vstack([log.position_m, log.end_position_m[None]])[:, :2], axis=0)
+    assert np.all(np.hypot(*steps.T) <= mission.max_step_m + 1e-9)
+    # a 30 m position error: no reported step is parallel to the commanded one, no estimate
+    assert isinstance(policy, RobustPlanner) and policy._wind_mps is None

@@ -409,14 +409,19 @@ class Planner:
                     out[k] = self._leg(position, node)[0]
         return out
 
-    def _set_wind(self, wind_mps: np.ndarray) -> None:
+    def _set_wind(self, wind_mps: np.ndarray | None) -> None:
         """Time every leg from now on with a steady wind ``wind_mps`` (2,) [m/s] (the vector
-        it blows toward), as the engine's wind triangle does (``docs/faults.md``)."""
-        self._wind_mps = np.asarray(wind_mps, float)
+        it blows toward), as the engine's wind triangle does (``docs/faults.md``); None: at
+        the full speed again."""
+        self._wind_mps = None if wind_mps is None else np.asarray(wind_mps, float)
         self._legs.clear()
         nodes = [*(_xy(p) for p in self._hover), self._home]
         for a, b in itertools.permutations(range(self._n + 1), 2):
-            if np.isfinite(self._dist[a, b]):
+            if not np.isfinite(self._dist[a, b]):
+                continue
+            if wind_mps is None:
+                self._pair_slots[a, b] = leg_slots(float(self._dist[a, b]), self._step)
+            else:
                 self._pair_slots[a, b] = self._leg(nodes[a], nodes[b])[0]
 
     def _candidate_orders(

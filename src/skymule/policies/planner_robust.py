@@ -29,11 +29,13 @@ serves what it sees; under faults that goes wrong in three ways, each fixed by o
   path and moved *less*, in exactly that direction, is what the engine's wind triangle does
   (``docs/faults.md``). Every such slot gives the ground velocity v (|v| < V, the speed cap)
   and so one circle the wind w lies on, |v - w| = V; the estimate is the least-squares fit
-  (Gauss-Newton from the smallest wind that explains the first slots: a pure headwind).
-  From then on every leg is timed with that wind (``Planner._set_wind``; a tailwind never
-  speeds the UAV up), so tours and the way home fit the time left; without such slots
-  (no wind, or position reports too noisy to be parallel to the step) nothing changes.
-  The battery is not observable either: the engine's battery override brings the UAV home.
+  (:meth:`RobustPlanner._estimate_wind`). Once ``WIND_MIN_SLOTS`` such slots are in, every
+  leg is timed with that wind (``Planner._set_wind``; a tailwind never speeds the UAV up),
+  so tours and the way home fit the time left. Reports that do not fit a straight step (off
+  its line or longer: GPS error, projected into the fence) count as noisy; while they are
+  more than a ``NOISY_SHARE``-th of the slowed slots the wind is not used. Without wind,
+  nothing changes. The battery is not observable: the engine's battery override brings the
+  UAV home.
 
 With ``window_slots = 1``, ``arrive_m = 0`` and no failed or slowed slots it is exactly the
 planner (tested).
@@ -50,6 +52,13 @@ from skymule.policies.planner import XY, Planner
 
 #: Slowed slots the wind estimate keeps (the latest).
 WIND_SAMPLES = 200
+
+#: Slowed slots needed before the legs are timed with a wind.
+WIND_MIN_SLOTS = 3
+
+#: The wind is used only while slowed slots outnumber noisy ones (off the commanded line, or
+#: longer than a step: inexact position reports) this many times.
+NOISY_SHARE = 4
 
 #: The legs are re-timed (and the tour re-planned) when the wind estimate moves this much [m/s].
 WIND_CHANGE_MPS = 0.25
@@ -86,6 +95,7 @@ class RobustPlanner(Planner):
         self._seen = np.zeros(n)
         self._sent: tuple[XY, XY] | None = None  # (reported position, goal) of the last slot
         self._slowed: list[np.ndarray] = []  # ground velocities [m/s] of slowed slots
+        self._noisy = 0  # slots whose reported step did not fit the commanded one
 
     # --- what the planner sees: masked by the down marks, smoothed -----------------------------
 
@@ -158,7 +168,11 @@ class RobustPlanner(Planner):
     # --- wind ---------------------------------------------------------------------------------
 
     def _slowed_velocity(self, here: XY) -> np.ndarray | None:
-        """Ground velocity [m/s] of the last slot if the wind slowed it (see the module doc)."""
+        """Ground velocity [m/s] of the last slot if the wind slowed it (see the module doc).
+
+        Counts a slot whose report does not fit a straight full step (off its line, or longer)
+        as *noisy*: position reports that are not exact (GPS error) make any fit meaningless.
+        """
         if self._sent is None:
             return None
         assert self._context is not None and self._context.navigator is not None
@@ -175,7 +189,10 @@ class RobustPlanner(Planner):
         along = float(moved @ unit)
         across = abs(float(moved[0] * unit[1] - moved[1] * unit[0]))
         tol = 1e-6 * self._step
-        if across > tol or not tol < along < self._step - tol:
+        if across > tol or along > self._step + tol:
+            self._noisy += 1
+            return None
+        if not tol < along < self._step - tol:
             return None
         velocity: np.ndarray = unit * along / self._slot_s()
         return velocity
@@ -216,11 +233,20 @@ class RobustPlanner(Planner):
         return wind * min(1.0, 0.95 * speed / size) if size > 0 else wind
 
     def _update_wind(self, observation: Observation) -> bool:
-        """Add the last slot if the wind slowed it; True when the wind estimate moved."""
+        """Add the last slot if the wind slowed it; True when the wind the legs are timed
+        with changed (by ``WIND_CHANGE_MPS`` or more, or to / from none)."""
         velocity = self._slowed_velocity(_xy2(observation.position_m))
-        if velocity is None:
+        if velocity is not None:
+            self._slowed = [*self._slowed, velocity][-WIND_SAMPLES:]
+        count = len(self._slowed)
+        trusted = count >= WIND_MIN_SLOTS and NOISY_SHARE * self._noisy <= count
+        if not trusted:
+            if self._wind_mps is None:
+                return False
+            self._set_wind(None)
+            return True
+        if velocity is None and self._wind_mps is not None:
             return False
-        self._slowed = [*self._slowed, velocity][-WIND_SAMPLES:]
         wind = self._estimate_wind()
         if self._wind_mps is not None and np.hypot(*(wind - self._wind_mps)) < WIND_CHANGE_MPS:
             return False

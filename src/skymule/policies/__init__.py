@@ -66,6 +66,17 @@ class RobustParams(HGADParams):
     """Autonomous: a reported position this close to a hover point counts as there [m]."""
 
 
+class RobustPlannerParams(NoParams):
+    fail_slots: Annotated[int, Field(ge=1)] = 3
+    """A sensor is marked down after this many consecutive served slots with no data."""
+    backoff_s: Annotated[float, Field(gt=0, allow_inf_nan=False)] = 60.0
+    """How long a sensor stays down [s] (doubled each further time; back up when it reports)."""
+    window_slots: Annotated[int, Field(ge=1)] = 5
+    """Slots in the moving mean of the observed - predicted SNR that choices follow."""
+    arrive_m: Annotated[float, Field(ge=0, allow_inf_nan=False)] = 10.0
+    """A reported position this close to a hover point counts as there [m]."""
+
+
 PolicyFactory = Callable[[Any], Policy]
 """Makes a fresh policy from its validated parameters."""
 
@@ -95,6 +106,13 @@ POLICIES.register("greedy", lambda p: Greedy(), params=NoParams)
 POLICIES.register("hgad", lambda p: HGAD(p.hover_threshold, p.max_hover_s), params=HGADParams)
 POLICIES.register("hgad-robust", lambda p: RobustHGAD(**p.model_dump()), params=RobustParams)
 POLICIES.register("planner", _by_path("skymule.policies.planner:Planner"), params=NoParams)
+POLICIES.register(
+    "planner-robust",
+    lambda p: importlib.import_module("skymule.policies.planner_robust").RobustPlanner(
+        **p.model_dump()
+    ),
+    params=RobustPlannerParams,
+)
 POLICIES.register(
     "optimal-fixed", _by_path("skymule.policies.optimal_fixed:OptimalFixed"), params=NoParams
 )

@@ -63,6 +63,10 @@ SAME_POINT_M = 1e-6
 #: Most plan simulations spent moving hover slots between targets per re-plan.
 REFINE_SIMULATIONS = 40
 
+#: Legs timed with a wind take this much longer than the wind triangle says (the engine
+#: turns corners and applies the wind per slot; a late return home costs more than a slot).
+WIND_MARGIN = 1.05
+
 #: Predicted downloads within this many bits count as equal (then finishing sooner wins).
 BITS_TOL = 1.0
 
@@ -195,6 +199,20 @@ def two_opt_order(start: np.ndarray, pair: np.ndarray, end: np.ndarray) -> list[
     return order
 
 
+def ground_speed_mps(direction: np.ndarray, wind_mps: np.ndarray, speed_mps: float) -> np.ndarray:
+    """(K,) ground speed [m/s] along each (K, 2) direction under the wind ``wind_mps`` (2,).
+
+    The wind triangle of ``docs/faults.md``: at most ``speed_mps`` (the commanded speed; a
+    tailwind never speeds the UAV up), ``u.w + sqrt(V^2 - |w|^2 + (u.w)^2)`` with airspeed
+    V = ``speed_mps``; never below 1 % of V, so that a leg always ends.
+    """
+    length = np.hypot(direction[:, 0], direction[:, 1])
+    unit = direction / np.maximum(length, 1e-12)[:, None]
+    along = unit @ wind_mps
+    root = np.maximum(speed_mps**2 - float(wind_mps @ wind_mps) + along**2, 0.0)
+    return np.clip(along + np.sqrt(root), 0.01 * speed_mps, speed_mps)
+
+
 def _better(plan: Plan, best: Plan) -> bool:
     """More predicted bits (beyond BITS_TOL), or as many and done sooner."""
     if plan.bits > best.bits + BITS_TOL:
@@ -252,6 +270,7 @@ class Planner:
         self._pair_slots = np.full_like(self._dist, np.inf)
         finite = np.isfinite(self._dist)
         self._pair_slots[finite] = [leg_slots(float(d), self._step) for d in self._dist[finite]]
+        self._wind_mps: np.ndarray | None = None  # (2,) the wind legs are timed with, if any
         self._altitude = 0.0
         self._homebound = False
         self._plan: Plan | None = None
@@ -296,6 +315,13 @@ class Planner:
             along = np.concatenate([[0.0], np.cumsum(seg)])
             slots = leg_slots(float(along[-1]), self._step)
             at = np.arange(1, max(slots, 1)) * self._step
+            if self._wind_mps is not None and slots > 0:
+                # slower or faster per segment: time along the path, points every slot
+                dt = self._context.slot_s
+                speed = ground_speed_mps(np.diff(path, axis=0), self._wind_mps, self._step / dt)
+                time = np.concatenate([[0.0], np.cumsum(WIND_MARGIN * seg / speed)])
+                slots = max(math.ceil(time[-1] / dt - 1e-9), 1)
+                at = np.interp(np.arange(1, slots) * dt, time, along)
             pts = np.column_stack(
                 [np.interp(at, along, path[:, 0]), np.interp(at, along, path[:, 1])]
             )
@@ -377,8 +403,26 @@ class Planner:
         out = np.full(self._n + 1, np.inf)
         for k, node in enumerate(nodes):
             if k == self._n or self._known[k]:
-                out[k] = leg_slots(nav.travel_distance(position, node), self._step)
+                if self._wind_mps is None:
+                    out[k] = leg_slots(nav.travel_distance(position, node), self._step)
+                else:
+                    out[k] = self._leg(position, node)[0]
         return out
+
+    def _set_wind(self, wind_mps: np.ndarray | None) -> None:
+        """Time every leg from now on with a steady wind ``wind_mps`` (2,) [m/s] (the vector
+        it blows toward), as the engine's wind triangle does (``docs/faults.md``); None: at
+        the full speed again."""
+        self._wind_mps = None if wind_mps is None else np.asarray(wind_mps, float)
+        self._legs.clear()
+        nodes = [*(_xy(p) for p in self._hover), self._home]
+        for a, b in itertools.permutations(range(self._n + 1), 2):
+            if not np.isfinite(self._dist[a, b]):
+                continue
+            if wind_mps is None:
+                self._pair_slots[a, b] = leg_slots(float(self._dist[a, b]), self._step)
+            else:
+                self._pair_slots[a, b] = self._leg(nodes[a], nodes[b])[0]
 
     def _candidate_orders(
         self, position: XY, slot: int, remaining: np.ndarray, rates: np.ndarray
@@ -559,12 +603,28 @@ class Planner:
 
     # --- acting -------------------------------------------------------------------------------
 
+    def _snr_offset(self, observation: Observation) -> np.ndarray | None:
+        """(N,) observed minus predicted SNR [dB] here (None without a predictor)."""
+        predicted = self._predict_snr(observation.position_m[None, :2], observation.position_m[2])
+        return None if predicted is None else observation.snr_db - predicted[0]
+
+    def _seen_rate_bps(self, observation: Observation) -> np.ndarray:
+        """(N,) the rates [bit/s] this slot's choices follow: the observed ones."""
+        return observation.rate_bps
+
+    def _arrived(self, here: XY, goal: XY) -> bool:
+        """True when the reported position ``here`` counts as being at ``goal``."""
+        return math.dist(here, goal) <= SAME_POINT_M
+
+    def _hover_goto(self, goal: XY) -> XY | None:
+        """Where to fly while hovering at ``goal``: nowhere (the UAV is exactly there)."""
+        return None
+
     def _check_prediction(self, observation: Observation) -> bool:
         """Update the per-sensor SNR bias; True if the observation departs from the plan."""
-        predicted = self._predict_snr(observation.position_m[None, :2], observation.position_m[2])
-        if predicted is None:
+        offset = self._snr_offset(observation)
+        if offset is None:
             return False
-        offset = observation.snr_db - predicted[0]
         usable = np.isfinite(offset) & (observation.remaining_bit > 0)
         off = usable & (np.abs(offset - self._bias_db) > self.replan_db)
         if not off.any() or observation.slot - self._last_replan < self.replan_cooldown:
@@ -593,7 +653,7 @@ class Planner:
                 return Action(serve=en_route, goto_m=self._home)
             target = plan.order[self._position]
             goal = _xy(self._hover[target])
-            arrived = math.dist(here, goal) <= SAME_POINT_M
+            arrived = self._arrived(here, goal)
             if not arrived:
                 if remaining[target] <= 0 and observation.slot != self._last_replan:
                     self._replan(observation)  # emptied en route: no need to go there
@@ -607,13 +667,13 @@ class Planner:
                 self._at_target = True
             serve = target if remaining[target] > 0 else en_route
             left = remaining[target] - (
-                min(observation.rate_bps[target] * self._slot_s(), remaining[target])
+                min(self._seen_rate_bps(observation)[target] * self._slot_s(), remaining[target])
                 if serve == target
                 else 0.0
             )
             if self._stay_left > 0 and left > 0:
                 self._stay_left -= 1
-                return Action(serve=serve, hover=True, goto_m=None, target=target)
+                return Action(serve=serve, hover=True, goto_m=self._hover_goto(goal), target=target)
             # leave in this slot: on to the next target
             self._position += 1
             self._at_target = False
@@ -621,7 +681,7 @@ class Planner:
                 self._stay_left = plan.extra_slots[self._position]
             nxt = plan.order[self._position] if self._position < len(plan.order) else None
             goto = self._home if nxt is None else _xy(self._hover[nxt])
-            if nxt is not None and math.dist(here, goto) <= SAME_POINT_M:
+            if nxt is not None and self._arrived(here, goto):
                 continue  # next target served from the same point
             return Action(serve=serve, goto_m=goto, target=nxt)
 
@@ -629,9 +689,8 @@ class Planner:
         assert self._context is not None
         return self._context.slot_s
 
-    @staticmethod
-    def _en_route(observation: Observation) -> int | None:
-        """Highest observed rate among sensors with data (None if no link)."""
-        rates = np.where(observation.remaining_bit > 0, observation.rate_bps, -1.0)
+    def _en_route(self, observation: Observation) -> int | None:
+        """Highest seen rate among sensors with data (None if no link)."""
+        rates = np.where(observation.remaining_bit > 0, self._seen_rate_bps(observation), -1.0)
         best = int(np.argmax(rates))
         return best if rates[best] > 0 else None

@@ -30,7 +30,7 @@ EXPECTED = {
     "bench_fleet.py": ["coordinated", "bound", "coordinated - independent hgad"],
     "bench_invariants.py": ["missions with faults run", "y = min(R dt, Q)", "speed cap"],
     "bench_planner.py": ["planner gain over hgad", "mean gap to bound", "above the bound: 0"],
-    "bench_resilience.py": ["robust - plain", "hgad-robust", "outages + 6 dB SNR error"],
+    "bench_resilience.py": ["robust - plain", "hgad-robust", "planner-robust", "ended home"],
     "bench_single.py": ["paper-sim-fixed", "aadm-default", "slots/s"],
     "bench_sweep.py": ["sample-10k", "us CPU/mission", "process executor", "seed axis"],
     "train_ppo.py": ["hgad", "bound", "PPO - HGAD"],

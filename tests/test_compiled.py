@@ -31,12 +31,11 @@ def random_columns(rng: np.random.Generator, n: int) -> tuple[np.ndarray, ...]:
 def test_choice_kernels_equal_contract(seed, n):
     rng = np.random.default_rng(seed)
     rate, snr, remaining = random_columns(rng, n)
-    masked = np.empty(n)
     has_data = contract.servable(rate[:, None], remaining[:, None])
     want_greedy = contract.greedy_choice(snr[:, None], has_data)[0]
     want_hgad = contract.hgad_choice(rate[:, None], snr[:, None], has_data)[0]
-    assert kernels.greedy_pick(snr, rate, remaining, masked) == want_greedy
-    assert kernels.hgad_pick(rate, snr, remaining, masked) == want_hgad
+    assert kernels.greedy_pick(snr, rate, remaining) == want_greedy
+    assert kernels.hgad_pick(rate, snr, remaining) == want_hgad
 
 
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 5), hgad=st.booleans())

@@ -179,20 +179,34 @@ def track_steps_m(position_m: np.ndarray, n_samples: np.ndarray) -> np.ndarray:
     return steps
 
 
+def power_tables(
+    track_position_m: np.ndarray,
+    track_samples: np.ndarray,
+    track_id: np.ndarray,
+    slot_s: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-slot distance and power looked up by track sample: (P, K + 1) steps [m], (P, K + 1)
+    power [W] and each mission's row (B,), one row per distinct (track, slot length).
+
+    Column k < K: a slot that moves from sample k; column K: a hover slot (0 m). Power is
+    P(step / slot_s) (Zeng, Xu & Zhang 2019, eq. 12).
+    """
+    pairs, pair = unique_rows(np.column_stack([track_id, slot_s]))
+    k_max = track_position_m.shape[1]
+    steps = np.zeros((pairs.shape[0], k_max + 1))  # column k_max: a hover slot (0 m)
+    steps[:, :k_max] = track_steps_m(track_position_m, track_samples)[pairs[:, 0].astype(int)]
+    return steps, propulsion_power_w(steps / pairs[:, 1:2]), pair
+
+
 def slot_steps_and_power(flights: Flights) -> tuple[np.ndarray, np.ndarray]:
     """(B, T) distance flown in each slot [m] and (B, T) propulsion power [W].
 
-    A hovering slot flies 0 m; any other moves one track step. Power is P(step / slot_s)
-    (Zeng, Xu & Zhang 2019, eq. 12), looked up in tables per distinct (track, slot length)
-    with one extra column for a hover.
+    A hovering slot flies 0 m; any other moves one track step (:func:`power_tables`).
     """
-    pairs, pair = unique_rows(np.column_stack([flights.track_id, flights.slot_s]))
+    steps, power, pair = power_tables(
+        flights.track_position_m, flights.track_samples, flights.track_id, flights.slot_s
+    )
     k_max = flights.track_position_m.shape[1]
-    steps = np.zeros((pairs.shape[0], k_max + 1))  # column k_max: a hover slot (0 m)
-    steps[:, :k_max] = track_steps_m(flights.track_position_m, flights.track_samples)[
-        pairs[:, 0].astype(int)
-    ]
-    power = propulsion_power_w(steps / pairs[:, 1:2])
     column = np.where(flights.hovering, k_max, flights.sample)
     index = column + pair[:, None] * (k_max + 1)
     return steps.take(index), power.take(index)
@@ -214,7 +228,12 @@ def completion_times_s(flights: Flights) -> np.ndarray:
 def distance_to_home_m(flights: Flights) -> np.ndarray:
     """(B,) horizontal distance from the end position to home [m] (NaN: no home)."""
     end_m = flights.track_position_m[flights.track_id, flights.end_sample]
-    return np.hypot(end_m[:, 0] - flights.home_m[:, 0], end_m[:, 1] - flights.home_m[:, 1])
+    return horizontal_distance_m(end_m, flights.home_m)
+
+
+def horizontal_distance_m(from_m: np.ndarray, to_m: np.ndarray) -> np.ndarray:
+    """(B,) horizontal distance between (B, >=2) points [m]."""
+    return np.hypot(from_m[:, 0] - to_m[:, 0], from_m[:, 1] - to_m[:, 1])
 
 
 # --- visit order ------------------------------------------------------------------------------
@@ -229,6 +248,20 @@ def visit_order(flights: Flights) -> np.ndarray:
     sensor i at the first slot it hovered serving i; else (Greedy) at the first slot the UAV
     was within ``visit_radius_m`` of i's hover point.
     """
+    return order_from_first(first_visit_slots(flights), flights.n_run)
+
+
+def order_from_first(first: np.ndarray, n_run: np.ndarray) -> np.ndarray:
+    """(B, N) sensors by first-visit slot ``first`` (B, N) (ties: lower index), NO_SENSOR for
+    those never visited (first >= n_run)."""
+    order = np.argsort(first, axis=1, kind="stable")
+    reached = np.take_along_axis(first, order, axis=1) < n_run[:, None]
+    return np.where(reached, order, NO_SENSOR)
+
+
+def first_visit_slots(flights: Flights) -> np.ndarray:
+    """(B, N) slot each sensor was first visited in (n_run: never), by :func:`visit_order`'s
+    rules."""
     n_run = flights.n_run
     served = flights.served
     hovered = flights.hovering & (served != NO_SENSOR)
@@ -245,9 +278,7 @@ def visit_order(flights: Flights) -> np.ndarray:
     if by_place.any():
         rows = np.flatnonzero(by_place)
         first[rows] = _first_slot_near(flights, rows)
-    order = np.argsort(first, axis=1, kind="stable")
-    reached = np.take_along_axis(first, order, axis=1) < n_run[:, None]
-    return np.where(reached, order, NO_SENSOR)
+    return first
 
 
 def _first_hover_slots(
@@ -293,6 +324,32 @@ def _first_target_arrivals(flights: Flights, rows: np.ndarray) -> np.ndarray:
     return np.where(hits.any(axis=1), hits.argmax(axis=1), n_run)
 
 
+def near_samples(
+    track_position_m: np.ndarray,
+    track_samples: np.ndarray,
+    track_id: np.ndarray,
+    hover_points_m: np.ndarray,
+    visit_radius_m: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(G, N) first track sample within the visit radius of each sensor's hover point
+    (horizontally; K_max: never) and each mission's row (B,), one row per distinct
+    (track, hover points, radius)."""
+    n_missions, n_sensors = hover_points_m.shape[:2]
+    k_max = track_position_m.shape[1]
+    key = np.column_stack(
+        [track_id, hover_points_m.reshape(n_missions, -1), visit_radius_m.reshape(n_missions)]
+    )
+    keys, group = unique_rows(key)
+    first_near = np.empty((keys.shape[0], n_sensors), np.int64)
+    for g, row in enumerate(keys):
+        u = int(row[0])
+        offset = track_position_m[u, :, None, :2] - row[1:-1].reshape(1, -1, 2)
+        near = np.hypot(offset[..., 0], offset[..., 1]) <= row[-1]  # NaN -> False
+        near[track_samples[u] :] = False
+        first_near[g] = np.where(near.any(axis=0), near.argmax(axis=0), k_max)
+    return first_near, group
+
+
 def _first_slot_near(flights: Flights, rows: np.ndarray) -> np.ndarray:
     """(R, N) first slot missions ``rows`` were within the visit radius of each sensor's
     hover point (horizontally), or n_run if never.
@@ -301,24 +358,14 @@ def _first_slot_near(flights: Flights, rows: np.ndarray) -> np.ndarray:
     at the first track sample k near the hover point: the number of slots spent before k.
     """
     n_run = flights.n_run[rows]
-    n_sensors = flights.buffers_bit.shape[1]
     k_max = flights.track_position_m.shape[1]
-    # near[k, i] per distinct (track, hover points, radius); k_max: never near
-    key = np.column_stack(
-        [
-            flights.track_id[rows],
-            flights.hover_points_m[rows].reshape(rows.size, -1),
-            flights.visit_radius_m[rows],
-        ]
+    first_near, group = near_samples(
+        flights.track_position_m,
+        flights.track_samples,
+        flights.track_id[rows],
+        flights.hover_points_m[rows],
+        flights.visit_radius_m[rows],
     )
-    keys, group = unique_rows(key)
-    first_near = np.empty((keys.shape[0], n_sensors), np.int64)
-    for g, row in enumerate(keys):
-        u = int(row[0])
-        offset = flights.track_position_m[u, :, None, :2] - row[1:-1].reshape(1, -1, 2)
-        near = np.hypot(offset[..., 0], offset[..., 1]) <= row[-1]  # NaN -> False
-        near[flights.track_samples[u] :] = False
-        first_near[g] = np.where(near.any(axis=0), near.argmax(axis=0), k_max)
     # slots spent before each sample k (bin k_max collects the slots after the mission)
     bins = k_max + 1
     ran = np.arange(flights.sample.shape[1])[None, :] < n_run[:, None]
@@ -368,33 +415,69 @@ class Summaries:
 
 def summaries(flights: Flights) -> Summaries:
     """Every metric of every mission of ``flights``, vectorised over missions."""
-    n_run, slot_s, buffers = flights.n_run, flights.slot_s, flights.buffers_bit
-    total_buffer = buffers.sum(axis=1)
-    total = row_sums(flights.downloaded_bit, n_run)
-    has_buffer = total_buffer > 0
-    safe_buffer = np.where(has_buffer, total_buffer, 1.0)
+    n_run, slot_s = flights.n_run, flights.slot_s
     steps, power = slot_steps_and_power(flights)
-    to_home = distance_to_home_m(flights)
-    return Summaries(
-        slots=n_run.copy(),
-        slot_s=slot_s.copy(),
-        buffers_bit=buffers.copy(),
-        total_downloaded_bit=total,
-        per_sensor_downloaded_bit=buffers - flights.left_bit,
-        completion=np.where(has_buffer, total / safe_buffer, 1.0),
-        handovers=handover_counts(flights.served.T),
-        hover_time_s=np.count_nonzero(flights.hovering, axis=1) * slot_s,
+    return summaries_from_totals(
+        n_run=n_run,
+        slot_s=slot_s,
+        buffers_bit=flights.buffers_bit,
+        left_bit=flights.left_bit,
+        downloaded_bit=row_sums(flights.downloaded_bit, n_run),
         distance_m=row_sums(steps, n_run),
-        energy_j=row_sums(power, n_run) * slot_s,
-        visit_order=visit_order(flights),
-        distance_to_home_m=to_home,
+        power_sum_w=row_sums(power, n_run),
+        handovers=handover_counts(flights.served.T),
+        hover_slots=np.count_nonzero(flights.hovering, axis=1),
+        first_visit=first_visit_slots(flights),
+        distance_to_home_m=distance_to_home_m(flights),
         aadm=aadm_scores(
             flights.downloaded_bit,
-            total_buffer,
+            flights.buffers_bit.sum(axis=1),
             n_run,
             slot_s,
             AADM_WINDOW_S if flights.aadm_window_s is None else flights.aadm_window_s,
         ),
+    )
+
+
+def summaries_from_totals(
+    *,
+    n_run: np.ndarray,
+    slot_s: np.ndarray,
+    buffers_bit: np.ndarray,
+    left_bit: np.ndarray,
+    downloaded_bit: np.ndarray,
+    distance_m: np.ndarray,
+    power_sum_w: np.ndarray,
+    handovers: np.ndarray,
+    hover_slots: np.ndarray,
+    first_visit: np.ndarray,
+    distance_to_home_m: np.ndarray,
+    aadm: AadmScore,
+) -> Summaries:
+    """:class:`Summaries` from each mission's reductions of its slots (all (B,) but
+    ``first_visit`` (B, N), :func:`first_visit_slots`): what :func:`summaries` computes with
+    numpy and the compiled loop while it runs (:mod:`skymule.sim.summary_kernels`).
+
+    ``downloaded_bit``, ``distance_m`` and ``power_sum_w`` are sums over the slots run;
+    ``hover_slots`` counts the slots the UAV held position in.
+    """
+    total_buffer = buffers_bit.sum(axis=1)
+    has_buffer = total_buffer > 0
+    safe_buffer = np.where(has_buffer, total_buffer, 1.0)
+    return Summaries(
+        slots=n_run.copy(),
+        slot_s=slot_s.copy(),
+        buffers_bit=buffers_bit.copy(),
+        total_downloaded_bit=downloaded_bit,
+        per_sensor_downloaded_bit=buffers_bit - left_bit,
+        completion=np.where(has_buffer, downloaded_bit / safe_buffer, 1.0),
+        handovers=handovers,
+        hover_time_s=hover_slots * slot_s,
+        distance_m=distance_m,
+        energy_j=power_sum_w * slot_s,
+        visit_order=order_from_first(first_visit, n_run),
+        distance_to_home_m=distance_to_home_m,
+        aadm=aadm,
     )
 
 
@@ -423,35 +506,44 @@ def summary_dicts(
     aadm = summary.aadm
     t1, s1, s2 = aadm.t1_s.tolist(), aadm.s1.tolist(), aadm.s2.tolist()
     complete, score = aadm.complete.tolist(), aadm.score.tolist()
-    rows = []
-    for b, names in enumerate(sensor_names):
-        rows.append(
-            {
-                "scenario": scenario_names[b],
-                "policy": policies[b],
-                "mission_time_s": mission_time[b],
-                "slots": slots[b],
-                "slot_s": slot_s[b],
-                "total_downloaded_mbit": total[b],
-                "total_buffer_mbit": total_buffer[b],
-                "per_sensor_downloaded_mbit": dict(zip(names, per_sensor[b], strict=True)),
-                "per_sensor_buffer_mbit": dict(zip(names, buffers[b], strict=True)),
-                "completion": completion[b],
-                "handovers": handovers[b],
-                "hover_time_s": hover[b],
-                "distance_m": distance[b],
-                "energy_kj": energy[b],
-                "visit_order": [names[i] for i in order[b] if i != NO_SENSOR],
-                "landed_within_5m": landed[b],
-                "distance_to_home_m": to_home[b],
-                "aadm_score": score[b],
-                "aadm_t1_s": t1[b],
-                "aadm_s1": s1[b],
-                "aadm_s2": s2[b],
-                "aadm_complete": complete[b],
-            }
-        )
-    return rows
+    # built column-wise (one zip over the columns, one dict display per mission): the dicts
+    # cost as much as everything else in a compiled batch's summaries
+    per_sensor_dicts = [dict(zip(n, v, strict=True)) for n, v in zip(sensor_names, per_sensor)]
+    buffer_dicts = [dict(zip(n, v, strict=True)) for n, v in zip(sensor_names, buffers)]
+    visits = [[n[i] for i in o if i != NO_SENSOR] for n, o in zip(sensor_names, order)]
+    columns = zip(
+        scenario_names, policies, mission_time, slots, slot_s, total, total_buffer,
+        per_sensor_dicts, buffer_dicts, completion, handovers, hover, distance, energy, visits,
+        landed, to_home, score, t1, s1, s2, complete,
+        strict=True,
+    )  # fmt: skip
+    return [
+        {
+            "scenario": c[0],
+            "policy": c[1],
+            "mission_time_s": c[2],
+            "slots": c[3],
+            "slot_s": c[4],
+            "total_downloaded_mbit": c[5],
+            "total_buffer_mbit": c[6],
+            "per_sensor_downloaded_mbit": c[7],
+            "per_sensor_buffer_mbit": c[8],
+            "completion": c[9],
+            "handovers": c[10],
+            "hover_time_s": c[11],
+            "distance_m": c[12],
+            "energy_kj": c[13],
+            "visit_order": c[14],
+            "landed_within_5m": c[15],
+            "distance_to_home_m": c[16],
+            "aadm_score": c[17],
+            "aadm_t1_s": c[18],
+            "aadm_s1": c[19],
+            "aadm_s2": c[20],
+            "aadm_complete": c[21],
+        }
+        for c in columns
+    ]
 
 
 def summarize(log: MissionLog, scenario_name: str) -> dict[str, Any]:

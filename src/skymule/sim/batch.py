@@ -23,113 +23,29 @@ per-mission log, which is what sweeps use.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
 
 from skymule.errors import SkymuleError
-from skymule.flight.paths import Track
 from skymule.metrics import Flights, summaries, summary_dicts
-from skymule.radio.rates import RateTable
 from skymule.scenario import PolicySpec
 from skymule.sim import contract
-from skymule.sim.batch_fading import apply_fading, stack_fading
-from skymule.sim.batch_faults import BatchFaults, apply_faults, stack_faults
+from skymule.sim.batch_fading import apply_fading
+from skymule.sim.batch_faults import apply_faults
+from skymule.sim.batch_stack import BATCH_POLICIES as BATCH_POLICIES
+from skymule.sim.batch_stack import Batch as Batch
+from skymule.sim.batch_stack import PolicyParams as PolicyParams
+from skymule.sim.batch_stack import batchable as batchable
+from skymule.sim.batch_stack import mission_geometry
+from skymule.sim.batch_stack import policy_params as policy_params
+from skymule.sim.batch_stack import stack_missions as stack_missions
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.engine import track_log
 from skymule.sim.log import MissionLog
 from skymule.world import Mission
-
-
-@dataclass(frozen=True)
-class PolicyParams:
-    """Per-mission policy parameters the batched loop understands.
-
-    Attributes:
-        hgad: True for HGAD, False for Greedy.
-        hover_threshold: HGAD trigger fraction of the peak rate (unused for Greedy).
-        max_hover_s: HGAD longest hover [s] (unused for Greedy).
-    """
-
-    hgad: bool
-    hover_threshold: float = 1.0
-    max_hover_s: float = 0.0
-
-
-BATCH_POLICIES: dict[str, Callable[[PolicySpec], PolicyParams]] = {
-    "greedy": lambda spec: PolicyParams(hgad=False),
-    "hgad": lambda spec: PolicyParams(
-        True, spec.param("hover_threshold"), spec.param("max_hover_s")
-    ),
-}
-"""Policies with a batched implementation: name -> parameters from the ``[policy]`` section."""
-
-
-def batchable(mission: Mission, spec: PolicySpec) -> bool:
-    """True if ``mission`` under ``spec`` can run in the batched engine.
-
-    The numpy loop applies faults (:mod:`skymule.sim.batch_faults`) except a wind, which
-    changes progress along the track: such missions run in the reference engine.
-    """
-    windy = mission.faults is not None and mission.faults.wind is not None
-    return mission.track is not None and not windy and spec.name in BATCH_POLICIES
-
-
-@dataclass(frozen=True)
-class Batch:
-    """B missions stacked for the slot loop (U distinct tracks, K_max samples, N sensors).
-
-    Attributes:
-        track_id: (B,) index of each mission's track in the track arrays.
-        rate_bps: (U, K_max + 1, N) rate at each track sample [bit/s] (0 in padding).
-        snr_db: (U, K_max, N) track SNR [dB] (NaN: no sample).
-        snr_seen_db: (U, K_max, N) SNR as policies see it (NaN -> -inf) [dB].
-        position_m: (U, K_max, 3) sample positions [m].
-        peak_rate_bps: (U, N) largest rate per sensor over each track [bit/s].
-        n_samples: (U,) track lengths K.
-        hold_at_end: (U,) True: hold at the last sample; False: a trace that runs out.
-        n_slots: (B,) slots per mission T.
-        window_slots: (B,) slot from which nothing is served (the download window closed);
-            n_slots where there is no window.
-        slot_s: (B,) slot length [s].
-        buffers_bit: (B, N) initial buffers [bit].
-        hgad: (B,) True for HGAD missions, False for Greedy.
-        threshold_bps: (B, N) HGAD trigger thresholds gamma_i [bit/s].
-        max_hover_s: (B,) HGAD longest hover [s].
-        fading_index: (F,) the missions with per-slot fading (F may be 0).
-        fading_db: (T_max, N, F) their fading [dB] added to the SNR seen in slot t (0 past
-            a mission's last slot).
-        rate_model: (F,) index of each fading mission's rate model in ``rate_models``.
-        rate_models: (rate table, bandwidth [Hz]) pairs turning faded SNR into rate.
-        faults: the missions with ``[[faults]]`` and their draws (``docs/faults.md``).
-    """
-
-    track_id: np.ndarray
-    rate_bps: np.ndarray
-    snr_db: np.ndarray
-    snr_seen_db: np.ndarray
-    position_m: np.ndarray
-    peak_rate_bps: np.ndarray
-    n_samples: np.ndarray
-    hold_at_end: np.ndarray
-    n_slots: np.ndarray
-    window_slots: np.ndarray
-    slot_s: np.ndarray
-    buffers_bit: np.ndarray
-    hgad: np.ndarray
-    threshold_bps: np.ndarray
-    max_hover_s: np.ndarray
-    fading_index: np.ndarray
-    fading_db: np.ndarray
-    rate_model: np.ndarray
-    rate_models: tuple[tuple[RateTable, float], ...]
-    faults: BatchFaults
-
-    @property
-    def size(self) -> int:
-        return int(self.track_id.shape[0])
 
 
 @dataclass(frozen=True)
@@ -163,92 +79,6 @@ class BatchResult:
     chosen: np.ndarray | None = None
 
 
-def policy_params(spec: PolicySpec) -> PolicyParams:
-    factory = BATCH_POLICIES.get(spec.name)
-    if factory is None:
-        raise SkymuleError(
-            f"policy.name = {spec.name!r} has no batched engine; "
-            f"allowed: {', '.join(sorted(BATCH_POLICIES))}"
-        )
-    return factory(spec)
-
-
-def stack_missions(missions: Sequence[Mission], specs: Sequence[PolicySpec]) -> Batch:
-    """Stack fixed-trajectory missions with the same number of sensors into a :class:`Batch`."""
-    if not missions:
-        raise ValueError("stack_missions needs at least one mission")
-    n_sensors = {m.n_sensors for m in missions}
-    if len(n_sensors) != 1:
-        raise ValueError(f"a batch needs one sensor count, got {sorted(n_sensors)}")
-    n = n_sensors.pop()
-    keys: dict[tuple[int, int, float], int] = {}
-    unique: list[Mission] = []
-    tracks: list[Track] = []  # unique[u].track
-    track_id = np.empty(len(missions), np.int64)
-    for b, mission in enumerate(missions):
-        if mission.track is None:
-            raise SkymuleError("the batched engine needs fixed trajectories (trajectory.mode)")
-        if mission.faults is not None and mission.faults.wind is not None:
-            raise SkymuleError(
-                "the batched engine does not apply a wind fault: run such missions with "
-                "skymule.sim.run.run_mission (the reference engines)"
-            )
-        key = (id(mission.track), id(mission.rate_table), mission.bandwidth_hz)
-        if key not in keys:
-            keys[key] = len(unique)
-            unique.append(mission)
-            tracks.append(mission.track)
-        track_id[b] = keys[key]
-    # one padding row past the longest track: where a used-up trace points
-    k_max = max(t.n_samples for t in tracks) + 1
-    rate = np.zeros((len(unique), k_max, n))
-    snr = np.full((len(unique), k_max, n), np.nan)
-    snr_seen = np.full((len(unique), k_max, n), -np.inf)
-    position = np.zeros((len(unique), k_max, 3))
-    peak = np.zeros((len(unique), n))
-    for u, mission in enumerate(unique):
-        track = mission.track
-        assert track is not None
-        k = track.n_samples
-        rate[u, :k] = mission.rate_bps(track.snr_db)
-        snr[u, :k] = track.snr_db
-        snr_seen[u, :k] = np.nan_to_num(track.snr_db, nan=-np.inf)
-        position[u, :k] = track.position_m
-        peak[u] = mission.peak_rate_bps()
-    # one lookup per distinct spec object: sweeps and comparisons repeat a few specs many times
-    by_spec: dict[int, PolicyParams] = {}
-    for spec in specs:
-        if id(spec) not in by_spec:
-            by_spec[id(spec)] = policy_params(spec)
-    params = [by_spec[id(spec)] for spec in specs]
-    thresholds = np.array([p.hover_threshold for p in params])
-    fading_index, fading, rate_model, rate_models = stack_fading(missions, n)
-    return Batch(
-        track_id=track_id,
-        rate_bps=rate,
-        snr_db=snr,
-        snr_seen_db=snr_seen,
-        position_m=position,
-        peak_rate_bps=peak,
-        n_samples=np.array([t.n_samples for t in tracks], np.int64),
-        hold_at_end=np.array([t.hold_at_end for t in tracks], bool),
-        n_slots=np.array([m.n_slots for m in missions], np.int64),
-        window_slots=np.array(
-            [m.n_slots if m.window_slots is None else m.window_slots for m in missions], np.int64
-        ),
-        slot_s=np.array([m.slot_s for m in missions], float),
-        buffers_bit=np.array([m.buffers_bit for m in missions], float).reshape(-1, n),
-        hgad=np.array([p.hgad for p in params], bool),
-        threshold_bps=thresholds[:, None] * peak[track_id],
-        max_hover_s=np.array([p.max_hover_s for p in params], float),
-        fading_index=fading_index,
-        fading_db=fading,
-        faults=stack_faults(missions, n),
-        rate_model=rate_model,
-        rate_models=rate_models,
-    )
-
-
 Engine = Literal["auto", "numpy", "compiled"]
 """Which slot loop runs a batch: ``numpy`` (the reference), ``compiled`` (numba, the ``fast``
 extra; :mod:`skymule.sim.compiled`) or ``auto`` (compiled when numba is installed and no
@@ -260,6 +90,13 @@ def run_batch(batch: Batch, engine: Engine = "auto", keep_remaining: bool = True
 
     ``keep_remaining=False`` lets the compiled loop skip the (B, T, N) buffer log.
     """
+    if chosen_engine(batch, engine) == "compiled":
+        return run_compiled(batch, keep_remaining)
+    return run_numpy(batch)
+
+
+def chosen_engine(batch: Batch, engine: Engine) -> Literal["numpy", "compiled"]:
+    """The slot loop ``engine`` means for ``batch``; a one-line error if it cannot run it."""
     from skymule.sim import compiled
 
     if engine not in ("auto", "numpy", "compiled"):
@@ -269,8 +106,8 @@ def run_batch(batch: Batch, engine: Engine = "auto", keep_remaining: bool = True
         why = "missions with per-slot fading or faults" if fading else "numba is not installed"
         raise SkymuleError(f"engine = 'compiled' cannot run this batch: {why}")
     if engine == "compiled" or (engine == "auto" and not fading and compiled.available()):
-        return run_compiled(batch, keep_remaining)
-    return run_numpy(batch)
+        return "compiled"
+    return "numpy"
 
 
 def run_compiled(batch: Batch, keep_remaining: bool = True) -> BatchResult:
@@ -282,8 +119,6 @@ def run_compiled(batch: Batch, keep_remaining: bool = True) -> BatchResult:
 
     n_missions, n_sensors = batch.buffers_bit.shape
     t_max = int(batch.n_slots.max())
-    n_samples = batch.n_samples[batch.track_id]
-    limit = np.where(batch.hold_at_end[batch.track_id], n_samples - 1, n_samples)
     result = BatchResult(
         served=np.full((n_missions, t_max), NO_SENSOR, np.int64),
         downloaded_bit=np.zeros((n_missions, t_max)),
@@ -295,13 +130,10 @@ def run_compiled(batch: Batch, keep_remaining: bool = True) -> BatchResult:
         left_bit=np.zeros((n_missions, n_sensors)),
     )
     compiled.compiled_loop()(
-        batch.rate_bps, batch.snr_seen_db, batch.track_id, n_samples, limit, n_samples - 1,
-        batch.n_slots, batch.window_slots, batch.slot_s,
-        np.ascontiguousarray(batch.buffers_bit, float), batch.hgad,
-        batch.threshold_bps, batch.peak_rate_bps[batch.track_id], batch.max_hover_s,
-        keep_remaining, result.served, result.downloaded_bit, result.hovering, result.sample,
+        *compiled.loop_inputs(batch), True, keep_remaining,
+        result.served, result.downloaded_bit, result.hovering, result.sample,
         np.zeros((0, 0, 0)) if result.remaining_bit is None else result.remaining_bit,
-        result.n_run, result.end_sample, result.left_bit,
+        result.n_run, result.end_sample, result.left_bit, False, *compiled.no_totals(n_sensors),
     )  # fmt: skip
     return result
 
@@ -493,14 +325,7 @@ def run_fixed_batch(
 def batch_flights(batch: Batch, result: BatchResult, missions: Sequence[Mission]) -> Flights:
     """The batch's arrays as :class:`~skymule.metrics.Flights` (tracks shared, no copies of
     positions per mission), with each mission's home, hover points and visit radius."""
-    n_missions, n_sensors = batch.buffers_bit.shape
-    home = np.full((n_missions, 2), np.nan)
-    hover = np.full((n_missions, n_sensors, 2), np.nan)
-    for row, mission in enumerate(missions):
-        if mission.home_m is not None:
-            home[row] = mission.home_m
-        if mission.hover_points_m is not None:
-            hover[row] = mission.hover_points_m
+    home, hover, radius, window = mission_geometry(missions, batch.buffers_bit.shape[1])
     return Flights(
         n_run=result.n_run,
         slot_s=batch.slot_s,
@@ -516,8 +341,8 @@ def batch_flights(batch: Batch, result: BatchResult, missions: Sequence[Mission]
         end_sample=result.end_sample,
         home_m=home,
         hover_points_m=hover,
-        visit_radius_m=np.array([m.visit_radius_m for m in missions], float),
-        aadm_window_s=np.array([m.score_window_s for m in missions], float),
+        visit_radius_m=radius,
+        aadm_window_s=window,
     )
 
 
@@ -531,15 +356,22 @@ def summarize_fixed_batch(
     """``metrics.summarize`` dictionaries of fixed-trajectory missions, in input order.
 
     Equal to ``[summarize(run_fixed(m, make_policy(s)), name) ...]``, but no
-    :class:`~skymule.sim.log.MissionLog` is built: the summaries come from the batch arrays.
+    :class:`~skymule.sim.log.MissionLog` is built: the summaries come from the batch arrays
+    (numpy loop: ``metrics.summaries`` of its logs; compiled loop: each mission reduced as it
+    ends, :mod:`skymule.sim.compiled_summaries`, no per-slot log at all).
     """
+    from skymule.sim.compiled_summaries import compiled_summaries
+
     rows: list[dict[str, Any] | None] = [None] * len(missions)
     for part in _batches(missions, batch_size):
         chosen = [missions[i] for i in part]
         batch = stack_missions(chosen, [specs[i] for i in part])
-        result = run_batch(batch, engine, keep_remaining=False)
+        if chosen_engine(batch, engine) == "compiled":
+            summary = compiled_summaries(batch, chosen)
+        else:
+            summary = summaries(batch_flights(batch, run_numpy(batch), chosen))
         dicts = summary_dicts(
-            summaries(batch_flights(batch, result, chosen)),
+            summary,
             [m.sensor_names for m in chosen],
             [specs[i].name for i in part],
             [scenario_names[i] for i in part],

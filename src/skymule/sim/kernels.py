@@ -7,10 +7,11 @@ the subset of Python and numpy that numba compiles (loops, scalar arithmetic, 1-
 nothing here imports a compiler, so the module also runs (slowly) as plain Python, which is
 how the tests check each kernel against its vectorised original on random inputs.
 
-The kernels mirror the vectorised functions step by step (the same masks, the same maximum,
-the same "first index equal to the maximum"), so ties, empty buffers, -inf and NaN resolve the
-same way: ``tests/test_compiled.py`` checks every kernel against :mod:`~skymule.sim.contract`
-and the compiled batch against the numpy batch, value for value. ``served_bits`` is not
+The kernels compute what the vectorised functions compute (the same masks, the same maximum,
+the same "first index equal to the maximum", in one pass over the sensors), so ties, empty
+buffers, -inf and NaN resolve the same way: ``tests/test_compiled.py`` checks every kernel
+against :mod:`~skymule.sim.contract` and the compiled batch against the numpy batch, value for
+value. ``served_bits`` is not
 repeated: the compiled core compiles :func:`skymule.sim.contract.served_bits` itself.
 """
 
@@ -21,63 +22,58 @@ import numpy as np
 from skymule.sim.contract import HOVER_EPS_S, NO_SENSOR
 
 
-def column_max(values: np.ndarray) -> float:
-    """The largest of ``values`` (N,), NaN if any is NaN (as ``ndarray.max``)."""
-    best = values[0]
-    for i in range(1, values.shape[0]):
-        value = values[i]
-        if value > best or value != value:  # once NaN, best stays NaN
-            best = value
-    return best
-
-
-def first_equal(values: np.ndarray, target: float) -> int:
-    """First index i with values[i] == target, 0 if none (as ``contract.first_true``)."""
-    for i in range(values.shape[0]):
-        if values[i] == target:
-            return i
-    return 0
-
-
-def greedy_pick(
-    snr_db: np.ndarray, rate_bps: np.ndarray, remaining_bit: np.ndarray, masked: np.ndarray
-) -> int:
+def greedy_pick(snr_db: np.ndarray, rate_bps: np.ndarray, remaining_bit: np.ndarray) -> int:
     """One mission of ``contract.greedy_choice`` over ``contract.servable`` sensors: argmax
-    SNR among sensors with data and R > 0. ``masked`` is (N,) scratch space.
+    SNR among sensors with data and R > 0, in one pass.
+
+    As the vectorised rule: the masked SNR (-inf where not servable) is maximised and the
+    first index equal to the maximum wins; a NaN maximum equals nothing, which gives index 0.
     """
     any_data = False
+    nan = False
+    best = -np.inf
+    index = 0
     for i in range(snr_db.shape[0]):
         has_data = remaining_bit[i] > 0 and rate_bps[i] > 0
         any_data = any_data or has_data
-        masked[i] = snr_db[i] if has_data else -np.inf
+        value = snr_db[i] if has_data else -np.inf
+        if value != value:
+            nan = True
+        elif i == 0 or value > best:  # strictly greater: ties keep the first index
+            best, index = value, i
     if not any_data:
         return NO_SENSOR
-    return first_equal(masked, column_max(masked))
+    return 0 if nan else index
 
 
-def hgad_pick(
-    rate_bps: np.ndarray, snr_db: np.ndarray, remaining_bit: np.ndarray, masked: np.ndarray
-) -> int:
+def hgad_pick(rate_bps: np.ndarray, snr_db: np.ndarray, remaining_bit: np.ndarray) -> int:
     """One mission of ``contract.hgad_choice`` over ``contract.servable`` sensors: argmax rate;
-    ties: higher SNR, lowest index. ``masked`` is (N,) scratch space.
+    ties: higher SNR, lowest index; in one pass.
+
+    The masked rate is never NaN (servable needs R > 0); among the sensors at the best rate,
+    the first with the best SNR wins, and a NaN SNR among them equals nothing (index 0), as
+    in the vectorised rule.
     """
-    n = rate_bps.shape[0]
     any_data = False
-    for i in range(n):
-        has_data = remaining_bit[i] > 0 and rate_bps[i] > 0
-        any_data = any_data or has_data
-        masked[i] = rate_bps[i] if has_data else -np.inf
+    best_rate = -np.inf
+    best_snr = -np.inf
+    nan = False
+    index = 0
+    for i in range(rate_bps.shape[0]):
+        if not (remaining_bit[i] > 0 and rate_bps[i] > 0):
+            continue
+        any_data = True
+        rate, snr = rate_bps[i], snr_db[i]
+        if rate > best_rate:  # a new best rate: its sensor alone is tied so far
+            best_rate, best_snr, nan, index = rate, snr, snr != snr, i
+        elif rate == best_rate and not nan:
+            if snr != snr:
+                nan = True
+            elif snr > best_snr:
+                best_snr, index = snr, i
     if not any_data:
         return NO_SENSOR
-    best_rate = column_max(masked)
-    for i in range(n):
-        masked[i] = snr_db[i] if masked[i] == best_rate else -np.inf
-    best_snr = column_max(masked)
-    for i in range(n):  # first i with masked rate == its max and masked SNR == its max
-        masked_rate = rate_bps[i] if remaining_bit[i] > 0 and rate_bps[i] > 0 else -np.inf
-        if masked_rate == best_rate and masked[i] == best_snr:
-            return i
-    return 0
+    return 0 if nan else index
 
 
 def hgad_hover_step(

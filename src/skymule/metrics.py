@@ -508,9 +508,16 @@ def summary_dicts(
     complete, score = aadm.complete.tolist(), aadm.score.tolist()
     # built column-wise (one zip over the columns, one dict display per mission): the dicts
     # cost as much as everything else in a compiled batch's summaries
-    per_sensor_dicts = [dict(zip(n, v, strict=True)) for n, v in zip(sensor_names, per_sensor)]
-    buffer_dicts = [dict(zip(n, v, strict=True)) for n, v in zip(sensor_names, buffers)]
-    visits = [[n[i] for i in o if i != NO_SENSOR] for n, o in zip(sensor_names, order)]
+    n_sensors = summary.buffers_bit.shape[1]
+    if any(len(names) != n_sensors for names in sensor_names):  # once, not a strict zip each
+        raise ValueError(f"summary_dicts: every mission needs {n_sensors} sensor names")
+    per_sensor_dicts = [
+        dict(zip(n, v, strict=False)) for n, v in zip(sensor_names, per_sensor, strict=True)
+    ]
+    buffer_dicts = [
+        dict(zip(n, v, strict=False)) for n, v in zip(sensor_names, buffers, strict=True)
+    ]
+    visits = [[n[i] for i in o if i != NO_SENSOR] for n, o in zip(sensor_names, order, strict=True)]
     columns = zip(
         scenario_names, policies, mission_time, slots, slot_s, total, total_buffer,
         per_sensor_dicts, buffer_dicts, completion, handovers, hover, distance, energy, visits,

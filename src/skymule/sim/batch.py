@@ -357,10 +357,13 @@ def summarize_fixed_batch(
 
     Equal to ``[summarize(run_fixed(m, make_policy(s)), name) ...]``, but no
     :class:`~skymule.sim.log.MissionLog` is built: the summaries come from the batch arrays
-    (numpy loop: ``metrics.summaries`` of its logs; compiled loop: each mission reduced as it
-    ends, :mod:`skymule.sim.compiled_summaries`, no per-slot log at all).
+    (``engine="numpy"``: ``metrics.summaries`` of the numpy loop's logs, the reference;
+    compiled loop: each mission reduced as it ends, no per-slot log at all; ``auto`` on a
+    batch the compiled loop does not run: one compiled pass over the numpy loop's logs, see
+    :mod:`skymule.sim.compiled_summaries`). Every way gives the same values.
     """
-    from skymule.sim.compiled_summaries import compiled_summaries
+    from skymule.sim import compiled
+    from skymule.sim.compiled_summaries import compiled_summaries, flights_summaries
 
     rows: list[dict[str, Any] | None] = [None] * len(missions)
     for part in _batches(missions, batch_size):
@@ -369,7 +372,10 @@ def summarize_fixed_batch(
         if chosen_engine(batch, engine) == "compiled":
             summary = compiled_summaries(batch, chosen)
         else:
-            summary = summaries(batch_flights(batch, run_numpy(batch), chosen))
+            flights = batch_flights(batch, run_numpy(batch), chosen)
+            # auto with numba (a batch with fading or faults): one compiled pass over the logs
+            fast = engine == "auto" and compiled.available()
+            summary = flights_summaries(flights) if fast else summaries(flights)
         dicts = summary_dicts(
             summary,
             [m.sensor_names for m in chosen],

@@ -205,13 +205,21 @@ def mission_geometry(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """What the summaries need of each mission besides its slots: home (B, 2) [m] (NaN: none),
     hover points (B, N, 2) [m] (NaN: unknown), visit radius (B,) [m], AADM window (B,) [s]."""
-    home = np.full((len(missions), 2), np.nan)
-    hover = np.full((len(missions), n_sensors, 2), np.nan)
-    for row, mission in enumerate(missions):
-        if mission.home_m is not None:
-            home[row] = mission.home_m
-        if mission.hover_points_m is not None:
-            hover[row] = mission.hover_points_m
+    home = _rows_by_object([m.home_m for m in missions], (2,))
+    hover = _rows_by_object([m.hover_points_m for m in missions], (n_sensors, 2))
     radius = np.array([m.visit_radius_m for m in missions], float)
     window = np.array([m.score_window_s for m in missions], float)
     return home, hover, radius, window
+
+
+def _rows_by_object(values: Sequence[np.ndarray | None], shape: tuple[int, ...]) -> np.ndarray:
+    """(B, *shape) array of ``values`` (None: NaN), each distinct array object copied once:
+    missions built from one geometry share these arrays."""
+    first: dict[int, int] = {}
+    which = np.array([first.setdefault(id(v), len(first)) for v in values], np.int64)
+    distinct = np.full((len(first), *shape), np.nan)
+    for row in np.unique(which, return_index=True)[1]:
+        value = values[row]
+        if value is not None:
+            distinct[which[row]] = value
+    return distinct[which]

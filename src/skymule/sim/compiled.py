@@ -256,3 +256,17 @@ def compiled_loop() -> Callable[..., None]:
         ),
         inline=choose,
     )
+
+
+@cache
+def compiled_reduce() -> Callable[..., None]:
+    """:func:`~skymule.sim.summary_kernels.reduce_rows` compiled (a pass over logs kept)."""
+    return jit(
+        summary_kernels.reduce_rows,
+        (
+            summary_kernels.block_sum,
+            summary_kernels.pairwise_sum,
+            summary_kernels.slots_before,
+            summary_kernels.mission_totals,
+        ),
+    )

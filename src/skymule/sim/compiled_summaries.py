@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from skymule import metrics
-from skymule.aadm.score import COMPLETE_RTOL, AadmScore
+from skymule.aadm.score import AADM_WINDOW_S, COMPLETE_RTOL, AadmScore
 from skymule.sim import compiled, summary_kernels
 from skymule.sim.batch_stack import Batch, mission_geometry
 from skymule.world import Mission
@@ -59,29 +59,67 @@ def aadm_from_progress(
 
 
 def summary_tables(
-    batch: Batch, hover_points_m: np.ndarray, visit_radius_m: np.ndarray, window_s: np.ndarray
+    track_position_m: np.ndarray,
+    track_samples: np.ndarray,
+    track_id: np.ndarray,
+    slot_s: np.ndarray,
+    hover_points_m: np.ndarray,
+    visit_radius_m: np.ndarray,
+    buffers_bit: np.ndarray,
+    window_s: np.ndarray,
+    width: int,
 ) -> summary_kernels.SummaryTables:
-    """The lookup tables of the batch's reductions, from ``metrics``'s own table functions."""
-    steps, power, pair = metrics.power_tables(
-        batch.position_m, batch.n_samples, batch.track_id, batch.slot_s
-    )
+    """The lookup tables of the reductions (``metrics``'s own table functions) for missions
+    on tracks ``track_position_m`` (U, K, 3) whose padded slot arrays are ``width`` long."""
+    steps, power, pair = metrics.power_tables(track_position_m, track_samples, track_id, slot_s)
     near, group = metrics.near_samples(
-        batch.position_m, batch.n_samples, batch.track_id, hover_points_m, visit_radius_m
+        track_position_m, track_samples, track_id, hover_points_m, visit_radius_m
     )
-    # aadm_scores pads a batch of empty missions to one slot; it masks slots per mission only
-    # when some window closes before the batch's last slot
-    width = max(int(batch.n_slots.max()), 1)
-    per_slot = bool((np.ceil((window_s - 1e-9) / batch.slot_s) < width).any())
+    # aadm_scores pads arrays with no slot to one; it masks slots per mission only when some
+    # window closes before the last slot of the padded arrays
+    width = max(width, 1)
+    per_slot = bool((np.ceil((window_s - 1e-9) / slot_s) < width).any())
     return summary_kernels.SummaryTables(
         steps_m=steps,
         power_w=power,
         pair=pair,
         near=near,
         group=group,
-        aadm_threshold_bit=batch.buffers_bit.sum(axis=1) * (1.0 - COMPLETE_RTOL),
+        aadm_threshold_bit=buffers_bit.sum(axis=1) * (1.0 - COMPLETE_RTOL),
         aadm_window_s=window_s,
         aadm_per_slot=per_slot,
         width=width,
+    )
+
+
+def summaries_from_slot_totals(
+    totals: summary_kernels.SlotTotals,
+    *,
+    n_run: np.ndarray,
+    slot_s: np.ndarray,
+    buffers_bit: np.ndarray,
+    left_bit: np.ndarray,
+    end_m: np.ndarray,
+    home_m: np.ndarray,
+    window_s: np.ndarray,
+) -> metrics.Summaries:
+    """:class:`~skymule.metrics.Summaries` from the reductions and each mission's ends (end
+    position ``end_m`` (B, 3) [m], buffers left)."""
+    return metrics.summaries_from_totals(
+        n_run=n_run,
+        slot_s=slot_s,
+        buffers_bit=buffers_bit,
+        left_bit=left_bit,
+        downloaded_bit=totals.downloaded_bit,
+        distance_m=totals.distance_m,
+        power_sum_w=totals.power_sum_w,
+        handovers=totals.handovers,
+        hover_slots=totals.hover_slots,
+        first_visit=totals.first_visit,
+        distance_to_home_m=metrics.horizontal_distance_m(end_m, home_m),
+        aadm=aadm_from_progress(
+            buffers_bit.sum(axis=1), n_run, slot_s, window_s, totals.aadm_bit, totals.aadm_first
+        ),
     )
 
 
@@ -90,7 +128,10 @@ def compiled_summaries(batch: Batch, missions: Sequence[Mission]) -> metrics.Sum
     compiled loop's per-mission reductions."""
     n_missions, n_sensors = batch.buffers_bit.shape
     home, hover, radius, window = mission_geometry(missions, n_sensors)
-    tables = summary_tables(batch, hover, radius, window)
+    tables = summary_tables(
+        batch.position_m, batch.n_samples, batch.track_id, batch.slot_s, hover, radius,
+        batch.buffers_bit, window, int(batch.n_slots.max()),
+    )  # fmt: skip
     totals = summary_kernels.new_totals(n_missions, n_sensors)
     n_run = np.zeros(n_missions, np.int64)
     end_sample = np.zeros(n_missions, np.int64)
@@ -99,22 +140,52 @@ def compiled_summaries(batch: Batch, missions: Sequence[Mission]) -> metrics.Sum
         *compiled.loop_inputs(batch), False, False, *compiled.no_logs(),
         n_run, end_sample, left, True, tables, totals,
     )  # fmt: skip
-    total_bit = batch.buffers_bit.sum(axis=1)
-    return metrics.summaries_from_totals(
+    return summaries_from_slot_totals(
+        totals,
         n_run=n_run,
         slot_s=batch.slot_s,
         buffers_bit=batch.buffers_bit,
         left_bit=left,
-        downloaded_bit=totals.downloaded_bit,
-        distance_m=totals.distance_m,
-        power_sum_w=totals.power_sum_w,
-        handovers=totals.handovers,
-        hover_slots=totals.hover_slots,
-        first_visit=totals.first_visit,
-        distance_to_home_m=metrics.horizontal_distance_m(
-            batch.position_m[batch.track_id, end_sample], home
-        ),
-        aadm=aadm_from_progress(
-            total_bit, n_run, batch.slot_s, window, totals.aadm_bit, totals.aadm_first
-        ),
+        end_m=batch.position_m[batch.track_id, end_sample],
+        home_m=home,
+        window_s=window,
+    )
+
+
+def flights_summaries(flights: metrics.Flights, use_numba: bool = True) -> metrics.Summaries:
+    """``metrics.summaries(flights)`` by the kernels, one pass over the slot arrays (compiled
+    unless ``use_numba`` is False: then plain Python, as the tests run it).
+
+    For fixed-trajectory flights (no targets), e.g. the numpy loop's logs of a batch with
+    fading or faults, which the compiled loop does not run.
+    """
+    if flights.target is not None:
+        raise ValueError("flights_summaries: autonomous flights (targets) need metrics.summaries")
+    n_missions, n_sensors = flights.buffers_bit.shape
+    window = (
+        np.full(n_missions, AADM_WINDOW_S)
+        if flights.aadm_window_s is None
+        else np.asarray(flights.aadm_window_s, float)
+    )
+    tables = summary_tables(
+        flights.track_position_m, flights.track_samples, flights.track_id, flights.slot_s,
+        flights.hover_points_m, flights.visit_radius_m, flights.buffers_bit, window,
+        flights.downloaded_bit.shape[1],
+    )  # fmt: skip
+    totals = summary_kernels.new_totals(n_missions, n_sensors)
+    reduce = compiled.compiled_reduce() if use_numba else summary_kernels.reduce_rows
+    reduce(
+        np.ascontiguousarray(flights.served), np.ascontiguousarray(flights.downloaded_bit),
+        np.ascontiguousarray(flights.hovering), np.ascontiguousarray(flights.sample),
+        flights.n_run, flights.slot_s, tables, totals,
+    )  # fmt: skip
+    return summaries_from_slot_totals(
+        totals,
+        n_run=flights.n_run,
+        slot_s=flights.slot_s,
+        buffers_bit=flights.buffers_bit,
+        left_bit=flights.left_bit,
+        end_m=flights.track_position_m[flights.track_id, flights.end_sample],
+        home_m=flights.home_m,
+        window_s=window,
     )

@@ -247,3 +247,25 @@ def slots_before(sample: np.ndarray, n_run: int, k: int) -> int:
         else:
             high = middle
     return low
+
+
+def reduce_rows(
+    served: np.ndarray,
+    downloaded: np.ndarray,
+    hovering: np.ndarray,
+    sample: np.ndarray,
+    n_run: np.ndarray,
+    slot_s: np.ndarray,
+    tables: SummaryTables,
+    totals: SlotTotals,
+) -> None:
+    """:func:`mission_totals` of every row of (B, T) slot arrays (a ``metrics.Flights``)."""
+    width = served.shape[1]
+    scratch = np.empty((2, width))
+    stack = np.empty((128, 3), np.int64)
+    partial = np.empty(128)
+    for b in range(served.shape[0]):
+        mission_totals(
+            b, served[b], downloaded[b], hovering[b], sample[b], n_run[b], slot_s[b], tables,
+            scratch, stack, partial, totals,
+        )  # fmt: skip

@@ -88,11 +88,12 @@ mission has per-slot fading, else numpy). Both give the same result, value for v
 def run_batch(batch: Batch, engine: Engine = "auto", keep_remaining: bool = True) -> BatchResult:
     """Run every mission of ``batch`` through the slot loop ``engine`` chose.
 
-    ``keep_remaining=False`` lets the compiled loop skip the (B, T, N) buffer log.
+    ``keep_remaining=False``: no (B, T, N) buffer log (``remaining_bit`` None), which
+    summaries do not need.
     """
     if chosen_engine(batch, engine) == "compiled":
         return run_compiled(batch, keep_remaining)
-    return run_numpy(batch)
+    return run_numpy(batch, keep_remaining)
 
 
 def chosen_engine(batch: Batch, engine: Engine) -> Literal["numpy", "compiled"]:
@@ -138,8 +139,10 @@ def run_compiled(batch: Batch, keep_remaining: bool = True) -> BatchResult:
     return result
 
 
-def run_numpy(batch: Batch) -> BatchResult:
+def run_numpy(batch: Batch, keep_remaining: bool = True) -> BatchResult:
     """Run every mission of ``batch``; one numpy step per slot over all missions.
+
+    ``keep_remaining=False``: no (B, T, N) buffer log (``remaining_bit`` None).
 
     Inside, arrays are sensor-major (N, B): per-slot reductions over sensors are then N
     elementwise steps over missions, which is what makes small N fast.
@@ -178,16 +181,25 @@ def run_numpy(batch: Batch) -> BatchResult:
     # slot-major logs: each slot writes one contiguous block
     served_log = np.full((t_max, n_missions), NO_SENSOR, np.int64)
     downloaded_log = np.zeros((t_max, n_missions))
-    remaining_log = np.zeros((t_max, n_sensors, n_missions))
+    remaining_log = np.zeros((t_max, n_sensors, n_missions) if keep_remaining else (0, 0, 0))
     hovering_log = np.zeros((t_max, n_missions), bool)
     sample_log = np.zeros((t_max, n_missions), np.int64)
     n_run = np.zeros(n_missions, np.int64)
     chosen_log = np.full((t_max, n_missions), NO_SENSOR, np.int64) if any_faults else None
+    no_hover = np.zeros(n_missions, bool)  # Greedy's hover flags (never written to)
+    all_missions = np.ones(n_missions, bool)
+    # a planned path holds at its last sample, so its missions run until their last slot
+    holds = (batch.hold_at_end & (batch.n_samples > 0))[batch.track_id].all()
+    every_active = int(n_slots.min()) if holds else 0
 
     for slot in range(t_max):
-        active = (slot < n_slots) & (sample < n_samples)
-        if not active.any():
-            break
+        if slot < every_active:  # no mission can have ended yet: skip the per-slot masks
+            active, all_active = all_missions, True
+        else:
+            active = (slot < n_slots) & (sample < n_samples)
+            all_active = bool(active.all())
+            if not active.any():
+                break
         observed = table.take(base_row + sample, axis=1)
         rate = observed[:n_sensors]
         snr = observed[n_sensors:]
@@ -210,24 +222,27 @@ def run_numpy(batch: Batch) -> BatchResult:
         else:
             choice = contract.greedy_choice(snr, has_data)
         sensor = contract.hover_sensor_or(state, choice) if any_hgad else choice
-        sensor[~active] = NO_SENSOR
+        if not all_active:
+            sensor[~active] = NO_SENSOR
         cell = contract.cells(sensor, columns)
         left = remaining_flat.take(cell)
         rate_served = rate.reshape(-1).take(cell)
         bits = contract.served_bits(rate_served, left, dt)
         bits[sensor < 0] = 0.0
         left_after = left - bits  # what the policy expects after this slot
-        served = sensor
+        served, left_taken = sensor, left_after  # ... and what the buffers hold after it
         closed = slot >= window if slot >= first_close else None
         if closed is not None and closed.any():  # the window has closed: nothing is delivered
             served = np.where(closed, NO_SENSOR, sensor)
             bits = np.where(closed, 0.0, bits)
+            left_taken = left - bits
         if chosen_log is not None:  # a fault blocks the choice: 0 bits, nothing served
             chosen_log[slot] = served
             served = np.where(ok.reshape(-1).take(cell), served, NO_SENSOR)
             true_bits = contract.served_bits(deliver.reshape(-1).take(cell), left, dt)
             bits = np.where(served >= 0, true_bits, 0.0)
-        remaining_flat[cell] = left - bits
+            left_taken = left - bits
+        remaining_flat[cell] = left_taken
         if any_hgad:
             hover_flag = contract.hgad_update(
                 state,
@@ -244,14 +259,15 @@ def run_numpy(batch: Batch) -> BatchResult:
                 active=active,
             )
         else:
-            hover_flag = np.zeros(n_missions, bool)
+            hover_flag = no_hover
         served_log[slot] = served
         downloaded_log[slot] = bits
-        remaining_log[slot] = remaining
+        if keep_remaining:
+            remaining_log[slot] = remaining
         hovering_log[slot] = hover_flag
         sample_log[slot] = sample
         n_run += active
-        sample[active & ~hover_flag] += 1
+        sample += ~hover_flag if all_active else active & ~hover_flag
         np.minimum(sample, limit, out=sample)
 
     return BatchResult(
@@ -260,7 +276,7 @@ def run_numpy(batch: Batch) -> BatchResult:
         hovering=hovering_log.T,
         sample=sample_log.T,
         n_run=n_run,
-        remaining_bit=remaining_log.transpose(2, 0, 1),
+        remaining_bit=remaining_log.transpose(2, 0, 1) if keep_remaining else None,
         end_sample=np.minimum(sample, last_sample),
         left_bit=np.ascontiguousarray(remaining.T),
         chosen=None if chosen_log is None else chosen_log.T,
@@ -372,7 +388,7 @@ def summarize_fixed_batch(
         if chosen_engine(batch, engine) == "compiled":
             summary = compiled_summaries(batch, chosen)
         else:
-            flights = batch_flights(batch, run_numpy(batch), chosen)
+            flights = batch_flights(batch, run_numpy(batch, keep_remaining=False), chosen)
             # auto with numba (a batch with fading or faults): one compiled pass over the logs
             fast = engine == "auto" and compiled.available()
             summary = flights_summaries(flights) if fast else summaries(flights)

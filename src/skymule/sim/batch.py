@@ -102,13 +102,12 @@ def chosen_engine(batch: Batch, engine: Engine) -> Literal["numpy", "compiled"]:
 
     if engine not in ("auto", "numpy", "compiled"):
         raise SkymuleError(f"engine = {engine!r}; allowed: auto, numpy, compiled")
-    fading = batch.fading_index.size > 0 or batch.faults.any
-    if engine == "compiled" and (fading or not compiled.available()):
-        why = "missions with per-slot fading or faults" if fading else "numba is not installed"
+    if engine == "numpy":
+        return "numpy"
+    why = compiled.can_run(batch)
+    if engine == "compiled" and why is not None:
         raise SkymuleError(f"engine = 'compiled' cannot run this batch: {why}")
-    if engine == "compiled" or (engine == "auto" and not fading and compiled.available()):
-        return "compiled"
-    return "numpy"
+    return "numpy" if why is not None else "compiled"
 
 
 def run_compiled(batch: Batch, keep_remaining: bool = True) -> BatchResult:
@@ -120,6 +119,7 @@ def run_compiled(batch: Batch, keep_remaining: bool = True) -> BatchResult:
 
     n_missions, n_sensors = batch.buffers_bit.shape
     t_max = int(batch.n_slots.max())
+    faults, chosen = compiled.loop_faults(batch)
     result = BatchResult(
         served=np.full((n_missions, t_max), NO_SENSOR, np.int64),
         downloaded_bit=np.zeros((n_missions, t_max)),
@@ -129,12 +129,14 @@ def run_compiled(batch: Batch, keep_remaining: bool = True) -> BatchResult:
         remaining_bit=np.zeros((n_missions, t_max, n_sensors)) if keep_remaining else None,
         end_sample=np.zeros(n_missions, np.int64),
         left_bit=np.zeros((n_missions, n_sensors)),
+        chosen=chosen if batch.faults.any else None,
     )
     compiled.compiled_loop()(
         *compiled.loop_inputs(batch), True, keep_remaining,
         result.served, result.downloaded_bit, result.hovering, result.sample,
         np.zeros((0, 0, 0)) if result.remaining_bit is None else result.remaining_bit,
         result.n_run, result.end_sample, result.left_bit, False, *compiled.no_totals(n_sensors),
+        faults, chosen,
     )  # fmt: skip
     return result
 

@@ -4,17 +4,19 @@ The same rules as the reference engine (``docs/faults.md``; :mod:`skymule.sim.fa
 the policy sees ``snr + error`` where the link delivers and -inf where not (its rate from the
 mission's rate table); a served sensor yields the TRUE rate where deliverable, else 0 bits.
 Missions without faults are untouched. A wind (which changes progress along the track) is not
-batched: such missions are not :func:`~skymule.sim.batch.batchable`.
+batched: such missions are not :func:`~skymule.sim.batch.batchable`. :func:`kernel_faults`
+lays the same draws out for the compiled loop (:func:`skymule.sim.kernels.fault_view`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
-from skymule.radio.rates import RateTable, rate_bps
+from skymule.radio.rates import RateTable, StepTable, rate_bps
 from skymule.world import Mission
 
 
@@ -83,3 +85,58 @@ def apply_faults(
     ok = np.ones(rate.shape, bool)
     ok[:, cols] = ok_g
     return seen_rate, seen_snr, deliver, ok
+
+
+class KernelFaults(NamedTuple):
+    """The fault draws of a batch as the compiled loop reads them, mission by mission.
+
+    Attributes:
+        fault_of: (B,) each mission's row g in the arrays below, -1 without faults.
+        deliverable: (G, T_max, N) True where a served sensor delivers.
+        snr_error_db: (G, T_max, N) error on the SNR the policy sees [dB].
+        uses_error: (G,) True where some error is non-zero: the seen rate is then looked up
+            in the mission's rate table; elsewhere it is the true rate (or 0 where blocked).
+        model: (G,) each mission's rate model (a row of the tables below).
+        thresholds_db: (M, L) the step tables' thresholds, padded with +inf.
+        efficiency: (M, L + 1) efficiency of 0, 1, ... L thresholds reached [bit/s/Hz].
+        bandwidth_hz: (M,) bandwidth of each model [Hz].
+    """
+
+    fault_of: np.ndarray
+    deliverable: np.ndarray
+    snr_error_db: np.ndarray
+    uses_error: np.ndarray
+    model: np.ndarray
+    thresholds_db: np.ndarray
+    efficiency: np.ndarray
+    bandwidth_hz: np.ndarray
+
+
+def kernel_faults(faults: BatchFaults, n_missions: int) -> KernelFaults | None:
+    """``faults`` for the compiled loop, or None if it cannot apply them: an SNR error on a
+    rate table that is not a step table (a Shannon rate per slot would need numba's
+    ``log2``/``pow``, which need not match numpy's to the last bit)."""
+    fault_of = np.full(n_missions, -1, np.int64)
+    fault_of[faults.index] = np.arange(faults.index.size)
+    uses_error = (faults.snr_error_db != 0).any(axis=(0, 1))
+    width = max(
+        [len(t.thresholds_db) for t, _ in faults.rate_models if isinstance(t, StepTable)] or [0]
+    )
+    thresholds = np.full((len(faults.rate_models), width), np.inf)
+    efficiency = np.zeros((len(faults.rate_models), width + 1))
+    for m, (table, _) in enumerate(faults.rate_models):
+        if isinstance(table, StepTable):
+            thresholds[m, : len(table.thresholds_db)] = table.thresholds_db
+            efficiency[m, 1 : len(table.efficiencies) + 1] = table.efficiencies
+        elif uses_error[faults.rate_model == m].any():
+            return None
+    return KernelFaults(
+        fault_of=fault_of,
+        deliverable=np.ascontiguousarray(faults.deliverable.transpose(2, 0, 1)),
+        snr_error_db=np.ascontiguousarray(faults.snr_error_db.transpose(2, 0, 1)),
+        uses_error=uses_error,
+        model=faults.rate_model,
+        thresholds_db=thresholds,
+        efficiency=efficiency,
+        bandwidth_hz=np.array([bandwidth for _, bandwidth in faults.rate_models], float),
+    )

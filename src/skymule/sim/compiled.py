@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from skymule.sim import contract, kernels, summary_kernels
+from skymule.sim.batch_faults import KernelFaults, kernel_faults
 from skymule.sim.batch_stack import Batch
 from skymule.sim.contract import NO_SENSOR
 
@@ -58,6 +59,46 @@ def no_logs() -> tuple[np.ndarray, ...]:
         np.zeros((0, 0), np.int64),
         np.zeros((0, 0, 0)),
     )
+
+
+def no_faults(n_missions: int, n_sensors: int) -> tuple[KernelFaults, np.ndarray]:
+    """Placeholders for :func:`slot_loop`'s fault draws and ``chosen`` log (no mission has
+    faults), of the same types as real ones."""
+    faults = KernelFaults(
+        fault_of=np.full(n_missions, -1, np.int64),
+        deliverable=np.zeros((0, 0, n_sensors), np.bool_),
+        snr_error_db=np.zeros((0, 0, n_sensors)),
+        uses_error=np.zeros(0, np.bool_),
+        model=np.zeros(0, np.int64),
+        thresholds_db=np.zeros((0, 0)),
+        efficiency=np.zeros((0, 1)),
+        bandwidth_hz=np.zeros(0),
+    )
+    return faults, np.zeros((0, 0), np.int64)
+
+
+def loop_faults(batch: Batch, chosen_log: bool = True) -> tuple[KernelFaults, np.ndarray]:
+    """The batch's fault draws for :func:`slot_loop` and its ``chosen`` log: (B, T) to fill
+    when some mission has faults and ``chosen_log``, else a placeholder. The caller checked
+    :func:`can_run`."""
+    n_missions, n_sensors = batch.buffers_bit.shape
+    if not batch.faults.any:
+        return no_faults(n_missions, n_sensors)
+    faults = kernel_faults(batch.faults, n_missions)
+    assert faults is not None, "compiled.can_run(batch) first"
+    t_max = int(batch.n_slots.max()) if chosen_log else 0
+    return faults, np.full((n_missions if chosen_log else 0, t_max), NO_SENSOR, np.int64)
+
+
+def can_run(batch: Batch) -> str | None:
+    """Why the compiled loop cannot run ``batch`` (None: it can)."""
+    if not available():
+        return "numba is not installed"
+    if batch.fading_index.size > 0:
+        return "missions with per-slot fading"
+    if batch.faults.any and kernel_faults(batch.faults, batch.size) is None:
+        return "an SNR error on a rate table other than a step table"
+    return None
 
 
 def no_totals(n_sensors: int) -> tuple[summary_kernels.SummaryTables, summary_kernels.SlotTotals]:
@@ -105,9 +146,15 @@ def slot_loop(
     want_totals: bool,
     tables: summary_kernels.SummaryTables,
     totals: summary_kernels.SlotTotals,
+    faults: KernelFaults,
+    chosen: np.ndarray,
 ) -> None:
     """Every slot of every mission; fills ``n_run``, ``end_sample``, ``left`` and, as asked,
-    the (B, T) logs (``keep_logs``) and each mission's summary reductions (``want_totals``).
+    the (B, T) logs (``keep_logs``; ``chosen`` too when it has B rows) and each mission's
+    summary reductions (``want_totals``).
+
+    Missions with faults (``faults.fault_of[b] >= 0``) see and deliver through
+    :func:`~skymule.sim.kernels.fault_view`, as the numpy loop through ``apply_faults``.
 
     Arrays are those of :class:`~skymule.sim.batch.Batch` (rate and snr seen per track sample,
     per-mission parameters with thresholds and peaks as (B, N)); ``remaining_log`` is (B, T, N)
@@ -132,6 +179,12 @@ def slot_loop(
     scratch = np.empty((2, t_max))
     stack = np.empty((128, 3), np.int64)
     partial = np.empty(128)
+    seen_rate = np.empty(n_sensors)
+    seen_snr = np.empty(n_sensors)
+    deliver = np.empty(n_sensors)
+    keep_chosen = keep_logs and chosen.shape[0] == n_missions
+    ok = np.ones(n_sensors, np.bool_)  # a fault mission's deliverable sensors this slot
+    steps, efficiency, bandwidth = np.empty(0), np.empty(1), 0.0  # its rate table
     for b in range(n_missions):
         if keep_logs:
             served_row, downloaded_row = served[b], downloaded[b]
@@ -144,18 +197,30 @@ def slot_loop(
         cooling[:] = False
         hover[0] = NO_SENSOR
         hover[1] = 0.0
+        g = faults.fault_of[b]
+        if g >= 0:
+            model = faults.model[g]
+            steps, efficiency = faults.thresholds_db[model], faults.efficiency[model]
+            bandwidth = faults.bandwidth_hz[model]
         sample = 0
         run = 0
         for slot in range(n_slots[b]):
             if sample >= n_samples[b]:
                 break
-            rate_now = rate[u, sample]
+            rate_now, snr_now = rate[u, sample], snr[u, sample]
+            if g >= 0:  # the policy sees the faulty SNR; `deliver` is what serving yields
+                ok = faults.deliverable[g, slot]
+                kernels.fault_view(
+                    rate_now, snr_now, ok, faults.snr_error_db[g, slot], faults.uses_error[g],
+                    steps, efficiency, bandwidth, seen_rate, seen_snr, deliver,
+                )  # fmt: skip
+                rate_now, snr_now = seen_rate, seen_snr
             if hover[0] >= 0:  # hovering: the hovered sensor (the choice would go unused)
                 sensor = int(hover[0])
             elif is_hgad:
-                sensor = kernels.hgad_pick(rate_now, snr[u, sample], remaining)
+                sensor = kernels.hgad_pick(rate_now, snr_now, remaining)
             else:
-                sensor = kernels.greedy_pick(snr[u, sample], rate_now, remaining)
+                sensor = kernels.greedy_pick(snr_now, rate_now, remaining)
             cell = max(sensor, 0)
             before = remaining[cell]
             bits = contract.served_bits(rate_now[cell], before, dt) if sensor >= 0 else 0.0
@@ -164,6 +229,12 @@ def slot_loop(
             if slot >= window_slots[b]:  # the download window has closed: nothing arrives
                 delivered = NO_SENSOR
                 bits = 0.0
+            if keep_chosen:
+                chosen[b, slot] = delivered
+            if g >= 0:  # a fault blocks the choice: 0 bits, nothing served
+                if delivered >= 0 and not ok[cell]:
+                    delivered = NO_SENSOR
+                bits = contract.served_bits(deliver[cell], before, dt) if delivered >= 0 else 0.0
             remaining[cell] = before - bits
             held = False
             if is_hgad:
@@ -249,6 +320,8 @@ def compiled_loop() -> Callable[..., None]:
         (
             contract.served_bits,
             *choose,
+            kernels.step_rate,
+            kernels.fault_view,
             summary_kernels.block_sum,
             summary_kernels.pairwise_sum,
             summary_kernels.slots_before,

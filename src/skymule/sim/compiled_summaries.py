@@ -124,8 +124,8 @@ def summaries_from_slot_totals(
 
 
 def compiled_summaries(batch: Batch, missions: Sequence[Mission]) -> metrics.Summaries:
-    """``metrics.summaries`` of every mission of ``batch`` (fault- and fading-free), from the
-    compiled loop's per-mission reductions."""
+    """``metrics.summaries`` of every mission of ``batch`` (one :func:`compiled.can_run`),
+    from the compiled loop's per-mission reductions."""
     n_missions, n_sensors = batch.buffers_bit.shape
     home, hover, radius, window = mission_geometry(missions, n_sensors)
     tables = summary_tables(
@@ -138,7 +138,7 @@ def compiled_summaries(batch: Batch, missions: Sequence[Mission]) -> metrics.Sum
     left = np.zeros((n_missions, n_sensors))
     compiled.compiled_loop()(
         *compiled.loop_inputs(batch), False, False, *compiled.no_logs(),
-        n_run, end_sample, left, True, tables, totals,
+        n_run, end_sample, left, True, tables, totals, *compiled.loop_faults(batch, False),
     )  # fmt: skip
     return summaries_from_slot_totals(
         totals,

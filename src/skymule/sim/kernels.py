@@ -127,3 +127,51 @@ def hgad_hover_step(
         hover[0] = sensor
         return True
     return False
+
+
+def step_rate(
+    snr_db: float, thresholds_db: np.ndarray, efficiency: np.ndarray, bandwidth_hz: float
+) -> float:
+    """``rate_bps(StepTable, snr_db, bandwidth_hz)`` for one SNR: the efficiency of the
+    number of thresholds reached (``searchsorted(side="right")`` on ascending thresholds; NaN
+    reaches none) x bandwidth."""
+    reached = 0
+    for threshold in thresholds_db:
+        if threshold <= snr_db:
+            reached += 1
+    return efficiency[reached] * bandwidth_hz
+
+
+def fault_view(
+    rate_bps: np.ndarray,
+    snr_db: np.ndarray,
+    deliverable: np.ndarray,
+    snr_error_db: np.ndarray,
+    uses_error: bool,
+    thresholds_db: np.ndarray,
+    efficiency: np.ndarray,
+    bandwidth_hz: float,
+    seen_rate_bps: np.ndarray,
+    seen_snr_db: np.ndarray,
+    deliver_bps: np.ndarray,
+) -> None:
+    """One mission, one slot of ``batch_faults.apply_faults`` (``docs/faults.md``): fills what
+    the policy sees (SNR + error where deliverable, else -inf, and its rate) and what a
+    served sensor delivers (the true rate where deliverable, else 0).
+
+    Without an SNR error the seen rate is the true rate where deliverable: the rate table of
+    the unchanged SNR. A blocked link's seen rate is that of -inf, 0 in every table.
+    """
+    for i in range(rate_bps.shape[0]):
+        if deliverable[i]:
+            seen = snr_db[i] + snr_error_db[i]
+            seen_snr_db[i] = seen
+            if uses_error:
+                seen_rate_bps[i] = step_rate(seen, thresholds_db, efficiency, bandwidth_hz)
+            else:
+                seen_rate_bps[i] = rate_bps[i]
+            deliver_bps[i] = rate_bps[i]
+        else:
+            seen_snr_db[i] = -np.inf
+            seen_rate_bps[i] = 0.0
+            deliver_bps[i] = 0.0

@@ -129,7 +129,7 @@ def run_compiled(batch: Batch, keep_remaining: bool = True) -> BatchResult:
         remaining_bit=np.zeros((n_missions, t_max, n_sensors)) if keep_remaining else None,
         end_sample=np.zeros(n_missions, np.int64),
         left_bit=np.zeros((n_missions, n_sensors)),
-        chosen=chosen if batch.faults.any else None,
+        chosen=chosen,
     )
     compiled.compiled_loop()(
         *compiled.loop_inputs(batch), True, keep_remaining,

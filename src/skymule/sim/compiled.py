@@ -61,33 +61,19 @@ def no_logs() -> tuple[np.ndarray, ...]:
     )
 
 
-def no_faults(n_missions: int, n_sensors: int) -> tuple[KernelFaults, np.ndarray]:
-    """Placeholders for :func:`slot_loop`'s fault draws and ``chosen`` log (no mission has
-    faults), of the same types as real ones."""
-    faults = KernelFaults(
-        fault_of=np.full(n_missions, -1, np.int64),
-        deliverable=np.zeros((0, 0, n_sensors), np.bool_),
-        snr_error_db=np.zeros((0, 0, n_sensors)),
-        uses_error=np.zeros(0, np.bool_),
-        model=np.zeros(0, np.int64),
-        thresholds_db=np.zeros((0, 0)),
-        efficiency=np.zeros((0, 1)),
-        bandwidth_hz=np.zeros(0),
-    )
-    return faults, np.zeros((0, 0), np.int64)
-
-
-def loop_faults(batch: Batch, chosen_log: bool = True) -> tuple[KernelFaults, np.ndarray]:
-    """The batch's fault draws for :func:`slot_loop` and its ``chosen`` log: (B, T) to fill
-    when some mission has faults and ``chosen_log``, else a placeholder. The caller checked
+def loop_faults(
+    batch: Batch, chosen_log: bool = True
+) -> tuple[KernelFaults | None, np.ndarray | None]:
+    """The batch's fault draws for :func:`slot_loop` and its (B, T) ``chosen`` log to fill
+    (``chosen_log``); None for both when no mission has faults. The caller checked
     :func:`can_run`."""
-    n_missions, n_sensors = batch.buffers_bit.shape
     if not batch.faults.any:
-        return no_faults(n_missions, n_sensors)
+        return None, None
+    n_missions = batch.size
     faults = kernel_faults(batch.faults, n_missions)
     assert faults is not None, "compiled.can_run(batch) first"
-    t_max = int(batch.n_slots.max()) if chosen_log else 0
-    return faults, np.full((n_missions if chosen_log else 0, t_max), NO_SENSOR, np.int64)
+    t_max = int(batch.n_slots.max())
+    return faults, np.full((n_missions, t_max), NO_SENSOR, np.int64) if chosen_log else None
 
 
 def can_run(batch: Batch) -> str | None:
@@ -146,15 +132,17 @@ def slot_loop(
     want_totals: bool,
     tables: summary_kernels.SummaryTables,
     totals: summary_kernels.SlotTotals,
-    faults: KernelFaults,
-    chosen: np.ndarray,
+    faults: KernelFaults | None,
+    chosen: np.ndarray | None,
 ) -> None:
     """Every slot of every mission; fills ``n_run``, ``end_sample``, ``left`` and, as asked,
-    the (B, T) logs (``keep_logs``; ``chosen`` too when it has B rows) and each mission's
-    summary reductions (``want_totals``).
+    the (B, T) logs (``keep_logs``; ``chosen`` too unless None) and each mission's summary
+    reductions (``want_totals``).
 
     Missions with faults (``faults.fault_of[b] >= 0``) see and deliver through
     :func:`~skymule.sim.kernels.fault_view`, as the numpy loop through ``apply_faults``.
+    ``faults=None`` (no mission has faults) compiles a loop without any of that: numba prunes
+    the ``is not None`` branches, and the fault-free loop keeps its speed.
 
     Arrays are those of :class:`~skymule.sim.batch.Batch` (rate and snr seen per track sample,
     per-mission parameters with thresholds and peaks as (B, N)); ``remaining_log`` is (B, T, N)
@@ -182,7 +170,6 @@ def slot_loop(
     seen_rate = np.empty(n_sensors)
     seen_snr = np.empty(n_sensors)
     deliver = np.empty(n_sensors)
-    keep_chosen = keep_logs and chosen.shape[0] == n_missions
     ok = np.ones(n_sensors, np.bool_)  # a fault mission's deliverable sensors this slot
     steps, efficiency, bandwidth = np.empty(0), np.empty(1), 0.0  # its rate table
     for b in range(n_missions):
@@ -197,30 +184,38 @@ def slot_loop(
         cooling[:] = False
         hover[0] = NO_SENSOR
         hover[1] = 0.0
-        g = faults.fault_of[b]
-        if g >= 0:
-            model = faults.model[g]
-            steps, efficiency = faults.thresholds_db[model], faults.efficiency[model]
-            bandwidth = faults.bandwidth_hz[model]
+        g = -1
+        if faults is not None:
+            g = faults.fault_of[b]
+            if g >= 0:
+                model = faults.model[g]
+                steps, efficiency = faults.thresholds_db[model], faults.efficiency[model]
+                bandwidth = faults.bandwidth_hz[model]
         sample = 0
         run = 0
         for slot in range(n_slots[b]):
             if sample >= n_samples[b]:
                 break
-            rate_now, snr_now = rate[u, sample], snr[u, sample]
-            if g >= 0:  # the policy sees the faulty SNR; `deliver` is what serving yields
-                ok = faults.deliverable[g, slot]
+            rate_now = rate[u, sample]
+            if faults is not None and g >= 0:  # the policy sees the faulty SNR; `deliver`
+                ok = faults.deliverable[g, slot]  # is what serving yields
                 kernels.fault_view(
-                    rate_now, snr_now, ok, faults.snr_error_db[g, slot], faults.uses_error[g],
-                    steps, efficiency, bandwidth, seen_rate, seen_snr, deliver,
+                    rate_now, snr[u, sample], ok, faults.snr_error_db[g, slot],
+                    faults.uses_error[g], steps, efficiency, bandwidth, seen_rate, seen_snr,
+                    deliver,
                 )  # fmt: skip
-                rate_now, snr_now = seen_rate, seen_snr
+                rate_now = seen_rate
             if hover[0] >= 0:  # hovering: the hovered sensor (the choice would go unused)
                 sensor = int(hover[0])
+            elif faults is not None and g >= 0:
+                if is_hgad:
+                    sensor = kernels.hgad_pick(seen_rate, seen_snr, remaining)
+                else:
+                    sensor = kernels.greedy_pick(seen_snr, seen_rate, remaining)
             elif is_hgad:
-                sensor = kernels.hgad_pick(rate_now, snr_now, remaining)
+                sensor = kernels.hgad_pick(rate_now, snr[u, sample], remaining)
             else:
-                sensor = kernels.greedy_pick(snr_now, rate_now, remaining)
+                sensor = kernels.greedy_pick(snr[u, sample], rate_now, remaining)
             cell = max(sensor, 0)
             before = remaining[cell]
             bits = contract.served_bits(rate_now[cell], before, dt) if sensor >= 0 else 0.0
@@ -229,9 +224,9 @@ def slot_loop(
             if slot >= window_slots[b]:  # the download window has closed: nothing arrives
                 delivered = NO_SENSOR
                 bits = 0.0
-            if keep_chosen:
+            if chosen is not None and keep_logs:
                 chosen[b, slot] = delivered
-            if g >= 0:  # a fault blocks the choice: 0 bits, nothing served
+            if faults is not None and g >= 0:  # a fault blocks the choice: 0 bits, no sensor
                 if delivered >= 0 and not ok[cell]:
                     delivered = NO_SENSOR
                 bits = contract.served_bits(deliver[cell], before, dt) if delivered >= 0 else 0.0

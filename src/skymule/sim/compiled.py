@@ -207,15 +207,14 @@ def slot_loop(
                 rate_now = seen_rate
             if hover[0] >= 0:  # hovering: the hovered sensor (the choice would go unused)
                 sensor = int(hover[0])
-            elif faults is not None and g >= 0:
-                if is_hgad:
-                    sensor = kernels.hgad_pick(seen_rate, seen_snr, remaining)
-                else:
-                    sensor = kernels.greedy_pick(seen_snr, seen_rate, remaining)
-            elif is_hgad:
-                sensor = kernels.hgad_pick(rate_now, snr[u, sample], remaining)
             else:
-                sensor = kernels.greedy_pick(snr[u, sample], rate_now, remaining)
+                snr_now = snr[u, sample]
+                if faults is not None and g >= 0:
+                    snr_now = seen_snr
+                if is_hgad:
+                    sensor = kernels.hgad_pick(rate_now, snr_now, remaining)
+                else:
+                    sensor = kernels.greedy_pick(snr_now, rate_now, remaining)
             cell = max(sensor, 0)
             before = remaining[cell]
             bits = contract.served_bits(rate_now[cell], before, dt) if sensor >= 0 else 0.0

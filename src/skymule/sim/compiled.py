@@ -167,6 +167,7 @@ def slot_loop(
     scratch = np.empty((2, t_max))
     stack = np.empty((128, 3), np.int64)
     partial = np.empty(128)
+    memo = np.full(4, -1.0)
     seen_rate = np.empty(n_sensors)
     seen_snr = np.empty(n_sensors)
     deliver = np.empty(n_sensors)
@@ -260,7 +261,7 @@ def slot_loop(
         if want_totals:
             summary_kernels.mission_totals(
                 b, served_row, downloaded_row, hovering_row, sample_row, run, dt, tables,
-                scratch, stack, partial, totals,
+                scratch, stack, partial, memo, totals,
             )  # fmt: skip
     if not keep_logs:
         return

@@ -169,11 +169,12 @@ def mission_totals(
     scratch: np.ndarray,
     stack: np.ndarray,
     partial: np.ndarray,
+    memo: np.ndarray,
     totals: SlotTotals,
 ) -> None:
     """Mission b's reductions into row b of ``totals``, from its rows (T,) of slots.
 
-    As ``metrics.slot_totals`` (the reference) computes them from (B, T) arrays:
+    As ``metrics.summaries`` (the reference) computes them from (B, T) arrays:
 
     * bits, distance and power: pairwise sums over the slots run; a slot's step and power
       are looked up at its track sample, or in the hover column when the UAV held position;
@@ -184,7 +185,11 @@ def mission_totals(
     * AADM: a running sum of the downloads in counted slots and the first counted slot at
       which it reached the threshold.
 
-    ``scratch`` is (2, T) float space for the per-slot steps and power.
+    A mission that never hovered and moved one sample per slot from sample 0 (a straight
+    walk: Greedy, until a track ends) flew the first ``n_run`` steps of its track, so its
+    distance and power sums are those of the tables' first ``n_run`` columns, the same for
+    every such mission: ``memo`` (4,) keeps the last [row, n_run, distance, power sum].
+    ``scratch`` is (2, T) float space for the per-slot steps and power of other missions.
     """
     pair = tables.pair[b]
     hover_column = tables.steps_m.shape[1] - 1
@@ -196,19 +201,19 @@ def mission_totals(
     window = tables.aadm_window_s[b] - 1e-9
     aadm = 0.0
     aadm_first = -1
+    straight = True
     for t in range(n_run):
         sensor = served[t]
         if sensor != NO_SENSOR:
             if last != NO_SENSOR and sensor != last:
                 handovers += 1
             last = sensor
-        column = sample[t]
         if hovering[t]:
-            column = hover_column
+            straight = False
             hover_slots += 1
             hovered_serving = hovered_serving or sensor != NO_SENSOR
-        scratch[0, t] = tables.steps_m[pair, column]
-        scratch[1, t] = tables.power_w[pair, column]
+        elif sample[t] != t:
+            straight = False
         counted = not tables.aadm_per_slot or t * slot_s < window
         got = downloaded[t] if counted else 0.0
         aadm = got if t == 0 else aadm + got
@@ -217,8 +222,19 @@ def mission_totals(
     if n_run < tables.width:  # numpy's running sum goes on over the zero padding
         aadm = aadm + 0.0
     totals.downloaded_bit[b] = pairwise_sum(downloaded, n_run, stack, partial)
-    totals.distance_m[b] = pairwise_sum(scratch[0], n_run, stack, partial)
-    totals.power_sum_w[b] = pairwise_sum(scratch[1], n_run, stack, partial)
+    if straight:
+        if memo[0] != pair or memo[1] != n_run:
+            memo[0], memo[1] = pair, n_run
+            memo[2] = pairwise_sum(tables.steps_m[pair], n_run, stack, partial)
+            memo[3] = pairwise_sum(tables.power_w[pair], n_run, stack, partial)
+        totals.distance_m[b], totals.power_sum_w[b] = memo[2], memo[3]
+    else:
+        for t in range(n_run):
+            column = hover_column if hovering[t] else sample[t]
+            scratch[0, t] = tables.steps_m[pair, column]
+            scratch[1, t] = tables.power_w[pair, column]
+        totals.distance_m[b] = pairwise_sum(scratch[0], n_run, stack, partial)
+        totals.power_sum_w[b] = pairwise_sum(scratch[1], n_run, stack, partial)
     totals.handovers[b] = handovers
     totals.hover_slots[b] = hover_slots
     totals.aadm_bit[b] = aadm
@@ -264,8 +280,9 @@ def reduce_rows(
     scratch = np.empty((2, width))
     stack = np.empty((128, 3), np.int64)
     partial = np.empty(128)
+    memo = np.full(4, -1.0)
     for b in range(served.shape[0]):
         mission_totals(
             b, served[b], downloaded[b], hovering[b], sample[b], n_run[b], slot_s[b], tables,
-            scratch, stack, partial, totals,
+            scratch, stack, partial, memo, totals,
         )  # fmt: skip

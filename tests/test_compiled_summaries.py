@@ -121,3 +121,15 @@ def test_compiled_loop_summaries_on_paper_preset(base_mission, threshold):
     assert_summaries_equal(compiled_summaries(batch, missions), want)
     assert want.aadm.complete[0] and (want.hover_time_s[1::2] > 0).all()
     assert_summaries_equal(flights_summaries(flights), want)
+
+
+@needs_numba
+def test_straight_walks_of_other_lengths_on_one_track(base_mission):
+    """Greedy missions sharing a track but not their length: each sums its own steps."""
+    missions = [replace(base_mission, n_slots=n) for n in (500, 120, 120, 7, 500, 0, 31)]
+    specs = [PolicySpec(name="greedy")] * len(missions)
+    batch, flights = numpy_flights(missions, specs)
+    want = summaries(flights)
+    assert len(set(want.distance_m.tolist())) == 5
+    assert_summaries_equal(compiled_summaries(batch, missions), want)
+    assert_summaries_equal(flights_summaries(flights, use_numba=False), want)

@@ -26,8 +26,10 @@ class BatchFaults:
 
     Attributes:
         index: (G,) their positions in the batch.
-        deliverable: (T_max, N, G) True where a served sensor delivers (False past the end).
-        snr_error_db: (T_max, N, G) error on the SNR the policy sees [dB].
+        deliverable: (G, T_max, N) True where a served sensor delivers (False past the end).
+        snr_error_db: (G, T_max, N) error on the SNR the policy sees [dB].
+        (Mission-major: each mission's draws are copied in one block; the numpy loop reads a
+        slot's (N, G) as a strided view, the compiled loop a mission's rows as they are.)
         rate_model: (G,) index of each one's rate model in ``rate_models``.
         rate_models: (rate table, bandwidth [Hz]) pairs.
     """
@@ -47,8 +49,8 @@ def stack_faults(missions: Sequence[Mission], n_sensors: int) -> BatchFaults:
     """The fault missions' draws, padded to the longest mission."""
     index = [b for b, m in enumerate(missions) if m.faults is not None]
     t_max = max(m.n_slots for m in missions)
-    deliverable = np.zeros((t_max, n_sensors, len(index)), bool)
-    error = np.zeros((t_max, n_sensors, len(index)))
+    deliverable = np.zeros((len(index), t_max, n_sensors), bool)
+    error = np.zeros((len(index), t_max, n_sensors))
     models: dict[tuple[int, float], int] = {}
     tables: list[tuple[RateTable, float]] = []
     rate_model = np.empty(len(index), np.int64)
@@ -56,8 +58,8 @@ def stack_faults(missions: Sequence[Mission], n_sensors: int) -> BatchFaults:
         mission = missions[b]
         draws = mission.faults
         assert draws is not None
-        deliverable[: mission.n_slots, :, g] = draws.deliverable()
-        error[: mission.n_slots, :, g] = draws.snr_error_db
+        deliverable[g, : mission.n_slots] = draws.deliverable()
+        error[g, : mission.n_slots] = draws.snr_error_db
         key = (id(mission.rate_table), mission.bandwidth_hz)
         if key not in models:
             models[key] = len(tables)
@@ -74,9 +76,9 @@ def apply_faults(
     ``rate`` / ``snr`` (N, B) are the true values (fading included); they are not changed.
     """
     cols = faults.index
-    ok_g = faults.deliverable[slot]
+    ok_g = faults.deliverable[:, slot].T
     seen_snr, seen_rate, deliver = snr.copy(), rate.copy(), rate.copy()
-    seen = np.where(ok_g, snr[:, cols] + faults.snr_error_db[slot], -np.inf)
+    seen = np.where(ok_g, snr[:, cols] + faults.snr_error_db[:, slot].T, -np.inf)
     seen_snr[:, cols] = seen
     for model, (table, bandwidth_hz) in enumerate(faults.rate_models):
         pick = faults.rate_model == model
@@ -92,8 +94,8 @@ class KernelFaults(NamedTuple):
 
     Attributes:
         fault_of: (B,) each mission's row g in the arrays below, -1 without faults.
-        deliverable: (G, T_max, N) True where a served sensor delivers.
-        snr_error_db: (G, T_max, N) error on the SNR the policy sees [dB].
+        deliverable: (G, T_max, N) ``BatchFaults.deliverable``.
+        snr_error_db: (G, T_max, N) ``BatchFaults.snr_error_db``.
         uses_error: (G,) True where some error is non-zero: the seen rate is then looked up
             in the mission's rate table; elsewhere it is the true rate (or 0 where blocked).
         model: (G,) each mission's rate model (a row of the tables below).
@@ -118,7 +120,7 @@ def kernel_faults(faults: BatchFaults, n_missions: int) -> KernelFaults | None:
     ``log2``/``pow``, which need not match numpy's to the last bit)."""
     fault_of = np.full(n_missions, -1, np.int64)
     fault_of[faults.index] = np.arange(faults.index.size)
-    uses_error = (faults.snr_error_db != 0).any(axis=(0, 1))
+    uses_error = (faults.snr_error_db != 0).any(axis=(1, 2))
     width = max(
         [len(t.thresholds_db) for t, _ in faults.rate_models if isinstance(t, StepTable)] or [0]
     )
@@ -132,8 +134,8 @@ def kernel_faults(faults: BatchFaults, n_missions: int) -> KernelFaults | None:
             return None
     return KernelFaults(
         fault_of=fault_of,
-        deliverable=np.ascontiguousarray(faults.deliverable.transpose(2, 0, 1)),
-        snr_error_db=np.ascontiguousarray(faults.snr_error_db.transpose(2, 0, 1)),
+        deliverable=faults.deliverable,
+        snr_error_db=faults.snr_error_db,
         uses_error=uses_error,
         model=faults.rate_model,
         thresholds_db=thresholds,

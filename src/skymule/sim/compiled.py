@@ -171,7 +171,6 @@ def slot_loop(
     seen_rate = np.empty(n_sensors)
     seen_snr = np.empty(n_sensors)
     deliver = np.empty(n_sensors)
-    ok = np.ones(n_sensors, np.bool_)  # a fault mission's deliverable sensors this slot
     steps, efficiency, bandwidth = np.empty(0), np.empty(1), 0.0  # its rate table
     for b in range(n_missions):
         if keep_logs:
@@ -197,21 +196,19 @@ def slot_loop(
         for slot in range(n_slots[b]):
             if sample >= n_samples[b]:
                 break
-            rate_now = rate[u, sample]
-            if faults is not None and g >= 0:  # the policy sees the faulty SNR; `deliver`
-                ok = faults.deliverable[g, slot]  # is what serving yields
+            if faults is not None:  # what the policy sees; `deliver`: what serving yields
                 kernels.fault_view(
-                    rate_now, snr[u, sample], ok, faults.snr_error_db[g, slot],
-                    faults.uses_error[g], steps, efficiency, bandwidth, seen_rate, seen_snr,
-                    deliver,
+                    rate, snr, u, sample, faults.deliverable, faults.snr_error_db, g, slot,
+                    g >= 0 and faults.uses_error[g], steps, efficiency, bandwidth, seen_rate,
+                    seen_snr, deliver,
                 )  # fmt: skip
                 rate_now = seen_rate
+            else:
+                rate_now = rate[u, sample]
             if hover[0] >= 0:  # hovering: the hovered sensor (the choice would go unused)
                 sensor = int(hover[0])
             else:
-                snr_now = snr[u, sample]
-                if faults is not None and g >= 0:
-                    snr_now = seen_snr
+                snr_now = seen_snr if faults is not None else snr[u, sample]
                 if is_hgad:
                     sensor = kernels.hgad_pick(rate_now, snr_now, remaining)
                 else:
@@ -227,7 +224,7 @@ def slot_loop(
             if chosen is not None and keep_logs:
                 chosen[b, slot] = delivered
             if faults is not None and g >= 0:  # a fault blocks the choice: 0 bits, no sensor
-                if delivered >= 0 and not ok[cell]:
+                if delivered >= 0 and not faults.deliverable[g, slot, cell]:
                     delivered = NO_SENSOR
                 bits = contract.served_bits(deliver[cell], before, dt) if delivered >= 0 else 0.0
             remaining[cell] = before - bits
@@ -309,14 +306,13 @@ def jit(
 @cache
 def compiled_loop() -> Callable[..., None]:
     """:func:`slot_loop` compiled (once per process; cached on disk, see :func:`jit`)."""
-    choose = (kernels.greedy_pick, kernels.hgad_pick, kernels.hgad_hover_step)
+    choose = (kernels.greedy_pick, kernels.hgad_pick, kernels.hgad_hover_step, kernels.fault_view)
     return jit(
         slot_loop,
         (
             contract.served_bits,
             *choose,
             kernels.step_rate,
-            kernels.fault_view,
             summary_kernels.block_sum,
             summary_kernels.pairwise_sum,
             summary_kernels.slots_before,

@@ -187,7 +187,10 @@ def slot_loop(
         g = -1
         if faults is not None:
             g = faults.fault_of[b]
-            if g >= 0:
+            if g >= 0:  # this mission's track and draws, rows read by index in each slot
+                ok_rows, error_rows = faults.deliverable[g], faults.snr_error_db[g]
+                rate_rows, snr_rows = rate[u], snr[u]
+                uses_error = faults.uses_error[g]
                 model = faults.model[g]
                 steps, efficiency = faults.thresholds_db[model], faults.efficiency[model]
                 bandwidth = faults.bandwidth_hz[model]
@@ -196,19 +199,19 @@ def slot_loop(
         for slot in range(n_slots[b]):
             if sample >= n_samples[b]:
                 break
-            if faults is not None:  # what the policy sees; `deliver`: what serving yields
-                kernels.fault_view(
-                    rate, snr, u, sample, faults.deliverable, faults.snr_error_db, g, slot,
-                    g >= 0 and faults.uses_error[g], steps, efficiency, bandwidth, seen_rate,
-                    seen_snr, deliver,
+            rate_now = rate[u, sample]
+            if faults is not None and g >= 0:  # the policy sees the faulty SNR; `deliver`
+                kernels.fault_view(  # is what serving yields
+                    rate_rows, snr_rows, sample, ok_rows, error_rows, slot, uses_error, steps,
+                    efficiency, bandwidth, seen_rate, seen_snr, deliver,
                 )  # fmt: skip
                 rate_now = seen_rate
-            else:
-                rate_now = rate[u, sample]
             if hover[0] >= 0:  # hovering: the hovered sensor (the choice would go unused)
                 sensor = int(hover[0])
             else:
-                snr_now = seen_snr if faults is not None else snr[u, sample]
+                snr_now = snr[u, sample]
+                if faults is not None and g >= 0:
+                    snr_now = seen_snr
                 if is_hgad:
                     sensor = kernels.hgad_pick(rate_now, snr_now, remaining)
                 else:
@@ -224,7 +227,7 @@ def slot_loop(
             if chosen is not None and keep_logs:
                 chosen[b, slot] = delivered
             if faults is not None and g >= 0:  # a fault blocks the choice: 0 bits, no sensor
-                if delivered >= 0 and not faults.deliverable[g, slot, cell]:
+                if delivered >= 0 and not ok_rows[slot, cell]:
                     delivered = NO_SENSOR
                 bits = contract.served_bits(deliver[cell], before, dt) if delivered >= 0 else 0.0
             remaining[cell] = before - bits

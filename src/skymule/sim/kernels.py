@@ -145,11 +145,9 @@ def step_rate(
 def fault_view(
     rate_bps: np.ndarray,
     snr_db: np.ndarray,
-    u: int,
     sample: int,
     deliverable: np.ndarray,
     snr_error_db: np.ndarray,
-    g: int,
     slot: int,
     uses_error: bool,
     thresholds_db: np.ndarray,
@@ -163,19 +161,16 @@ def fault_view(
     the policy sees (SNR + error where deliverable, else -inf, and its rate) and what a
     served sensor delivers (the true rate where deliverable, else 0).
 
-    The true rate and SNR are ``rate_bps[u, sample]`` / ``snr_db[u, sample]`` (track u); the
-    mission's draws are ``deliverable[g, slot]`` and ``snr_error_db[g, slot]``; a mission
-    without faults (g < 0) sees and delivers the true values. Without an SNR error the seen
-    rate is the true rate where deliverable (the rate table of the unchanged SNR); a blocked
-    link's seen rate is that of -inf, 0 in every table. Scalars only, no array views: this
-    runs once per slot of every mission of a batch with faults.
+    The true rate and SNR are row ``sample`` of the mission's track, ``rate_bps`` /
+    ``snr_db`` (K, N); its draws are row ``slot`` of ``deliverable`` / ``snr_error_db``
+    (T, N). Without an SNR error the seen rate is the true rate where deliverable (the rate table of
+    the unchanged SNR); a blocked link's seen rate is that of -inf, 0 in every table. Reads by
+    index, no array views per slot.
     """
     for i in range(seen_rate_bps.shape[0]):
-        rate, snr = rate_bps[u, sample, i], snr_db[u, sample, i]
-        if g < 0:
-            seen_snr_db[i], seen_rate_bps[i], deliver_bps[i] = snr, rate, rate
-        elif deliverable[g, slot, i]:
-            seen = snr + snr_error_db[g, slot, i]
+        rate, snr = rate_bps[sample, i], snr_db[sample, i]
+        if deliverable[slot, i]:
+            seen = snr + snr_error_db[slot, i]
             seen_snr_db[i] = seen
             if uses_error:
                 seen_rate_bps[i] = step_rate(seen, thresholds_db, efficiency, bandwidth_hz)

@@ -7,7 +7,8 @@ served bits, the Greedy and HGAD choices, HGAD's hover state machine), and the t
 compares the two value for value.
 
 Missions that share a :class:`~skymule.flight.paths.Track` object (and rate table) share its
-samples: tracks are stored once, (U, K_max, N), and every mission points at one of them.
+samples: tracks are stored once, (U, K_max, N), and every mission points at one of them
+(stacking: :mod:`skymule.sim.batch_stack`).
 
 Missions with per-slot fading (``Mission.fading_db``) run here too: their SNR and rate are
 recomputed each slot from the track SNR plus that slot's fading, as the reference engine does.
@@ -17,8 +18,9 @@ autonomous missions run through the reference engine (see :mod:`skymule.experime
 
 Two outputs: :func:`run_fixed_batch` gives one :class:`~skymule.sim.log.MissionLog` per mission
 (for tests and users); :func:`summarize_fixed_batch` gives the ``metrics.summarize`` dictionaries
-straight from the batched arrays (``metrics.summaries`` of :func:`batch_flights`), with no
-per-mission log, which is what sweeps use.
+straight from the batched arrays, with no per-mission log, which is what sweeps use: from the
+numpy loop, ``metrics.summaries`` of :func:`batch_flights`; from the compiled loop, each
+mission's reductions as it ends (:mod:`skymule.sim.compiled_summaries`), equal value for value.
 """
 
 from __future__ import annotations
@@ -81,8 +83,9 @@ class BatchResult:
 
 Engine = Literal["auto", "numpy", "compiled"]
 """Which slot loop runs a batch: ``numpy`` (the reference), ``compiled`` (numba, the ``fast``
-extra; :mod:`skymule.sim.compiled`) or ``auto`` (compiled when numba is installed and no
-mission has per-slot fading, else numpy). Both give the same result, value for value."""
+extra; :mod:`skymule.sim.compiled`) or ``auto`` (compiled when numba is installed and
+:func:`skymule.sim.compiled.can_run` the batch: no per-slot fading, no SNR error on a
+non-step rate table; else numpy). Both give the same result, value for value."""
 
 
 def run_batch(batch: Batch, engine: Engine = "auto", keep_remaining: bool = True) -> BatchResult:
@@ -111,7 +114,7 @@ def chosen_engine(batch: Batch, engine: Engine) -> Literal["numpy", "compiled"]:
 
 
 def run_compiled(batch: Batch, keep_remaining: bool = True) -> BatchResult:
-    """The batch through :func:`skymule.sim.compiled.slot_loop`, compiled (no fading).
+    """The batch through :func:`skymule.sim.compiled.slot_loop`, compiled (``can_run``).
 
     ``keep_remaining=False``: no (B, T, N) buffer log (``remaining_bit`` None).
     """

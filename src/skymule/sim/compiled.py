@@ -8,8 +8,15 @@ which is what the per-slot overhead was hiding (``docs/speed-notes.md``).
 
 The rules are not re-stated here: the loop calls the one-mission kernels of
 :mod:`skymule.sim.kernels` and :func:`skymule.sim.contract.served_bits`, registered with
-numba so the same Python functions run compiled. Missions with per-slot fading (a rate table
-lookup per slot) stay on the numpy loop.
+numba so the same Python functions run compiled. Fault draws (outages, burst loss, SNR
+errors, missed polls) are applied per mission and slot as the numpy loop applies them
+(:func:`skymule.sim.kernels.fault_view`). Missions with per-slot fading, and SNR errors on a
+rate table other than a step table (a rate computed per slot), stay on the numpy loop
+(:func:`can_run`).
+
+With summaries asked for (:mod:`skymule.sim.compiled_summaries`) the loop writes no per-slot
+log: it reduces each mission's slots as the mission ends
+(:func:`skymule.sim.summary_kernels.mission_totals`).
 
 Install: ``pip install skymule[fast]``. Without numba, :func:`available` is False and the
 batched engine runs its numpy loop (the reference).

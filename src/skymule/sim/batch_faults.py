@@ -16,6 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from skymule.faults.draws import FaultDraws
 from skymule.radio.rates import RateTable, StepTable, rate_bps
 from skymule.world import Mission
 
@@ -54,17 +55,28 @@ def stack_faults(missions: Sequence[Mission], n_sensors: int) -> BatchFaults:
     models: dict[tuple[int, float], int] = {}
     tables: list[tuple[RateTable, float]] = []
     rate_model = np.empty(len(index), np.int64)
+    by_length: dict[int, list[int]] = {}
     for g, b in enumerate(index):
         mission = missions[b]
-        draws = mission.faults
-        assert draws is not None
-        deliverable[g, : mission.n_slots] = draws.deliverable()
-        error[g, : mission.n_slots] = draws.snr_error_db
+        by_length.setdefault(mission.n_slots, []).append(g)
         key = (id(mission.rate_table), mission.bandwidth_hz)
         if key not in models:
             models[key] = len(tables)
             tables.append((mission.rate_table, mission.bandwidth_hz))
         rate_model[g] = models[key]
+    # missions of one length as one stacked FaultDraws: FaultDraws.deliverable() (the rule)
+    # once per length, not once per mission
+    for n_slots, rows in by_length.items():
+        draws = [missions[index[g]].faults for g in rows]
+        stacked = FaultDraws(
+            outage=np.stack([d.outage for d in draws if d is not None]),
+            burst_loss=np.stack([d.burst_loss for d in draws if d is not None]),
+            snr_error_db=np.stack([d.snr_error_db for d in draws if d is not None]),
+            poll_missed=np.stack([d.poll_missed for d in draws if d is not None]),
+            gps_error_m=np.broadcast_to(np.zeros(2), (len(rows), n_slots, 2)),  # not used here
+        )
+        deliverable[rows, :n_slots] = stacked.deliverable()
+        error[rows, :n_slots] = stacked.snr_error_db
     return BatchFaults(np.asarray(index, np.int64), deliverable, error, rate_model, tuple(tables))
 
 

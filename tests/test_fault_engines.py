@@ -214,6 +214,31 @@ def test_the_batched_engine_applies_faults_as_the_reference_engine(engine: str) 
         assert not np.array_equal(batched[0].served, batched[3].served)
 
 
+def test_fault_missions_of_other_lengths_batch_like_the_reference() -> None:
+    """One batch, three mission lengths (draws padded to the longest), both engines."""
+    mission_spec = load_scenario("paper-sim-fixed").to_toml_dict()["mission"]
+    missions = [
+        build_mission(
+            _with_faults(
+                "paper-sim-fixed",
+                MIXED_FAULTS,
+                seed=seed,
+                mission={**mission_spec, "duration_s": s},
+            )
+        )
+        for seed, s in ((1, 500.0), (2, 120.0), (3, 37.0))
+    ]
+    assert sorted(m.n_slots for m in missions) == [37, 120, 500]
+    engines = ["numpy", "compiled"] if compiled.available() else ["numpy"]
+    for name in ("greedy", "hgad"):
+        reference = [_run(mission, name) for mission in missions]
+        for engine in engines:
+            logs = run_fixed_batch(missions, [PolicySpec(name=name)] * 3, engine=engine)  # type: ignore[arg-type]
+            for ours, theirs in zip(logs, reference, strict=True):
+                _same_log(ours, theirs)
+                assert np.array_equal(ours.chosen, theirs.chosen)  # type: ignore[arg-type]
+
+
 @pytest.mark.skipif(not compiled.available(), reason="numba not installed")
 @pytest.mark.parametrize("fault", MIXED_FAULTS, ids=lambda fault: fault["kind"])
 def test_compiled_batch_equals_numpy_batch_under_each_fault(fault: dict[str, Any]) -> None:

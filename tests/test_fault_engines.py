@@ -257,6 +257,23 @@ def test_compiled_batch_equals_numpy_batch_under_each_fault(fault: dict[str, Any
     assert summary == summarize_fixed_batch(missions, specs, names, engine="numpy")
 
 
+@pytest.mark.skipif(not compiled.available(), reason="numba not installed")
+def test_gps_error_and_battery_leave_a_fixed_batch_as_the_reference_does() -> None:
+    """Neither acts on a fixed path (docs/faults.md): both engines give the reference's log."""
+    faults = [
+        {"kind": "gps-error", "params": {"std_m": 20.0}},
+        {"kind": "battery", "params": {"capacity_wh": 15.0, "reserve_fraction": 0.2}},
+    ]
+    mission = build_mission(_with_faults("paper-sim-fixed", faults))
+    assert mission.faults is not None and mission.faults.battery is not None
+    for name in ("greedy", "hgad"):
+        reference = _run(mission, name)
+        for engine in ("numpy", "compiled"):
+            (log,) = run_fixed_batch([mission], [PolicySpec(name=name)], engine=engine)  # type: ignore[arg-type]
+            _same_log(log, reference)
+            assert np.array_equal(log.chosen, reference.chosen)  # type: ignore[arg-type]
+
+
 def test_compiled_refuses_an_snr_error_on_a_shannon_table_and_a_wind_is_not_batched() -> None:
     noise = [{"kind": "snr-error", "params": {"std_db": 3.0}}]
     radio = {**load_scenario("paper-sim-fixed").to_toml_dict()["radio"], "rate_table": "shannon"}

@@ -12,9 +12,11 @@ mission-slots per CPU-second (the machine is shared, so CPU time of this process
 * numpy + summaries / compiled + summaries: ``summarize_fixed_batch`` (what sweeps run: the
   ``metrics.summarize`` dictionaries straight from the batch arrays);
 
-with the compiled/numpy ratio measured in the same run. Then the bytes the slot loop writes per
-mission-slot (its per-slot logs, which the summaries read back), this machine's memory
-bandwidth (best numpy copy of a 256 MB array: read + write), and the rate memory would allow.
+with the compiled/numpy ratio measured in the same run; then HGAD with summaries on missions
+with faults (outages, Gilbert-Elliott loss, SNR error, missed polls), numpy vs compiled. Then
+the bytes written per mission-slot (the loops' per-slot logs; the compiled summaries reduce
+each mission as it ends and write none), this machine's memory bandwidth (best numpy copy of
+a 256 MB array: read + write), and the rate memory would allow at the loops' bytes.
 Without numba (``pip install skymule[fast]``) the compiled rows are skipped.
 """
 
@@ -24,12 +26,13 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 from _sizes import size
 
 from skymule.policies import make_policy
-from skymule.scenario import PolicySpec, load_scenario
+from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
 from skymule.sim import compiled
 from skymule.sim.batch import run_batch, stack_missions, summarize_fixed_batch
 from skymule.sim.engine import run_fixed
@@ -65,7 +68,7 @@ def bench_policy(name: str, missions: list[Mission], n_single: int, repeats: int
     rate = single_slots / best_cpu_seconds(
         lambda: [run_fixed(m, make_policy(specs[0])) for m in single], repeats
     )
-    print(f"{name:6s} {'single (' + str(n_single) + ' missions)':24s} {rate / 1e6:8.2f} M")
+    print(f"{name:6s} {'single (' + str(n_single) + ' missions)':28s} {rate / 1e6:8.2f} M")
     engines = ["numpy", "compiled"] if compiled.available() else ["numpy"]
     rates: dict[str, float] = {}
     for engine in engines:
@@ -81,9 +84,46 @@ def bench_policy(name: str, missions: list[Mission], n_single: int, repeats: int
             ratio = ""
             if engine == "compiled":
                 ratio = f"x{rates[f'{engine} {label}'] / rates[f'numpy {label}']:.1f} vs numpy"
-            print(f"{name:6s} {engine + ' ' + label:24s} {rates[f'{engine} {label}'] / 1e6:8.2f} M"
+            print(f"{name:6s} {engine + ' ' + label:28s} {rates[f'{engine} {label}'] / 1e6:8.2f} M"
                   f"  {ratio}")  # fmt: skip
     return rates.get("compiled + summaries", 0.0)
+
+
+def bench_faults(base: Mission, n_missions: int, repeats: int) -> None:
+    """HGAD on missions with outages, Gilbert-Elliott loss, an SNR error and missed polls:
+    numpy vs compiled (which applies the same fault draws), with summaries."""
+    faulty = [build_mission(with_faults(base.scenario, seed)) for seed in range(5)]
+    rng = np.random.default_rng(1)
+    missions = [
+        replace(faulty[i % len(faulty)], buffers_bit=rng.uniform(200e6, 1500e6, base.n_sensors))
+        for i in range(n_missions)
+    ]
+    specs = [PolicySpec(name="hgad")] * n_missions
+    names = [m.scenario.name for m in missions]
+    slots = int(run_batch(stack_missions(missions, specs), "numpy").n_run.sum())
+    rates = {}
+    for engine in ["numpy", "compiled"] if compiled.available() else ["numpy"]:
+        run = lambda e=engine: summarize_fixed_batch(  # noqa: E731
+            missions, specs, names, batch_size=n_missions, engine=e
+        )
+        run()
+        rates[engine] = slots / best_cpu_seconds(run, repeats)
+        ratio = f"x{rates[engine] / rates['numpy']:.1f} vs numpy" if engine == "compiled" else ""
+        label = f"faults, {engine} + summaries"
+        print(f"{'hgad':6s} {label:28s} {rates[engine] / 1e6:8.2f} M  {ratio}")
+
+
+def with_faults(scenario: Scenario, seed: int) -> Scenario:
+    """``scenario`` with every per-slot fault kind a fixed batch applies (``docs/faults.md``)."""
+    data = scenario.to_toml_dict()
+    data["seed"] = seed
+    data["faults"] = [
+        {"kind": "outage", "params": {"mean_duration_s": 60.0}},
+        {"kind": "gilbert-elliott", "params": {"p_good_to_bad": 0.05, "p_bad_to_good": 0.3}},
+        {"kind": "snr-error", "params": {"std_db": 4.0, "correlation_s": 3.0}},
+        {"kind": "missed-polls", "params": {"probability": 0.05}},
+    ]
+    return scenario_from_dict(data, scenario.name, Path(scenario.base_dir))
 
 
 def main(n_missions: int = 2000, n_single: int = 50, repeats: int = 3) -> None:
@@ -100,11 +140,19 @@ def main(n_missions: int = 2000, n_single: int = 50, repeats: int = 3) -> None:
     )
     for name in ("greedy", "hgad"):
         bench_policy(name, missions, n_single, repeats)
-    # per mission-slot the loop writes served (int64), downloaded (float64), hovering (bool)
-    # and the track sample (int64); the numpy loop also writes the N buffers (float64)
+    bench_faults(base, n_missions, repeats)
+    # per mission-slot each loop writes served (int64), downloaded (float64), hovering (bool)
+    # and the track sample (int64) (no (B, T, N) buffer log: summaries do not need it); the
+    # compiled loop with summaries writes no per-slot log at all, only each mission's
+    # reductions (8 numbers and N first-visit slots) and ends (slots run, end, N buffers)
     written = 8 + 8 + 1 + 8
+    per_mission = 8 * (8 + base.n_sensors) + 8 * (2 + base.n_sensors)
     bandwidth = memory_bandwidth_bps()
-    print(f"bytes written per mission-slot: {written} (numpy loop: {written + 8 * base.n_sensors})")
+    print(
+        f"bytes written per mission-slot: {written} by either loop ({written + 8 * base.n_sensors} "
+        f"with the buffer log); compiled + summaries {per_mission / base.n_slots:.2f} "
+        f"({per_mission} B per mission, no per-slot log)"
+    )
     print(f"memory bandwidth (numpy copy, read + write): {bandwidth / 1e9:.1f} GB/s")
     print(f"memory-bound ceiling at {written} B: {bandwidth / written / 1e6:.0f} M mission-slots/s")
 

@@ -10,9 +10,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from skymule.errors import SkymuleError
+from skymule.radio.rates import BUILTIN_RATE_TABLES, StepTable, rate_bps
 from skymule.scenario import PolicySpec, load_scenario
 from skymule.sim import compiled, contract, kernels
 from skymule.sim.batch import BatchResult, run_batch, stack_missions, summarize_fixed_batch
+from skymule.sim.batch_faults import BatchFaults, apply_faults, kernel_faults
 from skymule.world import build_mission
 from test_batch import random_mission, random_spec
 
@@ -31,12 +33,11 @@ def random_columns(rng: np.random.Generator, n: int) -> tuple[np.ndarray, ...]:
 def test_choice_kernels_equal_contract(seed, n):
     rng = np.random.default_rng(seed)
     rate, snr, remaining = random_columns(rng, n)
-    masked = np.empty(n)
     has_data = contract.servable(rate[:, None], remaining[:, None])
     want_greedy = contract.greedy_choice(snr[:, None], has_data)[0]
     want_hgad = contract.hgad_choice(rate[:, None], snr[:, None], has_data)[0]
-    assert kernels.greedy_pick(snr, rate, remaining, masked) == want_greedy
-    assert kernels.hgad_pick(rate, snr, remaining, masked) == want_hgad
+    assert kernels.greedy_pick(snr, rate, remaining) == want_greedy
+    assert kernels.hgad_pick(rate, snr, remaining) == want_hgad
 
 
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 5), hgad=st.booleans())
@@ -75,6 +76,51 @@ def test_hover_kernel_equals_contract_over_a_run(seed, n, hgad):
         assert got == want
         assert (hover[0], hover[1]) == (state.sensor[0], state.budget_s[0])
         np.testing.assert_array_equal(cooling, state.cooling)
+
+
+def test_step_rate_equals_the_rate_table_at_and_around_every_threshold():
+    table = BUILTIN_RATE_TABLES["aadm-lte-cqi"]
+    assert isinstance(table, StepTable)
+    thresholds = np.array(table.thresholds_db)
+    snr = np.concatenate(
+        [thresholds, np.nextafter(thresholds, -np.inf), [-np.inf, np.inf, np.nan, -40.0, 40.0]]
+    )
+    efficiency = np.concatenate([[0.0], table.efficiencies])
+    got = [kernels.step_rate(value, thresholds, efficiency, 1.4e6) for value in snr]
+    np.testing.assert_array_equal(got, rate_bps(table, snr, 1.4e6))
+
+
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 5), uses_error=st.booleans())
+def test_fault_kernels_equal_apply_faults(seed, n, uses_error):
+    """One mission's slot under faults: what the policy sees and what serving delivers, on
+    the AADM step table (SNR at and around its thresholds, -inf, NaN-free as in the batch)."""
+    rng = np.random.default_rng(seed)
+    table = BUILTIN_RATE_TABLES["aadm-lte-cqi"]
+    assert isinstance(table, StepTable)
+    steps = rng.choice(table.thresholds_db, size=n)
+    snr = np.where(rng.random(n) < 0.2, -np.inf, steps + rng.choice([-0.1, 0.0, 0.1, 30.0], n))
+    rate = rate_bps(table, snr, 1.4e6)
+    error = rng.choice([0.0, -2.3, 0.5, 4.0], size=n) if uses_error else np.zeros(n)
+    ok = rng.random(n) < 0.7
+    faults = BatchFaults(
+        index=np.array([0]),
+        deliverable=ok[None, None, :],
+        snr_error_db=error[None, None, :],
+        rate_model=np.array([0]),
+        rate_models=((table, 1.4e6),),
+    )
+    want = apply_faults(faults, 0, rate[:, None], snr[:, None])
+    kernel = kernel_faults(faults, 1)
+    assert kernel is not None
+    track_rate, track_snr = np.stack([rate * 0.5, rate]), np.stack([snr - 1.0, snr])  # row 1
+    got = np.empty(n), np.empty(n), np.empty(n)
+    kernels.fault_view(
+        track_rate, track_snr, 1, faults.deliverable[0], faults.snr_error_db[0], 0,
+        bool(kernel.uses_error[0]), kernel.thresholds_db[0], kernel.efficiency[0],
+        float(kernel.bandwidth_hz[0]), *got,
+    )  # fmt: skip
+    for ours, theirs in zip(got, want[:3], strict=True):
+        np.testing.assert_array_equal(ours, theirs[:, 0], strict=True)
 
 
 def assert_results_equal(got: BatchResult, want: BatchResult) -> None:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -17,8 +17,16 @@ from skymule.io.runs import slots_frame
 from skymule.metrics import summarize
 from skymule.policies import make_policy
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
+from skymule.sim import compiled
 from skymule.sim.autonomous import AutonomousFlight
-from skymule.sim.batch import batchable, run_fixed_batch
+from skymule.sim.batch import (
+    BatchResult,
+    batchable,
+    run_batch,
+    run_fixed_batch,
+    stack_missions,
+    summarize_fixed_batch,
+)
 from skymule.sim.context import mission_context
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.engine import FixedFlight
@@ -181,7 +189,10 @@ MIXED_FAULTS = [
 ]
 
 
-def test_the_batched_engine_applies_faults_as_the_reference_engine() -> None:
+@pytest.mark.parametrize("engine", ["numpy", "compiled"])
+def test_the_batched_engine_applies_faults_as_the_reference_engine(engine: str) -> None:
+    if engine == "compiled" and not compiled.available():
+        pytest.skip("numba not installed")
     faulty = [
         build_mission(_with_faults("paper-sim-fixed", MIXED_FAULTS, seed=seed))
         for seed in (1, 2, 3)
@@ -191,7 +202,7 @@ def test_the_batched_engine_applies_faults_as_the_reference_engine() -> None:
     for name in ("greedy", "hgad"):
         specs = [PolicySpec(name=name)] * len(missions)
         assert all(batchable(m, s) for m, s in zip(missions, specs, strict=True))
-        batched = run_fixed_batch(missions, specs, engine="numpy")
+        batched = run_fixed_batch(missions, specs, engine=engine)  # type: ignore[arg-type]
         for mission, log in zip(missions, batched, strict=True):
             reference = _run(mission, name)
             _same_log(reference, log)
@@ -203,11 +214,74 @@ def test_the_batched_engine_applies_faults_as_the_reference_engine() -> None:
         assert not np.array_equal(batched[0].served, batched[3].served)
 
 
-def test_compiled_refuses_fault_missions_and_a_wind_is_not_batched() -> None:
-    mission = build_mission(_with_faults("paper-sim-fixed", MIXED_FAULTS[:1]))
+def test_fault_missions_of_other_lengths_batch_like_the_reference() -> None:
+    """One batch, three mission lengths (draws padded to the longest), both engines."""
+    mission_spec = load_scenario("paper-sim-fixed").to_toml_dict()["mission"]
+    missions = [
+        build_mission(
+            _with_faults(
+                "paper-sim-fixed",
+                MIXED_FAULTS,
+                seed=seed,
+                mission={**mission_spec, "duration_s": s},
+            )
+        )
+        for seed, s in ((1, 500.0), (2, 120.0), (3, 37.0))
+    ]
+    assert sorted(m.n_slots for m in missions) == [37, 120, 500]
+    engines = ["numpy", "compiled"] if compiled.available() else ["numpy"]
+    for name in ("greedy", "hgad"):
+        reference = [_run(mission, name) for mission in missions]
+        for engine in engines:
+            logs = run_fixed_batch(missions, [PolicySpec(name=name)] * 3, engine=engine)  # type: ignore[arg-type]
+            for ours, theirs in zip(logs, reference, strict=True):
+                _same_log(ours, theirs)
+                assert np.array_equal(ours.chosen, theirs.chosen)  # type: ignore[arg-type]
+
+
+@pytest.mark.skipif(not compiled.available(), reason="numba not installed")
+@pytest.mark.parametrize("fault", MIXED_FAULTS, ids=lambda fault: fault["kind"])
+def test_compiled_batch_equals_numpy_batch_under_each_fault(fault: dict[str, Any]) -> None:
+    """Array for array (the policy's choices too) and summary for summary, Greedy and HGAD."""
+    missions = [build_mission(_with_faults("paper-sim-fixed", [fault], seed=s)) for s in (4, 5)]
+    missions.append(build_mission(load_scenario("paper-sim-fixed")))
+    specs = [PolicySpec(name="greedy"), PolicySpec(name="hgad"), PolicySpec(name="hgad")]
+    batch = stack_missions(missions, specs)
+    ours, theirs = run_batch(batch, "compiled"), run_batch(batch, "numpy")
+    for field in fields(BatchResult):
+        np.testing.assert_array_equal(getattr(ours, field.name), getattr(theirs, field.name))
+    # the fault acts: HGAD with it downloads otherwise than HGAD without (the last mission)
+    assert not np.array_equal(ours.downloaded_bit[1], ours.downloaded_bit[2])
+    names = ["x"] * len(missions)
+    summary = summarize_fixed_batch(missions, specs, names, engine="compiled")
+    assert summary == summarize_fixed_batch(missions, specs, names, engine="numpy")
+
+
+@pytest.mark.skipif(not compiled.available(), reason="numba not installed")
+def test_gps_error_and_battery_leave_a_fixed_batch_as_the_reference_does() -> None:
+    """Neither acts on a fixed path (docs/faults.md): both engines give the reference's log."""
+    faults = [
+        {"kind": "gps-error", "params": {"std_m": 20.0}},
+        {"kind": "battery", "params": {"capacity_wh": 15.0, "reserve_fraction": 0.2}},
+    ]
+    mission = build_mission(_with_faults("paper-sim-fixed", faults))
+    assert mission.faults is not None and mission.faults.battery is not None
+    for name in ("greedy", "hgad"):
+        reference = _run(mission, name)
+        for engine in ("numpy", "compiled"):
+            (log,) = run_fixed_batch([mission], [PolicySpec(name=name)], engine=engine)  # type: ignore[arg-type]
+            _same_log(log, reference)
+            assert np.array_equal(log.chosen, reference.chosen)  # type: ignore[arg-type]
+
+
+def test_compiled_refuses_an_snr_error_on_a_shannon_table_and_a_wind_is_not_batched() -> None:
+    noise = [{"kind": "snr-error", "params": {"std_db": 3.0}}]
+    radio = {**load_scenario("paper-sim-fixed").to_toml_dict()["radio"], "rate_table": "shannon"}
+    shannon = build_mission(_with_faults("paper-sim-fixed", noise, radio=radio))
     spec = PolicySpec(name="hgad")
-    with pytest.raises(SkymuleError, match="faults"):
-        run_fixed_batch([mission], [spec], engine="compiled")
+    with pytest.raises(SkymuleError, match="SNR error on a rate table other than a step table"):
+        run_fixed_batch([shannon], [spec], engine="compiled")
+    assert run_fixed_batch([shannon], [spec])[0].chosen is not None  # auto: numpy
     wind = [{"kind": "wind", "params": {"speed_mps": 4.0}}]
     windy = build_mission(_with_faults("paper-sim-fixed", wind))
     assert not batchable(windy, spec)

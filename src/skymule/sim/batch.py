@@ -7,7 +7,8 @@ served bits, the Greedy and HGAD choices, HGAD's hover state machine), and the t
 compares the two value for value.
 
 Missions that share a :class:`~skymule.flight.paths.Track` object (and rate table) share its
-samples: tracks are stored once, (U, K_max, N), and every mission points at one of them.
+samples: tracks are stored once, (U, K_max, N), and every mission points at one of them
+(stacking: :mod:`skymule.sim.batch_stack`).
 
 Missions with per-slot fading (``Mission.fading_db``) run here too: their SNR and rate are
 recomputed each slot from the track SNR plus that slot's fading, as the reference engine does.
@@ -17,119 +18,36 @@ autonomous missions run through the reference engine (see :mod:`skymule.experime
 
 Two outputs: :func:`run_fixed_batch` gives one :class:`~skymule.sim.log.MissionLog` per mission
 (for tests and users); :func:`summarize_fixed_batch` gives the ``metrics.summarize`` dictionaries
-straight from the batched arrays (``metrics.summaries`` of :func:`batch_flights`), with no
-per-mission log, which is what sweeps use.
+straight from the batched arrays, with no per-mission log, which is what sweeps use: from the
+numpy loop, ``metrics.summaries`` of :func:`batch_flights`; from the compiled loop, each
+mission's reductions as it ends (:mod:`skymule.sim.compiled_summaries`), equal value for value.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
 
 from skymule.errors import SkymuleError
-from skymule.flight.paths import Track
 from skymule.metrics import Flights, summaries, summary_dicts
-from skymule.radio.rates import RateTable
 from skymule.scenario import PolicySpec
 from skymule.sim import contract
-from skymule.sim.batch_fading import apply_fading, stack_fading
-from skymule.sim.batch_faults import BatchFaults, apply_faults, stack_faults
+from skymule.sim.batch_fading import apply_fading
+from skymule.sim.batch_faults import apply_faults
+from skymule.sim.batch_stack import BATCH_POLICIES as BATCH_POLICIES
+from skymule.sim.batch_stack import Batch as Batch
+from skymule.sim.batch_stack import PolicyParams as PolicyParams
+from skymule.sim.batch_stack import batchable as batchable
+from skymule.sim.batch_stack import mission_geometry
+from skymule.sim.batch_stack import policy_params as policy_params
+from skymule.sim.batch_stack import stack_missions as stack_missions
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.engine import track_log
 from skymule.sim.log import MissionLog
 from skymule.world import Mission
-
-
-@dataclass(frozen=True)
-class PolicyParams:
-    """Per-mission policy parameters the batched loop understands.
-
-    Attributes:
-        hgad: True for HGAD, False for Greedy.
-        hover_threshold: HGAD trigger fraction of the peak rate (unused for Greedy).
-        max_hover_s: HGAD longest hover [s] (unused for Greedy).
-    """
-
-    hgad: bool
-    hover_threshold: float = 1.0
-    max_hover_s: float = 0.0
-
-
-BATCH_POLICIES: dict[str, Callable[[PolicySpec], PolicyParams]] = {
-    "greedy": lambda spec: PolicyParams(hgad=False),
-    "hgad": lambda spec: PolicyParams(
-        True, spec.param("hover_threshold"), spec.param("max_hover_s")
-    ),
-}
-"""Policies with a batched implementation: name -> parameters from the ``[policy]`` section."""
-
-
-def batchable(mission: Mission, spec: PolicySpec) -> bool:
-    """True if ``mission`` under ``spec`` can run in the batched engine.
-
-    The numpy loop applies faults (:mod:`skymule.sim.batch_faults`) except a wind, which
-    changes progress along the track: such missions run in the reference engine.
-    """
-    windy = mission.faults is not None and mission.faults.wind is not None
-    return mission.track is not None and not windy and spec.name in BATCH_POLICIES
-
-
-@dataclass(frozen=True)
-class Batch:
-    """B missions stacked for the slot loop (U distinct tracks, K_max samples, N sensors).
-
-    Attributes:
-        track_id: (B,) index of each mission's track in the track arrays.
-        rate_bps: (U, K_max + 1, N) rate at each track sample [bit/s] (0 in padding).
-        snr_db: (U, K_max, N) track SNR [dB] (NaN: no sample).
-        snr_seen_db: (U, K_max, N) SNR as policies see it (NaN -> -inf) [dB].
-        position_m: (U, K_max, 3) sample positions [m].
-        peak_rate_bps: (U, N) largest rate per sensor over each track [bit/s].
-        n_samples: (U,) track lengths K.
-        hold_at_end: (U,) True: hold at the last sample; False: a trace that runs out.
-        n_slots: (B,) slots per mission T.
-        window_slots: (B,) slot from which nothing is served (the download window closed);
-            n_slots where there is no window.
-        slot_s: (B,) slot length [s].
-        buffers_bit: (B, N) initial buffers [bit].
-        hgad: (B,) True for HGAD missions, False for Greedy.
-        threshold_bps: (B, N) HGAD trigger thresholds gamma_i [bit/s].
-        max_hover_s: (B,) HGAD longest hover [s].
-        fading_index: (F,) the missions with per-slot fading (F may be 0).
-        fading_db: (T_max, N, F) their fading [dB] added to the SNR seen in slot t (0 past
-            a mission's last slot).
-        rate_model: (F,) index of each fading mission's rate model in ``rate_models``.
-        rate_models: (rate table, bandwidth [Hz]) pairs turning faded SNR into rate.
-        faults: the missions with ``[[faults]]`` and their draws (``docs/faults.md``).
-    """
-
-    track_id: np.ndarray
-    rate_bps: np.ndarray
-    snr_db: np.ndarray
-    snr_seen_db: np.ndarray
-    position_m: np.ndarray
-    peak_rate_bps: np.ndarray
-    n_samples: np.ndarray
-    hold_at_end: np.ndarray
-    n_slots: np.ndarray
-    window_slots: np.ndarray
-    slot_s: np.ndarray
-    buffers_bit: np.ndarray
-    hgad: np.ndarray
-    threshold_bps: np.ndarray
-    max_hover_s: np.ndarray
-    fading_index: np.ndarray
-    fading_db: np.ndarray
-    rate_model: np.ndarray
-    rate_models: tuple[tuple[RateTable, float], ...]
-    faults: BatchFaults
-
-    @property
-    def size(self) -> int:
-        return int(self.track_id.shape[0])
 
 
 @dataclass(frozen=True)
@@ -163,118 +81,40 @@ class BatchResult:
     chosen: np.ndarray | None = None
 
 
-def policy_params(spec: PolicySpec) -> PolicyParams:
-    factory = BATCH_POLICIES.get(spec.name)
-    if factory is None:
-        raise SkymuleError(
-            f"policy.name = {spec.name!r} has no batched engine; "
-            f"allowed: {', '.join(sorted(BATCH_POLICIES))}"
-        )
-    return factory(spec)
-
-
-def stack_missions(missions: Sequence[Mission], specs: Sequence[PolicySpec]) -> Batch:
-    """Stack fixed-trajectory missions with the same number of sensors into a :class:`Batch`."""
-    if not missions:
-        raise ValueError("stack_missions needs at least one mission")
-    n_sensors = {m.n_sensors for m in missions}
-    if len(n_sensors) != 1:
-        raise ValueError(f"a batch needs one sensor count, got {sorted(n_sensors)}")
-    n = n_sensors.pop()
-    keys: dict[tuple[int, int, float], int] = {}
-    unique: list[Mission] = []
-    tracks: list[Track] = []  # unique[u].track
-    track_id = np.empty(len(missions), np.int64)
-    for b, mission in enumerate(missions):
-        if mission.track is None:
-            raise SkymuleError("the batched engine needs fixed trajectories (trajectory.mode)")
-        if mission.faults is not None and mission.faults.wind is not None:
-            raise SkymuleError(
-                "the batched engine does not apply a wind fault: run such missions with "
-                "skymule.sim.run.run_mission (the reference engines)"
-            )
-        key = (id(mission.track), id(mission.rate_table), mission.bandwidth_hz)
-        if key not in keys:
-            keys[key] = len(unique)
-            unique.append(mission)
-            tracks.append(mission.track)
-        track_id[b] = keys[key]
-    # one padding row past the longest track: where a used-up trace points
-    k_max = max(t.n_samples for t in tracks) + 1
-    rate = np.zeros((len(unique), k_max, n))
-    snr = np.full((len(unique), k_max, n), np.nan)
-    snr_seen = np.full((len(unique), k_max, n), -np.inf)
-    position = np.zeros((len(unique), k_max, 3))
-    peak = np.zeros((len(unique), n))
-    for u, mission in enumerate(unique):
-        track = mission.track
-        assert track is not None
-        k = track.n_samples
-        rate[u, :k] = mission.rate_bps(track.snr_db)
-        snr[u, :k] = track.snr_db
-        snr_seen[u, :k] = np.nan_to_num(track.snr_db, nan=-np.inf)
-        position[u, :k] = track.position_m
-        peak[u] = mission.peak_rate_bps()
-    # one lookup per distinct spec object: sweeps and comparisons repeat a few specs many times
-    by_spec: dict[int, PolicyParams] = {}
-    for spec in specs:
-        if id(spec) not in by_spec:
-            by_spec[id(spec)] = policy_params(spec)
-    params = [by_spec[id(spec)] for spec in specs]
-    thresholds = np.array([p.hover_threshold for p in params])
-    fading_index, fading, rate_model, rate_models = stack_fading(missions, n)
-    return Batch(
-        track_id=track_id,
-        rate_bps=rate,
-        snr_db=snr,
-        snr_seen_db=snr_seen,
-        position_m=position,
-        peak_rate_bps=peak,
-        n_samples=np.array([t.n_samples for t in tracks], np.int64),
-        hold_at_end=np.array([t.hold_at_end for t in tracks], bool),
-        n_slots=np.array([m.n_slots for m in missions], np.int64),
-        window_slots=np.array(
-            [m.n_slots if m.window_slots is None else m.window_slots for m in missions], np.int64
-        ),
-        slot_s=np.array([m.slot_s for m in missions], float),
-        buffers_bit=np.array([m.buffers_bit for m in missions], float).reshape(-1, n),
-        hgad=np.array([p.hgad for p in params], bool),
-        threshold_bps=thresholds[:, None] * peak[track_id],
-        max_hover_s=np.array([p.max_hover_s for p in params], float),
-        fading_index=fading_index,
-        fading_db=fading,
-        faults=stack_faults(missions, n),
-        rate_model=rate_model,
-        rate_models=rate_models,
-    )
-
-
 Engine = Literal["auto", "numpy", "compiled"]
 """Which slot loop runs a batch: ``numpy`` (the reference), ``compiled`` (numba, the ``fast``
-extra; :mod:`skymule.sim.compiled`) or ``auto`` (compiled when numba is installed and no
-mission has per-slot fading, else numpy). Both give the same result, value for value."""
+extra; :mod:`skymule.sim.compiled`) or ``auto`` (compiled when numba is installed and
+:func:`skymule.sim.compiled.can_run` the batch: no per-slot fading, no SNR error on a
+non-step rate table; else numpy). Both give the same result, value for value."""
 
 
 def run_batch(batch: Batch, engine: Engine = "auto", keep_remaining: bool = True) -> BatchResult:
     """Run every mission of ``batch`` through the slot loop ``engine`` chose.
 
-    ``keep_remaining=False`` lets the compiled loop skip the (B, T, N) buffer log.
+    ``keep_remaining=False``: no (B, T, N) buffer log (``remaining_bit`` None), which
+    summaries do not need.
     """
+    if chosen_engine(batch, engine) == "compiled":
+        return run_compiled(batch, keep_remaining)
+    return run_numpy(batch, keep_remaining)
+
+
+def chosen_engine(batch: Batch, engine: Engine) -> Literal["numpy", "compiled"]:
+    """The slot loop ``engine`` means for ``batch``; a one-line error if it cannot run it."""
     from skymule.sim import compiled
 
     if engine not in ("auto", "numpy", "compiled"):
         raise SkymuleError(f"engine = {engine!r}; allowed: auto, numpy, compiled")
-    fading = batch.fading_index.size > 0 or batch.faults.any
-    if engine == "compiled" and (fading or not compiled.available()):
-        why = "missions with per-slot fading or faults" if fading else "numba is not installed"
+    if engine == "numpy":
+        return "numpy"
+    why = compiled.can_run(batch)
+    if engine == "compiled" and why is not None:
         raise SkymuleError(f"engine = 'compiled' cannot run this batch: {why}")
-    if engine == "compiled" or (engine == "auto" and not fading and compiled.available()):
-        return run_compiled(batch, keep_remaining)
-    return run_numpy(batch)
+    return "numpy" if why is not None else "compiled"
 
 
 def run_compiled(batch: Batch, keep_remaining: bool = True) -> BatchResult:
-    """The batch through :func:`skymule.sim.compiled.slot_loop`, compiled (no fading).
+    """The batch through :func:`skymule.sim.compiled.slot_loop`, compiled (``can_run``).
 
     ``keep_remaining=False``: no (B, T, N) buffer log (``remaining_bit`` None).
     """
@@ -282,8 +122,7 @@ def run_compiled(batch: Batch, keep_remaining: bool = True) -> BatchResult:
 
     n_missions, n_sensors = batch.buffers_bit.shape
     t_max = int(batch.n_slots.max())
-    n_samples = batch.n_samples[batch.track_id]
-    limit = np.where(batch.hold_at_end[batch.track_id], n_samples - 1, n_samples)
+    faults, chosen = compiled.loop_faults(batch)
     result = BatchResult(
         served=np.full((n_missions, t_max), NO_SENSOR, np.int64),
         downloaded_bit=np.zeros((n_missions, t_max)),
@@ -293,21 +132,22 @@ def run_compiled(batch: Batch, keep_remaining: bool = True) -> BatchResult:
         remaining_bit=np.zeros((n_missions, t_max, n_sensors)) if keep_remaining else None,
         end_sample=np.zeros(n_missions, np.int64),
         left_bit=np.zeros((n_missions, n_sensors)),
+        chosen=chosen,
     )
     compiled.compiled_loop()(
-        batch.rate_bps, batch.snr_seen_db, batch.track_id, n_samples, limit, n_samples - 1,
-        batch.n_slots, batch.window_slots, batch.slot_s,
-        np.ascontiguousarray(batch.buffers_bit, float), batch.hgad,
-        batch.threshold_bps, batch.peak_rate_bps[batch.track_id], batch.max_hover_s,
-        keep_remaining, result.served, result.downloaded_bit, result.hovering, result.sample,
+        *compiled.loop_inputs(batch), True, keep_remaining,
+        result.served, result.downloaded_bit, result.hovering, result.sample,
         np.zeros((0, 0, 0)) if result.remaining_bit is None else result.remaining_bit,
-        result.n_run, result.end_sample, result.left_bit,
+        result.n_run, result.end_sample, result.left_bit, False, *compiled.no_totals(n_sensors),
+        faults, chosen,
     )  # fmt: skip
     return result
 
 
-def run_numpy(batch: Batch) -> BatchResult:
+def run_numpy(batch: Batch, keep_remaining: bool = True) -> BatchResult:
     """Run every mission of ``batch``; one numpy step per slot over all missions.
+
+    ``keep_remaining=False``: no (B, T, N) buffer log (``remaining_bit`` None).
 
     Inside, arrays are sensor-major (N, B): per-slot reductions over sensors are then N
     elementwise steps over missions, which is what makes small N fast.
@@ -346,16 +186,25 @@ def run_numpy(batch: Batch) -> BatchResult:
     # slot-major logs: each slot writes one contiguous block
     served_log = np.full((t_max, n_missions), NO_SENSOR, np.int64)
     downloaded_log = np.zeros((t_max, n_missions))
-    remaining_log = np.zeros((t_max, n_sensors, n_missions))
+    remaining_log = np.zeros((t_max, n_sensors, n_missions) if keep_remaining else (0, 0, 0))
     hovering_log = np.zeros((t_max, n_missions), bool)
     sample_log = np.zeros((t_max, n_missions), np.int64)
     n_run = np.zeros(n_missions, np.int64)
     chosen_log = np.full((t_max, n_missions), NO_SENSOR, np.int64) if any_faults else None
+    no_hover = np.zeros(n_missions, bool)  # Greedy's hover flags (never written to)
+    all_missions = np.ones(n_missions, bool)
+    # a planned path holds at its last sample, so its missions run until their last slot
+    holds = (batch.hold_at_end & (batch.n_samples > 0))[batch.track_id].all()
+    every_active = int(n_slots.min()) if holds else 0
 
     for slot in range(t_max):
-        active = (slot < n_slots) & (sample < n_samples)
-        if not active.any():
-            break
+        if slot < every_active:  # no mission can have ended yet: skip the per-slot masks
+            active, all_active = all_missions, True
+        else:
+            active = (slot < n_slots) & (sample < n_samples)
+            all_active = bool(active.all())
+            if not active.any():
+                break
         observed = table.take(base_row + sample, axis=1)
         rate = observed[:n_sensors]
         snr = observed[n_sensors:]
@@ -378,24 +227,27 @@ def run_numpy(batch: Batch) -> BatchResult:
         else:
             choice = contract.greedy_choice(snr, has_data)
         sensor = contract.hover_sensor_or(state, choice) if any_hgad else choice
-        sensor[~active] = NO_SENSOR
+        if not all_active:
+            sensor[~active] = NO_SENSOR
         cell = contract.cells(sensor, columns)
         left = remaining_flat.take(cell)
         rate_served = rate.reshape(-1).take(cell)
         bits = contract.served_bits(rate_served, left, dt)
         bits[sensor < 0] = 0.0
         left_after = left - bits  # what the policy expects after this slot
-        served = sensor
+        served, left_taken = sensor, left_after  # ... and what the buffers hold after it
         closed = slot >= window if slot >= first_close else None
         if closed is not None and closed.any():  # the window has closed: nothing is delivered
             served = np.where(closed, NO_SENSOR, sensor)
             bits = np.where(closed, 0.0, bits)
+            left_taken = left - bits
         if chosen_log is not None:  # a fault blocks the choice: 0 bits, nothing served
             chosen_log[slot] = served
             served = np.where(ok.reshape(-1).take(cell), served, NO_SENSOR)
             true_bits = contract.served_bits(deliver.reshape(-1).take(cell), left, dt)
             bits = np.where(served >= 0, true_bits, 0.0)
-        remaining_flat[cell] = left - bits
+            left_taken = left - bits
+        remaining_flat[cell] = left_taken
         if any_hgad:
             hover_flag = contract.hgad_update(
                 state,
@@ -412,14 +264,15 @@ def run_numpy(batch: Batch) -> BatchResult:
                 active=active,
             )
         else:
-            hover_flag = np.zeros(n_missions, bool)
+            hover_flag = no_hover
         served_log[slot] = served
         downloaded_log[slot] = bits
-        remaining_log[slot] = remaining
+        if keep_remaining:
+            remaining_log[slot] = remaining
         hovering_log[slot] = hover_flag
         sample_log[slot] = sample
         n_run += active
-        sample[active & ~hover_flag] += 1
+        sample += ~hover_flag if all_active else active & ~hover_flag
         np.minimum(sample, limit, out=sample)
 
     return BatchResult(
@@ -428,7 +281,7 @@ def run_numpy(batch: Batch) -> BatchResult:
         hovering=hovering_log.T,
         sample=sample_log.T,
         n_run=n_run,
-        remaining_bit=remaining_log.transpose(2, 0, 1),
+        remaining_bit=remaining_log.transpose(2, 0, 1) if keep_remaining else None,
         end_sample=np.minimum(sample, last_sample),
         left_bit=np.ascontiguousarray(remaining.T),
         chosen=None if chosen_log is None else chosen_log.T,
@@ -493,14 +346,7 @@ def run_fixed_batch(
 def batch_flights(batch: Batch, result: BatchResult, missions: Sequence[Mission]) -> Flights:
     """The batch's arrays as :class:`~skymule.metrics.Flights` (tracks shared, no copies of
     positions per mission), with each mission's home, hover points and visit radius."""
-    n_missions, n_sensors = batch.buffers_bit.shape
-    home = np.full((n_missions, 2), np.nan)
-    hover = np.full((n_missions, n_sensors, 2), np.nan)
-    for row, mission in enumerate(missions):
-        if mission.home_m is not None:
-            home[row] = mission.home_m
-        if mission.hover_points_m is not None:
-            hover[row] = mission.hover_points_m
+    home, hover, radius, window = mission_geometry(missions, batch.buffers_bit.shape[1])
     return Flights(
         n_run=result.n_run,
         slot_s=batch.slot_s,
@@ -516,8 +362,8 @@ def batch_flights(batch: Batch, result: BatchResult, missions: Sequence[Mission]
         end_sample=result.end_sample,
         home_m=home,
         hover_points_m=hover,
-        visit_radius_m=np.array([m.visit_radius_m for m in missions], float),
-        aadm_window_s=np.array([m.score_window_s for m in missions], float),
+        visit_radius_m=radius,
+        aadm_window_s=window,
     )
 
 
@@ -531,15 +377,28 @@ def summarize_fixed_batch(
     """``metrics.summarize`` dictionaries of fixed-trajectory missions, in input order.
 
     Equal to ``[summarize(run_fixed(m, make_policy(s)), name) ...]``, but no
-    :class:`~skymule.sim.log.MissionLog` is built: the summaries come from the batch arrays.
+    :class:`~skymule.sim.log.MissionLog` is built: the summaries come from the batch arrays
+    (``engine="numpy"``: ``metrics.summaries`` of the numpy loop's logs, the reference;
+    compiled loop: each mission reduced as it ends, no per-slot log at all; ``auto`` on a
+    batch the compiled loop does not run: one compiled pass over the numpy loop's logs, see
+    :mod:`skymule.sim.compiled_summaries`). Every way gives the same values.
     """
+    from skymule.sim import compiled
+    from skymule.sim.compiled_summaries import compiled_summaries, flights_summaries
+
     rows: list[dict[str, Any] | None] = [None] * len(missions)
     for part in _batches(missions, batch_size):
         chosen = [missions[i] for i in part]
         batch = stack_missions(chosen, [specs[i] for i in part])
-        result = run_batch(batch, engine, keep_remaining=False)
+        if chosen_engine(batch, engine) == "compiled":
+            summary = compiled_summaries(batch, chosen)
+        else:
+            flights = batch_flights(batch, run_numpy(batch, keep_remaining=False), chosen)
+            # auto with numba (a batch with fading or faults): one compiled pass over the logs
+            fast = engine == "auto" and compiled.available()
+            summary = flights_summaries(flights) if fast else summaries(flights)
         dicts = summary_dicts(
-            summaries(batch_flights(batch, result, chosen)),
+            summary,
             [m.sensor_names for m in chosen],
             [specs[i].name for i in part],
             [scenario_names[i] for i in part],

@@ -8,8 +8,15 @@ which is what the per-slot overhead was hiding (``docs/speed-notes.md``).
 
 The rules are not re-stated here: the loop calls the one-mission kernels of
 :mod:`skymule.sim.kernels` and :func:`skymule.sim.contract.served_bits`, registered with
-numba so the same Python functions run compiled. Missions with per-slot fading (a rate table
-lookup per slot) stay on the numpy loop.
+numba so the same Python functions run compiled. Fault draws (outages, burst loss, SNR
+errors, missed polls) are applied per mission and slot as the numpy loop applies them
+(:func:`skymule.sim.kernels.fault_view`). Missions with per-slot fading, and SNR errors on a
+rate table other than a step table (a rate computed per slot), stay on the numpy loop
+(:func:`can_run`).
+
+With summaries asked for (:mod:`skymule.sim.compiled_summaries`) the loop writes no per-slot
+log: it reduces each mission's slots as the mission ends
+(:func:`skymule.sim.summary_kernels.mission_totals`).
 
 Install: ``pip install skymule[fast]``. Without numba, :func:`available` is False and the
 batched engine runs its numpy loop (the reference).
@@ -27,13 +34,81 @@ from typing import Any
 
 import numpy as np
 
-from skymule.sim import contract, kernels
+from skymule.sim import contract, kernels, summary_kernels
+from skymule.sim.batch_faults import KernelFaults, kernel_faults
+from skymule.sim.batch_stack import Batch
 from skymule.sim.contract import NO_SENSOR
 
 
 def available() -> bool:
     """True if numba is installed (``pip install skymule[fast]``)."""
     return importlib.util.find_spec("numba") is not None
+
+
+def loop_inputs(batch: Batch) -> tuple[Any, ...]:
+    """The arguments of :func:`slot_loop` that describe ``batch`` (before the flags and outputs)."""
+    n_samples = batch.n_samples[batch.track_id]
+    limit = np.where(batch.hold_at_end[batch.track_id], n_samples - 1, n_samples)
+    return (
+        batch.rate_bps, batch.snr_seen_db, batch.track_id, n_samples, limit, n_samples - 1,
+        batch.n_slots, batch.window_slots, batch.slot_s,
+        np.ascontiguousarray(batch.buffers_bit, float), batch.hgad,
+        batch.threshold_bps, batch.peak_rate_bps[batch.track_id], batch.max_hover_s,
+    )  # fmt: skip
+
+
+def no_logs() -> tuple[np.ndarray, ...]:
+    """Placeholders for :func:`slot_loop`'s four (B, T) logs and the buffer log, when unused."""
+    return (
+        np.zeros((0, 0), np.int64),
+        np.zeros((0, 0)),
+        np.zeros((0, 0), np.bool_),
+        np.zeros((0, 0), np.int64),
+        np.zeros((0, 0, 0)),
+    )
+
+
+def loop_faults(
+    batch: Batch, chosen_log: bool = True
+) -> tuple[KernelFaults | None, np.ndarray | None]:
+    """The batch's fault draws for :func:`slot_loop` and its (B, T) ``chosen`` log to fill
+    (``chosen_log``); None for both when no mission has faults. The caller checked
+    :func:`can_run`."""
+    if not batch.faults.any:
+        return None, None
+    n_missions = batch.size
+    faults = kernel_faults(batch.faults, n_missions)
+    assert faults is not None, "compiled.can_run(batch) first"
+    t_max = int(batch.n_slots.max())
+    return faults, np.full((n_missions, t_max), NO_SENSOR, np.int64) if chosen_log else None
+
+
+def can_run(batch: Batch) -> str | None:
+    """Why the compiled loop cannot run ``batch`` (None: it can)."""
+    if not available():
+        return "numba is not installed"
+    if batch.fading_index.size > 0:
+        return "missions with per-slot fading"
+    if batch.faults.any and kernel_faults(batch.faults, batch.size) is None:
+        return "an SNR error on a rate table other than a step table"
+    return None
+
+
+def no_totals(n_sensors: int) -> tuple[summary_kernels.SummaryTables, summary_kernels.SlotTotals]:
+    """Placeholders for :func:`slot_loop`'s summary tables and totals, when unused (the same
+    types as real ones, so both calls share one compiled loop)."""
+    tables = summary_kernels.SummaryTables(
+        steps_m=np.zeros((0, 1)),
+        power_w=np.zeros((0, 1)),
+        pair=np.zeros(0, np.int64),
+        near=np.zeros((0, n_sensors), np.int64),
+        group=np.zeros(0, np.int64),
+        aadm_threshold_bit=np.zeros(0),
+        aadm_window_s=np.zeros(0),
+        aadm_per_slot=False,
+        width=0,
+    )
+    return tables, summary_kernels.new_totals(0, n_sensors)
 
 
 def slot_loop(
@@ -51,6 +126,7 @@ def slot_loop(
     threshold: np.ndarray,
     peak: np.ndarray,
     max_hover: np.ndarray,
+    keep_logs: bool,
     keep_remaining: bool,
     served: np.ndarray,
     downloaded: np.ndarray,
@@ -60,20 +136,53 @@ def slot_loop(
     n_run: np.ndarray,
     end_sample: np.ndarray,
     left: np.ndarray,
+    want_totals: bool,
+    tables: summary_kernels.SummaryTables,
+    totals: summary_kernels.SlotTotals,
+    faults: KernelFaults | None,
+    chosen: np.ndarray | None,
 ) -> None:
-    """Every slot of every mission; fills the (B, T) logs, ``n_run``, ``end_sample``, ``left``.
+    """Every slot of every mission; fills ``n_run``, ``end_sample``, ``left`` and, as asked,
+    the (B, T) logs (``keep_logs``; ``chosen`` too unless None) and each mission's summary
+    reductions (``want_totals``).
+
+    Missions with faults (``faults.fault_of[b] >= 0``) see and deliver through
+    :func:`~skymule.sim.kernels.fault_view`, as the numpy loop through ``apply_faults``.
+    ``faults=None`` (no mission has faults) compiles a loop without any of that: numba prunes
+    the ``is not None`` branches, and the fault-free loop keeps its speed.
 
     Arrays are those of :class:`~skymule.sim.batch.Batch` (rate and snr seen per track sample,
     per-mission parameters with thresholds and peaks as (B, N)); ``remaining_log`` is (B, T, N)
-    when ``keep_remaining``, else unused. Pure Python numba compiles (see :func:`compiled_loop`).
+    when ``keep_remaining``, else unused; without ``keep_logs`` the four (B, T) logs are unused
+    (each mission's slots go to scratch rows, reduced by
+    :func:`~skymule.sim.summary_kernels.mission_totals` while still in cache).
+    Pure Python numba compiles (see :func:`compiled_loop`).
     """
     n_missions, n_sensors = buffers.shape
+    t_max = 0
+    for b in range(n_missions):
+        t_max = max(t_max, n_slots[b])
     remaining = np.empty(n_sensors)
-    masked = np.empty(n_sensors)
     cooling = np.zeros(n_sensors, np.bool_)
     hover = np.empty(2)
     final = np.zeros(n_missions, np.int64)
+    # one mission's slots when no log is kept, and the reductions' scratch space
+    served_row = np.empty(t_max, np.int64)
+    downloaded_row = np.empty(t_max)
+    hovering_row = np.empty(t_max, np.bool_)
+    sample_row = np.empty(t_max, np.int64)
+    scratch = np.empty((2, t_max))
+    stack = np.empty((128, 3), np.int64)
+    partial = np.empty(128)
+    memo = np.full(4, -1.0)
+    seen_rate = np.empty(n_sensors)
+    seen_snr = np.empty(n_sensors)
+    deliver = np.empty(n_sensors)
+    steps, efficiency, bandwidth = np.empty(0), np.empty(1), 0.0  # its rate table
     for b in range(n_missions):
+        if keep_logs:
+            served_row, downloaded_row = served[b], downloaded[b]
+            hovering_row, sample_row = hovering[b], sample_log[b]
         u = track_id[b]
         dt = slot_s[b]
         is_hgad = hgad[b]
@@ -82,18 +191,38 @@ def slot_loop(
         cooling[:] = False
         hover[0] = NO_SENSOR
         hover[1] = 0.0
+        g = -1
+        if faults is not None:
+            g = faults.fault_of[b]
+            if g >= 0:  # this mission's track and draws, rows read by index in each slot
+                ok_rows, error_rows = faults.deliverable[g], faults.snr_error_db[g]
+                rate_rows, snr_rows = rate[u], snr[u]
+                uses_error = faults.uses_error[g]
+                model = faults.model[g]
+                steps, efficiency = faults.thresholds_db[model], faults.efficiency[model]
+                bandwidth = faults.bandwidth_hz[model]
         sample = 0
         run = 0
         for slot in range(n_slots[b]):
             if sample >= n_samples[b]:
                 break
             rate_now = rate[u, sample]
+            if faults is not None and g >= 0:  # the policy sees the faulty SNR; `deliver`
+                kernels.fault_view(  # is what serving yields
+                    rate_rows, snr_rows, sample, ok_rows, error_rows, slot, uses_error, steps,
+                    efficiency, bandwidth, seen_rate, seen_snr, deliver,
+                )  # fmt: skip
+                rate_now = seen_rate
             if hover[0] >= 0:  # hovering: the hovered sensor (the choice would go unused)
                 sensor = int(hover[0])
-            elif is_hgad:
-                sensor = kernels.hgad_pick(rate_now, snr[u, sample], remaining, masked)
             else:
-                sensor = kernels.greedy_pick(snr[u, sample], rate_now, remaining, masked)
+                snr_now = snr[u, sample]
+                if faults is not None and g >= 0:
+                    snr_now = seen_snr
+                if is_hgad:
+                    sensor = kernels.hgad_pick(rate_now, snr_now, remaining)
+                else:
+                    sensor = kernels.greedy_pick(snr_now, rate_now, remaining)
             cell = max(sensor, 0)
             before = remaining[cell]
             bits = contract.served_bits(rate_now[cell], before, dt) if sensor >= 0 else 0.0
@@ -102,6 +231,12 @@ def slot_loop(
             if slot >= window_slots[b]:  # the download window has closed: nothing arrives
                 delivered = NO_SENSOR
                 bits = 0.0
+            if chosen is not None and keep_logs:
+                chosen[b, slot] = delivered
+            if faults is not None and g >= 0:  # a fault blocks the choice: 0 bits, no sensor
+                if delivered >= 0 and not ok_rows[slot, cell]:
+                    delivered = NO_SENSOR
+                bits = contract.served_bits(deliver[cell], before, dt) if delivered >= 0 else 0.0
             remaining[cell] = before - bits
             held = False
             if is_hgad:
@@ -117,10 +252,10 @@ def slot_loop(
                     dt,
                     True,
                 )
-            served[b, slot] = delivered
-            downloaded[b, slot] = bits
-            hovering[b, slot] = held
-            sample_log[b, slot] = sample
+            served_row[slot] = delivered
+            downloaded_row[slot] = bits
+            hovering_row[slot] = held
+            sample_row[slot] = sample
             if keep_remaining:
                 remaining_log[b, slot] = remaining
             run += 1
@@ -130,6 +265,13 @@ def slot_loop(
         final[b] = sample
         end_sample[b] = min(sample, last_sample[b])
         left[b] = remaining
+        if want_totals:
+            summary_kernels.mission_totals(
+                b, served_row, downloaded_row, hovering_row, sample_row, run, dt, tables,
+                scratch, stack, partial, memo, totals,
+            )  # fmt: skip
+    if not keep_logs:
+        return
     # the numpy loop keeps writing an ended mission's sample and buffers until every mission
     # has ended; the same padding here makes the two results equal array for array
     stop = 0
@@ -143,9 +285,16 @@ def slot_loop(
 
 
 def jit(
-    function: Callable[..., None], calls: tuple[Callable[..., Any], ...]
+    function: Callable[..., None],
+    calls: tuple[Callable[..., Any], ...],
+    inline: tuple[Callable[..., Any], ...] = (),
 ) -> Callable[..., None]:
-    """``function`` compiled by numba, with the plain-Python functions it ``calls``.
+    """``function`` compiled by numba, with the plain-Python functions it ``calls``; those in
+    ``inline`` are also pasted into their callers (numba's ``inline="always"``).
+
+    Inlining the per-slot choice and hover kernels makes the HGAD loop ~25 % faster (a call
+    per slot costs more than these few comparisons); the kernels with running sums are not
+    inlined, where numba's inliner warns about its own SSA pass.
 
     Cached on disk; numba's cache notices changes to ``function``'s own source only, not to
     what it calls, so the compiled copy is named after a hash of all their sources: a change
@@ -155,8 +304,9 @@ def jit(
     from numba.extending import register_jitable
 
     for kernel in calls:
-        register_jitable(kernel)
+        register_jitable(inline="always" if kernel in inline else "never")(kernel)
     source = "".join(inspect.getsource(f) for f in (function, *calls))
+    source += " ".join(f.__name__ for f in inline)
     name = f"{function.__name__}_{hashlib.sha256(source.encode()).hexdigest()[:12]}"
     copy = types.FunctionType(function.__code__, function.__globals__, name)
     copy.__qualname__ = name
@@ -166,14 +316,31 @@ def jit(
 @cache
 def compiled_loop() -> Callable[..., None]:
     """:func:`slot_loop` compiled (once per process; cached on disk, see :func:`jit`)."""
+    choose = (kernels.greedy_pick, kernels.hgad_pick, kernels.hgad_hover_step, kernels.fault_view)
     return jit(
         slot_loop,
         (
             contract.served_bits,
-            kernels.column_max,
-            kernels.first_equal,
-            kernels.greedy_pick,
-            kernels.hgad_pick,
-            kernels.hgad_hover_step,
+            *choose,
+            kernels.step_rate,
+            summary_kernels.block_sum,
+            summary_kernels.pairwise_sum,
+            summary_kernels.slots_before,
+            summary_kernels.mission_totals,
+        ),
+        inline=choose,
+    )
+
+
+@cache
+def compiled_reduce() -> Callable[..., None]:
+    """:func:`~skymule.sim.summary_kernels.reduce_rows` compiled (a pass over logs kept)."""
+    return jit(
+        summary_kernels.reduce_rows,
+        (
+            summary_kernels.block_sum,
+            summary_kernels.pairwise_sum,
+            summary_kernels.slots_before,
+            summary_kernels.mission_totals,
         ),
     )

@@ -7,10 +7,11 @@ the subset of Python and numpy that numba compiles (loops, scalar arithmetic, 1-
 nothing here imports a compiler, so the module also runs (slowly) as plain Python, which is
 how the tests check each kernel against its vectorised original on random inputs.
 
-The kernels mirror the vectorised functions step by step (the same masks, the same maximum,
-the same "first index equal to the maximum"), so ties, empty buffers, -inf and NaN resolve the
-same way: ``tests/test_compiled.py`` checks every kernel against :mod:`~skymule.sim.contract`
-and the compiled batch against the numpy batch, value for value. ``served_bits`` is not
+The kernels compute what the vectorised functions compute (the same masks, the same maximum,
+the same "first index equal to the maximum", in one pass over the sensors), so ties, empty
+buffers, -inf and NaN resolve the same way: ``tests/test_compiled.py`` checks every kernel
+against :mod:`~skymule.sim.contract` and the compiled batch against the numpy batch, value for
+value. ``served_bits`` is not
 repeated: the compiled core compiles :func:`skymule.sim.contract.served_bits` itself.
 """
 
@@ -21,63 +22,58 @@ import numpy as np
 from skymule.sim.contract import HOVER_EPS_S, NO_SENSOR
 
 
-def column_max(values: np.ndarray) -> float:
-    """The largest of ``values`` (N,), NaN if any is NaN (as ``ndarray.max``)."""
-    best = values[0]
-    for i in range(1, values.shape[0]):
-        value = values[i]
-        if value > best or value != value:  # once NaN, best stays NaN
-            best = value
-    return best
-
-
-def first_equal(values: np.ndarray, target: float) -> int:
-    """First index i with values[i] == target, 0 if none (as ``contract.first_true``)."""
-    for i in range(values.shape[0]):
-        if values[i] == target:
-            return i
-    return 0
-
-
-def greedy_pick(
-    snr_db: np.ndarray, rate_bps: np.ndarray, remaining_bit: np.ndarray, masked: np.ndarray
-) -> int:
+def greedy_pick(snr_db: np.ndarray, rate_bps: np.ndarray, remaining_bit: np.ndarray) -> int:
     """One mission of ``contract.greedy_choice`` over ``contract.servable`` sensors: argmax
-    SNR among sensors with data and R > 0. ``masked`` is (N,) scratch space.
+    SNR among sensors with data and R > 0, in one pass.
+
+    As the vectorised rule: the masked SNR (-inf where not servable) is maximised and the
+    first index equal to the maximum wins; a NaN maximum equals nothing, which gives index 0.
     """
     any_data = False
+    nan = False
+    best = -np.inf
+    index = 0
     for i in range(snr_db.shape[0]):
         has_data = remaining_bit[i] > 0 and rate_bps[i] > 0
         any_data = any_data or has_data
-        masked[i] = snr_db[i] if has_data else -np.inf
+        value = snr_db[i] if has_data else -np.inf
+        if value != value:
+            nan = True
+        elif i == 0 or value > best:  # strictly greater: ties keep the first index
+            best, index = value, i
     if not any_data:
         return NO_SENSOR
-    return first_equal(masked, column_max(masked))
+    return 0 if nan else index
 
 
-def hgad_pick(
-    rate_bps: np.ndarray, snr_db: np.ndarray, remaining_bit: np.ndarray, masked: np.ndarray
-) -> int:
+def hgad_pick(rate_bps: np.ndarray, snr_db: np.ndarray, remaining_bit: np.ndarray) -> int:
     """One mission of ``contract.hgad_choice`` over ``contract.servable`` sensors: argmax rate;
-    ties: higher SNR, lowest index. ``masked`` is (N,) scratch space.
+    ties: higher SNR, lowest index; in one pass.
+
+    The masked rate is never NaN (servable needs R > 0); among the sensors at the best rate,
+    the first with the best SNR wins, and a NaN SNR among them equals nothing (index 0), as
+    in the vectorised rule.
     """
-    n = rate_bps.shape[0]
     any_data = False
-    for i in range(n):
-        has_data = remaining_bit[i] > 0 and rate_bps[i] > 0
-        any_data = any_data or has_data
-        masked[i] = rate_bps[i] if has_data else -np.inf
+    best_rate = -np.inf
+    best_snr = -np.inf
+    nan = False
+    index = 0
+    for i in range(rate_bps.shape[0]):
+        if not (remaining_bit[i] > 0 and rate_bps[i] > 0):
+            continue
+        any_data = True
+        rate, snr = rate_bps[i], snr_db[i]
+        if rate > best_rate:  # a new best rate: its sensor alone is tied so far
+            best_rate, best_snr, nan, index = rate, snr, snr != snr, i
+        elif rate == best_rate and not nan:
+            if snr != snr:
+                nan = True
+            elif snr > best_snr:
+                best_snr, index = snr, i
     if not any_data:
         return NO_SENSOR
-    best_rate = column_max(masked)
-    for i in range(n):
-        masked[i] = snr_db[i] if masked[i] == best_rate else -np.inf
-    best_snr = column_max(masked)
-    for i in range(n):  # first i with masked rate == its max and masked SNR == its max
-        masked_rate = rate_bps[i] if remaining_bit[i] > 0 and rate_bps[i] > 0 else -np.inf
-        if masked_rate == best_rate and masked[i] == best_snr:
-            return i
-    return 0
+    return 0 if nan else index
 
 
 def hgad_hover_step(
@@ -131,3 +127,57 @@ def hgad_hover_step(
         hover[0] = sensor
         return True
     return False
+
+
+def step_rate(
+    snr_db: float, thresholds_db: np.ndarray, efficiency: np.ndarray, bandwidth_hz: float
+) -> float:
+    """``rate_bps(StepTable, snr_db, bandwidth_hz)`` for one SNR: the efficiency of the
+    number of thresholds reached (``searchsorted(side="right")`` on ascending thresholds; NaN
+    reaches none) x bandwidth."""
+    reached = 0
+    for threshold in thresholds_db:
+        if threshold <= snr_db:
+            reached += 1
+    return efficiency[reached] * bandwidth_hz
+
+
+def fault_view(
+    rate_bps: np.ndarray,
+    snr_db: np.ndarray,
+    sample: int,
+    deliverable: np.ndarray,
+    snr_error_db: np.ndarray,
+    slot: int,
+    uses_error: bool,
+    thresholds_db: np.ndarray,
+    efficiency: np.ndarray,
+    bandwidth_hz: float,
+    seen_rate_bps: np.ndarray,
+    seen_snr_db: np.ndarray,
+    deliver_bps: np.ndarray,
+) -> None:
+    """One mission, one slot of ``batch_faults.apply_faults`` (``docs/faults.md``): fills what
+    the policy sees (SNR + error where deliverable, else -inf, and its rate) and what a
+    served sensor delivers (the true rate where deliverable, else 0).
+
+    The true rate and SNR are row ``sample`` of the mission's track, ``rate_bps`` /
+    ``snr_db`` (K, N); its draws are row ``slot`` of ``deliverable`` / ``snr_error_db``
+    (T, N). Without an SNR error the seen rate is the true rate where deliverable (the rate table of
+    the unchanged SNR); a blocked link's seen rate is that of -inf, 0 in every table. Reads by
+    index, no array views per slot.
+    """
+    for i in range(seen_rate_bps.shape[0]):
+        rate, snr = rate_bps[sample, i], snr_db[sample, i]
+        if deliverable[slot, i]:
+            seen = snr + snr_error_db[slot, i]
+            seen_snr_db[i] = seen
+            if uses_error:
+                seen_rate_bps[i] = step_rate(seen, thresholds_db, efficiency, bandwidth_hz)
+            else:
+                seen_rate_bps[i] = rate
+            deliver_bps[i] = rate
+        else:
+            seen_snr_db[i] = -np.inf
+            seen_rate_bps[i] = 0.0
+            deliver_bps[i] = 0.0

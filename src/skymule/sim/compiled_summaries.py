@@ -1,0 +1,191 @@
+"""Summaries of a batch straight from the compiled slot loop, with no per-slot log.
+
+``summarize_fixed_batch(..., engine="compiled")`` (and ``"auto"`` when numba is installed)
+lands here. The compiled loop (:func:`skymule.sim.compiled.slot_loop`) reduces each mission's
+slots as soon as the mission ends (:func:`skymule.sim.summary_kernels.mission_totals`), so
+the (B, T) logs that ``metrics.summaries`` reads back are never written; what is left is
+per-mission arithmetic, shared with the reference through
+:func:`skymule.metrics.summaries_from_totals`. The result equals
+``metrics.summaries(batch_flights(...))`` (the numpy path) value for value.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from skymule import metrics
+from skymule.aadm.score import AADM_WINDOW_S, COMPLETE_RTOL, AadmScore
+from skymule.sim import compiled, summary_kernels
+from skymule.sim.batch_stack import Batch, mission_geometry
+from skymule.world import Mission
+
+
+def aadm_from_progress(
+    total_bit: np.ndarray,
+    n_run: np.ndarray,
+    slot_s: np.ndarray,
+    window_s: np.ndarray,
+    counted_bit: np.ndarray,
+    first: np.ndarray,
+) -> AadmScore:
+    """The AADM score from each mission's running sum of counted downloads and the first
+    counted slot at which it reached the total (-1: never): the last step of
+    :func:`skymule.aadm.score.aadm_scores` (volumes shared in slot 0), line for line.
+    """
+    threshold = total_bit * (1.0 - COMPLETE_RTOL)
+    nothing = total_bit <= 0
+    done = ~nothing & (counted_bit >= threshold) & (first >= 0)
+    first = np.where(done, first, 0)
+    complete = done | nothing
+    served_s = np.maximum(n_run, 0) * slot_s
+    t1 = np.where(
+        nothing,
+        0.0,
+        np.where(complete, (first + 1) * slot_s, np.minimum(window_s, served_s)),
+    )
+    downloaded = np.minimum(counted_bit, total_bit)
+    s1 = np.where(complete, np.maximum(0.0, window_s - t1), 0.0)
+    s2 = np.where(nothing, 100.0, 100.0 * downloaded / np.where(nothing, 1.0, total_bit))
+    return AadmScore(
+        t1_s=t1.astype(float),
+        s1=s1,
+        s2=s2,
+        complete=complete,
+        downloaded_bit=downloaded,
+        score=s1 + s2,
+    )
+
+
+def summary_tables(
+    track_position_m: np.ndarray,
+    track_samples: np.ndarray,
+    track_id: np.ndarray,
+    slot_s: np.ndarray,
+    hover_points_m: np.ndarray,
+    visit_radius_m: np.ndarray,
+    buffers_bit: np.ndarray,
+    window_s: np.ndarray,
+    width: int,
+) -> summary_kernels.SummaryTables:
+    """The lookup tables of the reductions (``metrics``'s own table functions) for missions
+    on tracks ``track_position_m`` (U, K, 3) whose padded slot arrays are ``width`` long."""
+    steps, power, pair = metrics.power_tables(track_position_m, track_samples, track_id, slot_s)
+    near, group = metrics.near_samples(
+        track_position_m, track_samples, track_id, hover_points_m, visit_radius_m
+    )
+    # aadm_scores pads arrays with no slot to one; it masks slots per mission only when some
+    # window closes before the last slot of the padded arrays
+    width = max(width, 1)
+    per_slot = bool((np.ceil((window_s - 1e-9) / slot_s) < width).any())
+    return summary_kernels.SummaryTables(
+        steps_m=steps,
+        power_w=power,
+        pair=pair,
+        near=near,
+        group=group,
+        aadm_threshold_bit=buffers_bit.sum(axis=1) * (1.0 - COMPLETE_RTOL),
+        aadm_window_s=window_s,
+        aadm_per_slot=per_slot,
+        width=width,
+    )
+
+
+def summaries_from_slot_totals(
+    totals: summary_kernels.SlotTotals,
+    *,
+    n_run: np.ndarray,
+    slot_s: np.ndarray,
+    buffers_bit: np.ndarray,
+    left_bit: np.ndarray,
+    end_m: np.ndarray,
+    home_m: np.ndarray,
+    window_s: np.ndarray,
+) -> metrics.Summaries:
+    """:class:`~skymule.metrics.Summaries` from the reductions and each mission's ends (end
+    position ``end_m`` (B, 3) [m], buffers left)."""
+    return metrics.summaries_from_totals(
+        n_run=n_run,
+        slot_s=slot_s,
+        buffers_bit=buffers_bit,
+        left_bit=left_bit,
+        downloaded_bit=totals.downloaded_bit,
+        distance_m=totals.distance_m,
+        power_sum_w=totals.power_sum_w,
+        handovers=totals.handovers,
+        hover_slots=totals.hover_slots,
+        first_visit=totals.first_visit,
+        distance_to_home_m=metrics.horizontal_distance_m(end_m, home_m),
+        aadm=aadm_from_progress(
+            buffers_bit.sum(axis=1), n_run, slot_s, window_s, totals.aadm_bit, totals.aadm_first
+        ),
+    )
+
+
+def compiled_summaries(batch: Batch, missions: Sequence[Mission]) -> metrics.Summaries:
+    """``metrics.summaries`` of every mission of ``batch`` (one :func:`compiled.can_run`),
+    from the compiled loop's per-mission reductions."""
+    n_missions, n_sensors = batch.buffers_bit.shape
+    home, hover, radius, window = mission_geometry(missions, n_sensors)
+    tables = summary_tables(
+        batch.position_m, batch.n_samples, batch.track_id, batch.slot_s, hover, radius,
+        batch.buffers_bit, window, int(batch.n_slots.max()),
+    )  # fmt: skip
+    totals = summary_kernels.new_totals(n_missions, n_sensors)
+    n_run = np.zeros(n_missions, np.int64)
+    end_sample = np.zeros(n_missions, np.int64)
+    left = np.zeros((n_missions, n_sensors))
+    compiled.compiled_loop()(
+        *compiled.loop_inputs(batch), False, False, *compiled.no_logs(),
+        n_run, end_sample, left, True, tables, totals, *compiled.loop_faults(batch, False),
+    )  # fmt: skip
+    return summaries_from_slot_totals(
+        totals,
+        n_run=n_run,
+        slot_s=batch.slot_s,
+        buffers_bit=batch.buffers_bit,
+        left_bit=left,
+        end_m=batch.position_m[batch.track_id, end_sample],
+        home_m=home,
+        window_s=window,
+    )
+
+
+def flights_summaries(flights: metrics.Flights, use_numba: bool = True) -> metrics.Summaries:
+    """``metrics.summaries(flights)`` by the kernels, one pass over the slot arrays (compiled
+    unless ``use_numba`` is False: then plain Python, as the tests run it).
+
+    For fixed-trajectory flights (no targets), e.g. the numpy loop's logs of a batch with
+    fading or faults, which the compiled loop does not run.
+    """
+    if flights.target is not None:
+        raise ValueError("flights_summaries: autonomous flights (targets) need metrics.summaries")
+    n_missions, n_sensors = flights.buffers_bit.shape
+    window = (
+        np.full(n_missions, AADM_WINDOW_S)
+        if flights.aadm_window_s is None
+        else np.asarray(flights.aadm_window_s, float)
+    )
+    tables = summary_tables(
+        flights.track_position_m, flights.track_samples, flights.track_id, flights.slot_s,
+        flights.hover_points_m, flights.visit_radius_m, flights.buffers_bit, window,
+        flights.downloaded_bit.shape[1],
+    )  # fmt: skip
+    totals = summary_kernels.new_totals(n_missions, n_sensors)
+    reduce = compiled.compiled_reduce() if use_numba else summary_kernels.reduce_rows
+    reduce(
+        np.ascontiguousarray(flights.served), np.ascontiguousarray(flights.downloaded_bit),
+        np.ascontiguousarray(flights.hovering), np.ascontiguousarray(flights.sample),
+        flights.n_run, flights.slot_s, tables, totals,
+    )  # fmt: skip
+    return summaries_from_slot_totals(
+        totals,
+        n_run=flights.n_run,
+        slot_s=flights.slot_s,
+        buffers_bit=flights.buffers_bit,
+        left_bit=flights.left_bit,
+        end_m=flights.track_position_m[flights.track_id, flights.end_sample],
+        home_m=flights.home_m,
+        window_s=window,
+    )

@@ -117,18 +117,44 @@ def aadm_scores(
             reached &= counted[rows]
         done[rows] = reached.any(axis=1)
         first[rows] = reached.argmax(axis=1)
-    complete = done | nothing
+    # the running sum (not a pairwise row sum): trailing padding adds exact zeros, so a mission
+    # scores bit for bit the same alone or inside a padded batch
+    first_since_share = np.where(done, first - share, -1)
     served_s = np.maximum(ran - share, 0) * slot
+    return aadm_from_progress(total, served_s, slot, window, cumulative[:, -1], first_since_share)
+
+
+def aadm_from_progress(
+    total_bit: np.ndarray,
+    served_s: np.ndarray,
+    slot_s: np.ndarray,
+    window_s: np.ndarray,
+    counted_bit: np.ndarray,
+    first: np.ndarray,
+) -> AadmScore:
+    """The AADM score of B missions from how far each got (the rule, once for every engine).
+
+    Args:
+        total_bit: (B,) total buffered bits D_tot.
+        served_s: (B,) time from sharing the volumes to the end of the mission [s].
+        slot_s: (B,) slot length [s].
+        window_s: (B,) download window [s].
+        counted_bit: (B,) bits downloaded inside the window.
+        first: (B,) slot since sharing in which the counted downloads reached the total
+            (within ``COMPLETE_RTOL``), -1 if they never did.
+    """
+    threshold = total_bit * (1.0 - COMPLETE_RTOL)
+    nothing = total_bit <= 0
+    done = ~nothing & (counted_bit >= threshold) & (first >= 0)
+    complete = done | nothing
     t1 = np.where(
         nothing,
         0.0,
-        np.where(complete, (first - share + 1) * slot, np.minimum(window, served_s)),
+        np.where(complete, (np.where(done, first, 0) + 1) * slot_s, np.minimum(window_s, served_s)),
     )
-    # the running sum (not a pairwise row sum): trailing padding adds exact zeros, so a mission
-    # scores bit for bit the same alone or inside a padded batch
-    downloaded = np.minimum(cumulative[:, -1], total)
-    s1 = np.where(complete, np.maximum(0.0, window - t1), 0.0)
-    s2 = np.where(nothing, 100.0, 100.0 * downloaded / np.where(nothing, 1.0, total))
+    downloaded = np.minimum(counted_bit, total_bit)
+    s1 = np.where(complete, np.maximum(0.0, window_s - t1), 0.0)
+    s2 = np.where(nothing, 100.0, 100.0 * downloaded / np.where(nothing, 1.0, total_bit))
     return AadmScore(
         t1_s=t1.astype(float),
         s1=s1,

@@ -16,46 +16,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from skymule import metrics
-from skymule.aadm.score import AADM_WINDOW_S, COMPLETE_RTOL, AadmScore
+from skymule.aadm.score import AADM_WINDOW_S, COMPLETE_RTOL, aadm_from_progress
 from skymule.sim import compiled, summary_kernels
 from skymule.sim.batch_stack import Batch, mission_geometry
 from skymule.world import Mission
-
-
-def aadm_from_progress(
-    total_bit: np.ndarray,
-    n_run: np.ndarray,
-    slot_s: np.ndarray,
-    window_s: np.ndarray,
-    counted_bit: np.ndarray,
-    first: np.ndarray,
-) -> AadmScore:
-    """The AADM score from each mission's running sum of counted downloads and the first
-    counted slot at which it reached the total (-1: never): the last step of
-    :func:`skymule.aadm.score.aadm_scores` (volumes shared in slot 0), line for line.
-    """
-    threshold = total_bit * (1.0 - COMPLETE_RTOL)
-    nothing = total_bit <= 0
-    done = ~nothing & (counted_bit >= threshold) & (first >= 0)
-    first = np.where(done, first, 0)
-    complete = done | nothing
-    served_s = np.maximum(n_run, 0) * slot_s
-    t1 = np.where(
-        nothing,
-        0.0,
-        np.where(complete, (first + 1) * slot_s, np.minimum(window_s, served_s)),
-    )
-    downloaded = np.minimum(counted_bit, total_bit)
-    s1 = np.where(complete, np.maximum(0.0, window_s - t1), 0.0)
-    s2 = np.where(nothing, 100.0, 100.0 * downloaded / np.where(nothing, 1.0, total_bit))
-    return AadmScore(
-        t1_s=t1.astype(float),
-        s1=s1,
-        s2=s2,
-        complete=complete,
-        downloaded_bit=downloaded,
-        score=s1 + s2,
-    )
 
 
 def summary_tables(
@@ -118,7 +82,12 @@ def summaries_from_slot_totals(
         first_visit=totals.first_visit,
         distance_to_home_m=metrics.horizontal_distance_m(end_m, home_m),
         aadm=aadm_from_progress(
-            buffers_bit.sum(axis=1), n_run, slot_s, window_s, totals.aadm_bit, totals.aadm_first
+            buffers_bit.sum(axis=1),
+            np.maximum(n_run, 0) * slot_s,
+            slot_s,
+            window_s,
+            totals.aadm_bit,
+            totals.aadm_first,
         ),
     )
 

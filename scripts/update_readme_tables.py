@@ -13,6 +13,8 @@ Options:
   --all               also run the slow rows (100,000-mission sweep, the whole test suite)
   --check             write nothing; exit 1 if a table would change (timings always change:
                       use it for the deterministic tables, e.g. --only presets,sources)
+  --benches A,B       speed table: re-run only these benchmarks (e.g. bench_bound.py);
+                      the other rows keep their text
   --tiny              benchmarks at their tiny size (SKYMULE_BENCH_TINY=1): not measurements,
                       for testing this script
   --readme PATH       the file to rewrite (default: README.md next to scripts/)
@@ -56,6 +58,7 @@ class Context:
     work: Path  # scratch folder for output folders
     tiny: bool
     slow: bool
+    benches: frozenset[str] = frozenset()  # speed table: only these benchmarks (empty: all)
 
     def run(self, *command: str) -> tuple[str, float]:
         """Run ``command`` from the repository root; (stdout, wall seconds). Fails loudly."""
@@ -354,6 +357,8 @@ def speed_rows(ctx: Context) -> dict[str, str]:
     """The ``figure`` cell of every speed row, by a pattern of its ``what`` cell."""
     cells: dict[str, str] = {}
     for name, (args, parse) in SPEED_BENCHES.items():
+        if ctx.benches and name not in ctx.benches:
+            continue
         if name == "bench_sweep.py" and not ctx.slow:
             args = (*args, "--quick")
         if ctx.tiny and name == "bench_planner.py":
@@ -450,6 +455,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--all", action="store_true")
     parser.add_argument("--check", action="store_true")
     parser.add_argument("--tiny", action="store_true")
+    parser.add_argument("--benches", default="")
     parser.add_argument("--readme", type=Path, default=ROOT / "README.md")
     args = parser.parse_args(argv)
     names = [n.strip() for n in args.only.split(",") if n.strip()]
@@ -459,7 +465,11 @@ def main(argv: list[str] | None = None) -> int:
     original = args.readme.read_text()
     text = original
     with tempfile.TemporaryDirectory() as scratch:
-        ctx = Context(Path(scratch), args.tiny, args.all)
+        benches = frozenset(b.strip() for b in args.benches.split(",") if b.strip())
+        unknown_benches = sorted(benches - set(SPEED_BENCHES))
+        if unknown_benches:
+            parser.error(f"--benches {unknown_benches[0]}: allowed: {', '.join(SPEED_BENCHES)}")
+        ctx = Context(Path(scratch), args.tiny, args.all, benches)
         for name in names:
             start = time.perf_counter()
             text = rewrite(text, name, lambda old, n=name: TABLES[n](ctx, old))

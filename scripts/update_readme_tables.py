@@ -197,8 +197,8 @@ def engine_cells(out: str) -> dict[str, str]:
     (bandwidth,), *_ = _numbers(r"memory bandwidth .*?: ([\d.]+) GB/s", out)
     cells = {
         "^reference engine": (
-            f"{rate['greedy', 'single'] * 1e6:,.0f} (Greedy) / {rate['hgad', 'single'] * 1e6:,.0f} "
-            "(HGAD) mission-slots per CPU-s"
+            f"{rate['greedy', 'single']:.2f} M (Greedy) / {rate['hgad', 'single']:.2f} M (HGAD) "
+            "mission-slots per CPU-s"
         ),
         "^batched engine, numpy": (
             f"Greedy {rate['greedy', 'numpy + summaries']:.1f} M mission-slots/CPU-s with "

@@ -4,10 +4,11 @@ The batched autonomous engine moves its UAVs with :meth:`Navigator.steps` and me
 and the way home with :meth:`Navigator.travel_distances`. Both pay numpy's per-call overhead
 on a few dozen small arrays per query. :class:`CompiledPaths` answers the same queries, row
 for row the same floats: the visibility predicate (shapely ``covers`` against the
-navigator's prepared cover polygon) is asked in Python exactly as the numpy methods ask it
-(the direct segment, then the start's view of the vertices of the three smallest totals one
-rank at a time, then of every vertex for the rows left), and everything else runs in the
-compiled loops of :mod:`skymule.sim.path_kernels`.
+navigator's prepared cover polygon) is asked in Python, on segments the numpy methods also
+test (the direct segment, then the start's view of the vertices in order of their smallest
+total, one rank at a time until one is seen: the numpy method tests three ranks, then every
+vertex of the rows left, and both pick the first vertex seen in that order, so the same
+path), and everything else runs in the compiled loops of :mod:`skymule.sim.path_kernels`.
 
 ``tests/test_batch_paths.py`` compares it with the navigator's methods on random queries, and
 the compiled engine with the numpy engine on the batched autonomous engine's test cases.
@@ -27,10 +28,6 @@ import shapely
 
 from skymule.flight.navigation import Navigator
 from skymule.sim import path_kernels as pk
-
-#: ``Navigator.shortest_paths`` tests this many vertices of the smallest totals one at a time
-#: (its ``_LAZY_RANKS``): the same tests here give the same choices.
-LAZY_RANKS = 3
 
 #: Longest route [vertices] the kernels sum as ``np.sum`` does (numpy's summation block, 128
 #: values, minus the start and goal segments): larger fences keep the numpy path.
@@ -135,23 +132,23 @@ class CompiledPaths:
         start = np.ascontiguousarray(starts[rest])
         d_s = np.empty((rest.size, k))
         row_min = np.empty((rest.size, k))
-        order = np.empty((rest.size, min(LAZY_RANKS, k)), np.int64)
+        order = np.empty((rest.size, k), np.int64)
         vis_g, d_g = np.ascontiguousarray(vis_g), np.ascontiguousarray(d_g)
         self._k["rank_vertices"](start, vis_g, d_g, self._vertices, self._dist, d_s, row_min, order)
-        for rank in range(order.shape[1]):  # as Navigator.shortest_paths, rank by rank
+        # the start's view of the vertices in order of their smallest total, rank by rank
+        # (Navigator.shortest_paths: three ranks, then every vertex at once): the first seen
+        # is the minimiser's first vertex either way, and most rows stop within a few ranks
+        for rank in range(k):
             todo = np.flatnonzero(first < 0)
             if not todo.size:
                 break
             vertex = order[todo, rank]
+            finite = np.isfinite(row_min[todo, vertex])
+            todo, vertex = todo[finite], vertex[finite]
             seen = nav._segments_visible(start[todo], self._vertices[vertex])
             seen |= d_s[todo, vertex] == 0
-            seen &= np.isfinite(row_min[todo, vertex])
             first[todo[seen]] = vertex[seen]
-        todo = np.flatnonzero(first < 0)
-        start_vis = nav.sights(start[todo])[0] if todo.size else np.zeros((0, k), bool)
-        found = self._k["pick_routes"](
-            first, np.ascontiguousarray(start_vis), d_s, vis_g, d_g, self._dist, last
-        )
+        found = self._k["pick_routes"](first, d_s, vis_g, d_g, self._dist, last)
         if not found:
             raise ValueError("no in-fence path between start and goal")
         return bend, first, last

@@ -120,7 +120,7 @@ def rank_vertices(
 ) -> None:
     """For R starts (R, 2) not seeing their goals: ``d_s`` (R, k) straight distances to the
     vertices, ``row_min`` (R, k) the smallest total through each first vertex and ``order``
-    (R, q) the q first vertices by that total (ties: the lower vertex), as
+    (R, q) the q first vertices by that total (ties: the lower vertex: a stable argsort), as
     ``Navigator.shortest_paths`` computes them."""
     n_rows, k = d_s.shape
     ranks = order.shape[1]
@@ -148,46 +148,33 @@ def rank_vertices(
 
 def pick_routes(
     first: np.ndarray,
-    start_vis: np.ndarray,
     d_s: np.ndarray,
     goal_vis: np.ndarray,
     goal_d: np.ndarray,
     dist: np.ndarray,
     last: np.ndarray,
 ) -> bool:
-    """The vertex pair (first, last) of each row's path; False if some row has none.
+    """The last route vertex of each row's path, from its ``first`` (-1: none seen); False
+    if some row has no path (no first vertex, or no finite total from it).
 
-    Rows with ``first`` >= 0 (a seen vertex of the smallest totals) take the last vertex of
-    the smallest total from it; the others the pair of the smallest total among the vertices
-    their start sees, ``start_vis`` (one row each, in order). Ties: the first in row-major
-    order, as ``np.argmin``.
+    The last vertex is the first of the smallest total ``(d_s + D) + d_g`` from ``first``,
+    as ``np.argmin``.
     """
     n_rows, k = d_s.shape
-    unseen = 0
     found = True
     for r in range(n_rows):
+        i = first[r]
+        last[r] = 0
+        if i < 0:
+            found = False
+            continue
         best = np.inf
-        if first[r] >= 0:
-            i = first[r]
-            last[r] = 0
-            for j in range(k):
-                g = goal_d[r, j] if goal_vis[r, j] else np.inf
-                total = d_s[r, i] + dist[i, j] + g
-                if total < best:
-                    best = total
-                    last[r] = j
-        else:
-            first[r], last[r] = 0, 0
-            for i in range(k):
-                if not start_vis[unseen, i]:
-                    continue
-                for j in range(k):
-                    g = goal_d[r, j] if goal_vis[r, j] else np.inf
-                    total = d_s[r, i] + dist[i, j] + g
-                    if total < best:
-                        best = total
-                        first[r], last[r] = i, j
-            unseen += 1
+        for j in range(k):
+            g = goal_d[r, j] if goal_vis[r, j] else np.inf
+            total = d_s[r, i] + dist[i, j] + g
+            if total < best:
+                best = total
+                last[r] = j
         if not best < np.inf:
             found = False
     return found

@@ -4,10 +4,11 @@ kernels against the navigator's queries, and whole missions against ``engine="nu
 from __future__ import annotations
 
 import math
-from dataclasses import fields
+from dataclasses import fields, replace
 
 import numpy as np
 import pytest
+import shapely
 
 import test_batch_autonomous
 from skymule.errors import SkymuleError
@@ -155,3 +156,13 @@ def test_engine_is_checked(preset, monkeypatch):
     # without numba, "auto" runs the numpy path
     (log,) = run_autonomous_batch([mission], [PolicySpec(name="greedy")])
     assert log.served.size == mission.n_slots
+
+
+@needs_numba
+def test_compiled_engine_equals_numpy_in_a_convex_fence(preset):
+    """No reflex vertices: every path is straight (the kernels' graph tables are empty)."""
+    box = Navigator(shapely.box(-5000.0, -5000.0, 5000.0, 5000.0))
+    mission = replace(build_mission(preset), navigator=box)
+    assert len(box.vertices) == 0
+    for params in ALL_TOURS[:2]:
+        assert_engines_equal([mission, mission], params)

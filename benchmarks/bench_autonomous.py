@@ -81,10 +81,10 @@ def reference_speed(n_random: int, n_batched: int) -> None:
             seconds = time.process_time() - start
             speed[engine] = len(batch) / seconds
             versus = f", {speed[engine] / speed['numpy']:.2f}x numpy" if engine != "numpy" else ""
-            print(
-                f"  {name:6s} {engine:8s} {speed[engine]:8.1f} missions, "
-                f"{slots / seconds:10,.0f} mission-slots, "
-                f"{speed[engine] / reference[name]:5.1f}x the reference{versus}"
+            print(  # the engine last: README's parser reads the last line of each policy
+                f"  {name:6s} {speed[engine]:8.1f} missions, {slots / seconds:10,.0f} "
+                f"mission-slots, {speed[engine] / reference[name]:5.1f}x the reference "
+                f"({engine}{versus})"
             )
 
 

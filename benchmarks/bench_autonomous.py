@@ -5,7 +5,8 @@ Run: python benchmarks/bench_autonomous.py (SKYMULE_BENCH_TINY=1: first Table II
 Last, the reference engine's speed (sim/autonomous.py + the tours): missions and mission-slots
 per CPU-second of Greedy and HGAD on the preset plus ``n_random`` random layouts
 (skymule.experiments.layouts), then the batched autonomous engine's (sim/batch_autonomous.py)
-on ``n_batched`` more, with the ratio per mission, measured in the same run.
+on ``n_batched`` more, with the ratio per mission, measured in the same run: its numpy path
+and, when numba is installed, its compiled path queries (sim/batch_paths.py).
 Run: python benchmarks/bench_autonomous.py [n_random [n_batched]]
 """
 
@@ -23,6 +24,8 @@ from skymule.policies.greedy import Greedy
 from skymule.policies.hgad import HGAD
 from skymule.runner import simulate
 from skymule.scenario import PolicySpec, load_scenario
+from skymule.sim import compiled
+from skymule.sim.batch import Engine
 from skymule.sim.batch_autonomous import summarize_autonomous_batch
 from skymule.sim.run import run_mission
 from skymule.world import build_mission
@@ -64,15 +67,25 @@ def reference_speed(n_random: int, n_batched: int) -> None:
         f"batched engine (summaries), {len(batch)} random layouts "
         f"({len({m.n_sensors for m in batch})} sensor counts), per CPU-s, ratio to reference:"
     )
+    engines: tuple[Engine, ...] = ("numpy", "compiled") if compiled.available() else ("numpy",)
     for name in ("greedy", "hgad"):
         spec = PolicySpec(name=name)
-        start = time.process_time()
-        summarize_autonomous_batch(batch, [spec] * len(batch), [s.name for s in layouts])
-        seconds = time.process_time() - start
-        print(
-            f"  {name:6s} {len(batch) / seconds:8.1f} missions, {slots / seconds:10,.0f} "
-            f"mission-slots, {len(batch) / seconds / reference[name]:5.1f}x the reference"
-        )
+        speed = {}
+        for engine in engines:
+            if engine == "compiled":  # compile (or load from numba's cache) before timing
+                summarize_autonomous_batch(batch[:1], [spec], [layouts[0].name], engine=engine)
+            start = time.process_time()
+            summarize_autonomous_batch(
+                batch, [spec] * len(batch), [s.name for s in layouts], engine=engine
+            )
+            seconds = time.process_time() - start
+            speed[engine] = len(batch) / seconds
+            versus = f", {speed[engine] / speed['numpy']:.2f}x numpy" if engine != "numpy" else ""
+            print(  # the engine last: README's parser reads the last line of each policy
+                f"  {name:6s} {speed[engine]:8.1f} missions, {slots / seconds:10,.0f} "
+                f"mission-slots, {speed[engine] / reference[name]:5.1f}x the reference "
+                f"({engine}{versus})"
+            )
 
 
 def main(n_random: int = size(10, 1), n_batched: int = size(1000, 8)) -> None:

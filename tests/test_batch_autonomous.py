@@ -72,7 +72,7 @@ def assert_batched_equal(missions, policies) -> list[MissionLog]:
             max_hover_s=getattr(tour, "max_hover_s", 60.0),
             priority=getattr(tour, "priority", "initial"),
         )
-        result = run_tours(missions, [params] * len(missions))
+        result = run_tours(missions, [params] * len(missions), engine="numpy")
         for b, (mission, want) in enumerate(zip(missions, reference, strict=True)):
             got = mission_log(result, b, mission, want.policy)
             assert_logs_equal(got, want)
@@ -203,8 +203,8 @@ def test_summaries_equal_reference_summaries(preset, layouts):
     missions = [build_mission(preset), *layouts[:5]]
     specs = [PolicySpec(name=("greedy", "hgad")[k % 2]) for k in range(len(missions))]
     names = [f"m{k}" for k in range(len(missions))]
-    rows = summarize_autonomous_batch(missions, specs, names, batch_size=4)
-    logs = run_autonomous_batch(missions, specs, batch_size=4)
+    rows = summarize_autonomous_batch(missions, specs, names, batch_size=4, engine="numpy")
+    logs = run_autonomous_batch(missions, specs, batch_size=4, engine="numpy")
     for mission, spec, name, row, log in zip(missions, specs, names, rows, logs, strict=True):
         policy = Greedy() if spec.name == "greedy" else HGAD()
         want = summarize(run_mission(mission, policy), name)

@@ -38,12 +38,15 @@ import numpy as np
 import shapely
 
 from skymule.errors import SkymuleError
+from skymule.flight.navigation import Navigator
 from skymule.metrics import Flights, summaries, summary_dicts
 from skymule.policies.autonomous import Priority
 from skymule.scenario import PolicySpec
-from skymule.sim import contract
+from skymule.sim import batch_paths, compiled, contract
 from skymule.sim.autonomous import legal_goal
+from skymule.sim.batch import Engine
 from skymule.sim.batch_home import HomeDeadline
+from skymule.sim.batch_paths import Paths
 from skymule.sim.batch_signal import BatchSignal
 from skymule.sim.batch_tours import GreedyTours, HGADTours, TourGeometry
 from skymule.sim.context import autonomous_peak_rate_bps
@@ -138,7 +141,9 @@ def padded(values: Sequence[np.ndarray], n_sensors: int, fill: float) -> np.ndar
     return out
 
 
-def _geometry(missions: Sequence[Mission]) -> tuple[TourGeometry, np.ndarray, Any, Any]:
+def _geometry(
+    missions: Sequence[Mission], compiled_paths: bool
+) -> tuple[TourGeometry, np.ndarray, Any, Any]:
     """The tours' geometry, the legal goals (N + 1, B, 2) (hover points, then home) and the
     sights of the legal goals and of the (raw) homes."""
     nav = missions[0].navigator
@@ -165,7 +170,8 @@ def _geometry(missions: Sequence[Mission]) -> tuple[TourGeometry, np.ndarray, An
     if moved.any():
         raw_sight[0][moved], raw_sight[1][moved] = nav.sights(raw[moved])
     hover_sight = (raw_sight[0][:-1], raw_sight[1][:-1])
-    geometry = TourGeometry(nav, hover, known, home, hover_sight)
+    paths: Paths = batch_paths.CompiledPaths(nav) if compiled_paths else nav
+    geometry = TourGeometry(paths, hover, known, home, hover_sight)
     return geometry, legal, legal_sight, (raw_sight[0][-1], raw_sight[1][-1])
 
 
@@ -186,30 +192,53 @@ def _stack(missions: Sequence[Mission]) -> None:
         raise ValueError("a batch needs one geofence")
 
 
+def _compiled_paths(engine: Engine, navigator: Navigator) -> bool:
+    """True if ``engine`` runs the path queries compiled (:mod:`skymule.sim.batch_paths`):
+    ``"compiled"`` (numba needed), or ``"auto"`` when numba is installed."""
+    if engine not in ("auto", "numpy", "compiled"):
+        raise SkymuleError(f"engine = {engine!r}; allowed: auto, numpy, compiled")
+    usable = compiled.available() and batch_paths.supports(navigator)
+    if engine == "compiled" and not usable:
+        why = "numba is not installed" if not compiled.available() else "the fence is too large"
+        raise SkymuleError(f"engine = 'compiled' cannot run this batch: {why}")
+    return engine == "compiled" or (engine == "auto" and usable)
+
+
 def run_tours(
-    missions: Sequence[Mission], params: Sequence[TourParams], keep_logs: bool = True
+    missions: Sequence[Mission],
+    params: Sequence[TourParams],
+    keep_logs: bool = True,
+    engine: Engine = "auto",
 ) -> TourResult:
     """Run B autonomous missions (one fence, all Greedy or all HGAD; sensor counts may differ).
 
     ``keep_logs=False`` skips the (B, T, N) SNR, rate and buffer logs (summaries do not need
-    them).
+    them). ``engine``: ``"numpy"`` (the reference batched path), ``"compiled"`` (the path
+    queries' arithmetic compiled with numba, :mod:`skymule.sim.batch_paths`; the same
+    result, value for value) or ``"auto"`` (compiled when numba is installed).
     """
     _stack(missions)
+    nav = missions[0].navigator
+    assert nav is not None
+    compiled_paths = _compiled_paths(engine, nav)
     if len({p.hgad for p in params}) != 1 or len(params) != len(missions):
         raise ValueError("a batch runs one policy: one TourParams per mission, all Greedy or HGAD")
     lengths = np.array([m.n_slots for m in missions], np.int64)
     order = np.argsort(-lengths, kind="stable")  # active missions are a prefix of the columns
     sorted_missions = [missions[i] for i in order]
-    result = _slot_loop(sorted_missions, [params[i] for i in order], keep_logs)
+    result = _slot_loop(sorted_missions, [params[i] for i in order], keep_logs, compiled_paths)
     return replace(result, row=np.argsort(order))
 
 
 def _slot_loop(
-    missions: Sequence[Mission], params: Sequence[TourParams], keep_logs: bool
+    missions: Sequence[Mission],
+    params: Sequence[TourParams],
+    keep_logs: bool,
+    compiled_paths: bool,
 ) -> TourResult:
     """:func:`run_tours` on missions sorted by length, longest first."""
     n_missions, n_sensors = len(missions), max(m.n_sensors for m in missions)
-    geometry, legal, legal_sight, home_sight = _geometry(missions)
+    geometry, legal, legal_sight, home_sight = _geometry(missions, compiled_paths)
     nav = geometry.navigator
     n_slots = np.array([m.n_slots for m in missions], np.int64)
     slot_s = np.array([m.slot_s for m in missions], float)
@@ -419,16 +448,20 @@ def _params(specs: Sequence[PolicySpec]) -> list[TourParams]:
 
 
 def run_autonomous_batch(
-    missions: Sequence[Mission], specs: Sequence[PolicySpec], batch_size: int = 1000
+    missions: Sequence[Mission],
+    specs: Sequence[PolicySpec],
+    batch_size: int = 1000,
+    engine: Engine = "auto",
 ) -> list[MissionLog]:
     """Logs of autonomous Greedy/HGAD missions (one policy spec each), in input order.
 
-    Equal to ``[run_autonomous(m, make_policy(s)) for m, s in zip(missions, specs)]``.
+    Equal to ``[run_autonomous(m, make_policy(s)) for m, s in zip(missions, specs)]``;
+    ``engine`` as in :func:`run_tours`.
     """
     params = _params(specs)
     logs: list[MissionLog | None] = [None] * len(missions)
     for part in _batches(missions, params, batch_size):
-        result = run_tours([missions[i] for i in part], [params[i] for i in part])
+        result = run_tours([missions[i] for i in part], [params[i] for i in part], True, engine)
         for b, i in enumerate(part):
             logs[i] = mission_log(result, b, missions[i], specs[i].name)
     return [log for log in logs if log is not None]
@@ -439,13 +472,14 @@ def summarize_autonomous_batch(
     specs: Sequence[PolicySpec],
     scenario_names: Sequence[str],
     batch_size: int = 1000,
+    engine: Engine = "auto",
 ) -> list[dict[str, Any]]:
     """``metrics.summarize`` dictionaries of autonomous Greedy/HGAD missions, in input order,
-    straight from the batch arrays (no per-mission log)."""
+    straight from the batch arrays (no per-mission log); ``engine`` as in :func:`run_tours`."""
     params = _params(specs)
     rows: list[dict[str, Any] | None] = [None] * len(missions)
     for part in _batches(missions, params, batch_size):
-        result = run_tours([missions[i] for i in part], [params[i] for i in part], False)
+        result = run_tours([missions[i] for i in part], [params[i] for i in part], False, engine)
         by_row = np.array(part)[np.argsort(result.row)]  # the input mission of each row
         sizes = np.array([missions[i].n_sensors for i in by_row])
         for n_sensors in np.unique(sizes):  # metrics per sensor count: no padded sensors

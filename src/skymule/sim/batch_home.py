@@ -15,8 +15,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from skymule.flight.navigation import Navigator
 from skymule.sim.autonomous import FEASIBILITY_SLACK_M
+from skymule.sim.batch_paths import Paths
 from skymule.world import Mission
 
 #: Margin [m] by which a bound on the distance home must clear the budget before the exact
@@ -37,7 +37,7 @@ class HomeDeadline:
 
     def __init__(
         self,
-        navigator: Navigator,
+        navigator: Paths,
         missions: Sequence[Mission],
         home_m: np.ndarray,
         home_sight: tuple[np.ndarray, np.ndarray],

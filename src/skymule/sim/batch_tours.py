@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from skymule.flight.navigation import Navigator
 from skymule.sim import contract
+from skymule.sim.batch_paths import Paths
 from skymule.sim.contract import NO_SENSOR
 
 STAY = -1
@@ -38,14 +38,16 @@ class TourGeometry:
     """Where B missions' tours go, on one shared navigator (one geofence).
 
     Attributes:
-        navigator: the geofence's navigator (shared by every mission of the batch).
+        navigator: the geofence's path queries (shared by every mission of the batch): its
+            :class:`~skymule.flight.navigation.Navigator` or
+            :class:`~skymule.sim.batch_paths.CompiledPaths`.
         hover_m: (N, B, 2) hover points [m] (NaN where unknown).
         known: (N, B) True where the hover point is known.
         home_m: (B, 2) home points [m].
         hover_sight: sights of the hover points, (N, B, k) each (unknown points: home's).
     """
 
-    navigator: Navigator
+    navigator: Paths
     hover_m: np.ndarray
     known: np.ndarray
     home_m: np.ndarray

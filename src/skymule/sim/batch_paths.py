@@ -1,0 +1,205 @@
+"""The navigator's batched path queries with the arithmetic compiled (numba, ``fast`` extra).
+
+The batched autonomous engine moves its UAVs with :meth:`Navigator.steps` and measures tours
+and the way home with :meth:`Navigator.travel_distances`. Both pay numpy's per-call overhead
+on a few dozen small arrays per query. :class:`CompiledPaths` answers the same queries, row
+for row the same floats: the visibility predicate (shapely ``covers`` against the
+navigator's prepared cover polygon) is asked in Python, on segments the numpy methods also
+test (the direct segment, then the start's view of the vertices in order of their smallest
+total, one rank at a time until one is seen: the numpy method tests three ranks, then every
+vertex of the rows left, and both pick the first vertex seen in that order, so the same
+path), and everything else runs in the compiled loops of :mod:`skymule.sim.path_kernels`.
+
+``tests/test_batch_paths.py`` compares it with the navigator's methods on random queries, and
+the compiled engine with the numpy engine on the batched autonomous engine's test cases.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import types
+from collections.abc import Callable
+from functools import cache
+from typing import Any, Protocol
+
+import numpy as np
+import shapely
+
+from skymule.flight.navigation import Navigator
+from skymule.sim import path_kernels as pk
+
+#: Longest route [vertices] the kernels sum as ``np.sum`` does (numpy's summation block, 128
+#: values, minus the start and goal segments): larger fences keep the numpy path.
+MAX_ROUTE = 120
+
+Sight = tuple[np.ndarray, np.ndarray]
+
+
+class Paths(Protocol):
+    """What the batched autonomous engine asks of a navigator (:class:`Navigator` or
+    :class:`CompiledPaths`)."""
+
+    def steps(
+        self,
+        positions_xy: np.ndarray,
+        goals_xy: np.ndarray,
+        max_step_m: np.ndarray | float,
+        goal_sight: Sight | None = None,
+        checked: bool = True,
+    ) -> np.ndarray: ...
+
+    def travel_distances(
+        self,
+        starts_xy: np.ndarray,
+        goals_xy: np.ndarray,
+        goal_sight: Sight | None = None,
+        checked: bool = True,
+    ) -> np.ndarray: ...
+
+
+def supports(navigator: Navigator) -> bool:
+    """True if :class:`CompiledPaths` can answer for ``navigator`` (routes of at most
+    :data:`MAX_ROUTE` vertices)."""
+    return len(navigator.vertices) <= MAX_ROUTE
+
+
+@cache
+def _kernels() -> dict[str, Callable[..., Any]]:
+    """The kernels of :mod:`~skymule.sim.path_kernels` compiled, once per process.
+
+    Cached on disk; numba's cache notices changes to a function's own source only, so each
+    compiled copy is named after a hash of the whole module's source (as
+    :func:`skymule.sim.compiled.jit`): a change to any helper gives new names, never a stale
+    entry.
+    """
+    import numba
+    from numba.extending import register_jitable
+
+    helpers = (
+        pk._exact_square,
+        pk._exact_product,
+        pk.python_hypot,
+        pk.numpy_sum,
+        pk._path_point,
+    )
+    for helper in helpers:
+        register_jitable(helper)
+    digest = hashlib.sha256(inspect.getsource(pk).encode()).hexdigest()[:12]
+    out: dict[str, Callable[..., Any]] = {}
+    for function in (pk.rank_vertices, pk.pick_routes, pk.advance_rows, pk.path_lengths):
+        name = f"{function.__name__}_{digest}"
+        copy = types.FunctionType(function.__code__, function.__globals__, name)
+        copy.__qualname__ = name
+        out[function.__name__] = numba.njit(nogil=True, cache=True)(copy)
+    return out
+
+
+class CompiledPaths:
+    """:meth:`Navigator.steps` and :meth:`Navigator.travel_distances` of one navigator, with
+    the arithmetic in compiled loops (needs numba; :func:`supports` the navigator)."""
+
+    def __init__(self, navigator: Navigator) -> None:
+        self._nav = navigator
+        self._vertices = navigator.vertices
+        # the navigator's graph tables (read only): all-pairs distances and vertex routes
+        self._dist = np.ascontiguousarray(navigator._dist, float)
+        nodes, count = navigator._routes
+        self._nodes, self._count = np.ascontiguousarray(nodes), np.ascontiguousarray(count)
+        self._k = _kernels()
+
+    def _routes(
+        self, starts: np.ndarray, goals: np.ndarray, goal_sight: Sight | None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(P,) row among the bending paths or -1, then first and last route vertex of
+        each bending path: the choices of ``Navigator.shortest_paths``."""
+        nav = self._nav
+        direct = nav._segments_visible(starts, goals)
+        rest = np.flatnonzero(~direct)
+        bend = np.full(len(starts), -1, np.int64)
+        bend[rest] = np.arange(rest.size)
+        first = np.full(rest.size, -1, np.int64)
+        last = np.zeros(rest.size, np.int64)
+        if not rest.size:
+            return bend, first, last
+        k = len(self._vertices)
+        if not k:
+            raise ValueError("no in-fence path between start and goal")
+        if goal_sight is None:
+            vis_g, d_g = nav.sights(goals[rest])
+        else:
+            vis_g, d_g = goal_sight[0][rest], goal_sight[1][rest]
+        start = np.ascontiguousarray(starts[rest])
+        d_s = np.empty((rest.size, k))
+        row_min = np.empty((rest.size, k))
+        order = np.empty((rest.size, k), np.int64)
+        vis_g, d_g = np.ascontiguousarray(vis_g), np.ascontiguousarray(d_g)
+        self._k["rank_vertices"](start, vis_g, d_g, self._vertices, self._dist, d_s, row_min, order)
+        # the start's view of the vertices in order of their smallest total, rank by rank
+        # (Navigator.shortest_paths: three ranks, then every vertex at once): the first seen
+        # is the minimiser's first vertex either way, and most rows stop within a few ranks
+        for rank in range(k):
+            todo = np.flatnonzero(first < 0)
+            if not todo.size:
+                break
+            vertex = order[todo, rank]
+            finite = np.isfinite(row_min[todo, vertex])
+            todo, vertex = todo[finite], vertex[finite]
+            seen = nav._segments_visible(start[todo], self._vertices[vertex])
+            seen |= d_s[todo, vertex] == 0
+            first[todo[seen]] = vertex[seen]
+        found = self._k["pick_routes"](first, d_s, vis_g, d_g, self._dist, last)
+        if not found:
+            raise ValueError("no in-fence path between start and goal")
+        return bend, first, last
+
+    def steps(
+        self,
+        positions_xy: np.ndarray,
+        goals_xy: np.ndarray,
+        max_step_m: np.ndarray | float,
+        goal_sight: Sight | None = None,
+        checked: bool = True,
+    ) -> np.ndarray:
+        """(P, 2) :meth:`Navigator.steps`, float for float."""
+        starts = np.ascontiguousarray(positions_xy, float).reshape(-1, 2)
+        goals = np.ascontiguousarray(goals_xy, float).reshape(-1, 2)
+        if checked:
+            _check_inside(self._nav, starts, goals)
+        step = np.ascontiguousarray(np.broadcast_to(np.asarray(max_step_m, float), len(starts)))
+        if np.any(step < 0):
+            raise ValueError(f"max_step_m must be >= 0, got {step.min()}")
+        bend, first, last = self._routes(starts, goals, goal_sight)
+        moved = np.empty_like(starts)
+        self._k["advance_rows"](
+            starts, goals, step, bend, first, last, self._nodes, self._count, self._vertices, moved
+        )
+        return moved
+
+    def travel_distances(
+        self,
+        starts_xy: np.ndarray,
+        goals_xy: np.ndarray,
+        goal_sight: Sight | None = None,
+        checked: bool = True,
+    ) -> np.ndarray:
+        """(P,) :meth:`Navigator.travel_distances` [m], float for float."""
+        starts = np.ascontiguousarray(starts_xy, float).reshape(-1, 2)
+        goals = np.ascontiguousarray(goals_xy, float).reshape(-1, 2)
+        if checked:
+            _check_inside(self._nav, starts, goals)
+        bend, first, last = self._routes(starts, goals, goal_sight)
+        out = np.empty(len(starts))
+        self._k["path_lengths"](
+            starts, goals, bend, first, last, self._nodes, self._count, self._vertices, out
+        )
+        return out
+
+
+def _check_inside(nav: Navigator, starts: np.ndarray, goals: np.ndarray) -> None:
+    """The numpy methods' check that every start and goal is inside the fence."""
+    for name, xy in (("start", starts), ("goal", goals)):
+        outside = ~shapely.intersects_xy(nav._cover, xy[:, 0], xy[:, 1])
+        if outside.any():
+            point = xy[np.argmax(outside)]
+            raise ValueError(f"{name} {(float(point[0]), float(point[1]))} is outside the fence")

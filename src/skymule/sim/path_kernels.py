@@ -1,0 +1,276 @@
+"""The arithmetic of :meth:`Navigator.steps` and :meth:`~Navigator.travel_distances` for many
+rows, as plain loops numba can compile (the batched autonomous engine's ``compiled`` path).
+
+Nothing here tests visibility: the geofence predicate (shapely ``covers``) stays in Python,
+between these kernels (:mod:`skymule.sim.batch_paths`). What is here is the rest of a
+shortest-path query, written so every float is the one the numpy methods compute:
+
+* the same operations in the same order (``(d_s + D) + d_g``, first index of the minimum,
+  stable order of ties);
+* segment lengths of a step as :func:`math.hypot` (:func:`python_hypot`, a port of CPython's
+  ``vector_norm``, which :func:`skymule.flight.navigation.advance_along` uses), of a travel
+  distance as ``np.hypot`` (the C library's, which numba also calls);
+* path lengths summed as ``np.sum`` does (:func:`numpy_sum`: numpy's pairwise summation).
+
+Nothing imports a compiler: the module runs as plain Python too (slowly).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: Veltkamp's splitting constant 2**27 + 1 (Dekker 1971, eq. 5.5): splits a double into two
+#: halves whose products are exact.
+_SPLIT = 134217729.0
+
+
+def _exact_square(x: float) -> tuple[float, float]:
+    """x*x as hi + lo, exactly (Dekker's mul12, as CPython's ``dl_mul``)."""
+    t = x * _SPLIT
+    hi = t - (t - x)
+    lo = x - hi
+    p = hi * hi
+    q = hi * lo + lo * hi
+    z = p + q
+    return z, p - z + q + lo * lo
+
+
+def _exact_product(x: float, y: float) -> tuple[float, float]:
+    """x*y as hi + lo, exactly (Dekker's mul12, as CPython's ``dl_mul``)."""
+    t = x * _SPLIT
+    xh = t - (t - x)
+    xl = x - xh
+    t = y * _SPLIT
+    yh = t - (t - y)
+    yl = y - yh
+    p = xh * yh
+    q = xh * yl + xl * yh
+    z = p + q
+    return z, p - z + q + xl * yl
+
+
+def python_hypot(x: float, y: float) -> float:
+    """``math.hypot(x, y)`` of CPython 3.11, float for float.
+
+    A port of ``vector_norm`` in CPython's ``Modules/mathmodule.c`` for two finite
+    coordinates (scaled by a power of two, squared and summed without loss, one Newton
+    correction of the square root); the C library's ``hypot`` (``np.hypot``) differs in the
+    last bit for about one pair in 200. Subnormal inputs are not handled (they do not occur
+    in metres).
+    """
+    x, y = abs(x), abs(y)
+    big = max(x, y)
+    if math.isinf(x) or math.isinf(y):
+        return math.inf
+    if math.isnan(x) or math.isnan(y):
+        return math.nan
+    if big == 0.0:
+        return big
+    exponent = math.frexp(big)[1]
+    scale = math.ldexp(1.0, -exponent)
+    csum, frac1, frac2 = 1.0, 0.0, 0.0
+    for value in (x * scale, y * scale):
+        hi, lo = _exact_square(value)
+        total = csum + hi
+        frac2 += hi - (total - csum)  # the exact rest of csum + hi (|csum| >= |hi|)
+        csum = total
+        frac1 += lo
+    h = math.sqrt(csum - 1.0 + (frac1 + frac2))
+    hi, lo = _exact_product(-h, h)
+    total = csum + hi
+    frac2 += hi - (total - csum)
+    csum = total
+    frac1 += lo
+    h += (csum - 1.0 + (frac1 + frac2)) / (2.0 * h)
+    return h / scale
+
+
+def numpy_sum(values: np.ndarray, n: int) -> float:
+    """``np.sum(values[:n])``, float for float: numpy's pairwise summation (sequential below 8
+    values, eight running sums up to its block of 128; longer rows are not supported)."""
+    if n < 8:
+        total = -0.0
+        for i in range(n):
+            total += values[i]
+        return total
+    r = np.empty(8)
+    for j in range(8):
+        r[j] = values[j]
+    stop = n - n % 8
+    for i in range(8, stop, 8):
+        for j in range(8):
+            r[j] += values[i + j]
+    total = (r[0] + r[1] + (r[2] + r[3])) + (r[4] + r[5] + (r[6] + r[7]))
+    for i in range(stop, n):
+        total += values[i]
+    return total
+
+
+def rank_vertices(
+    start: np.ndarray,
+    goal_vis: np.ndarray,
+    goal_d: np.ndarray,
+    vertices: np.ndarray,
+    dist: np.ndarray,
+    d_s: np.ndarray,
+    row_min: np.ndarray,
+    order: np.ndarray,
+) -> None:
+    """For R starts (R, 2) not seeing their goals: ``d_s`` (R, k) straight distances to the
+    vertices, ``row_min`` (R, k) the smallest total through each first vertex and ``order``
+    (R, q) the q first vertices by that total (ties: the lower vertex: a stable argsort), as
+    ``Navigator.shortest_paths`` computes them."""
+    n_rows, k = d_s.shape
+    ranks = order.shape[1]
+    for r in range(n_rows):
+        for i in range(k):
+            d_s[r, i] = np.hypot(vertices[i, 0] - start[r, 0], vertices[i, 1] - start[r, 1])
+            best = np.inf
+            for j in range(k):
+                g = goal_d[r, j] if goal_vis[r, j] else np.inf
+                total = d_s[r, i] + dist[i, j] + g
+                if total < best:
+                    best = total
+            row_min[r, i] = best
+        for q in range(ranks):  # selection: a stable argsort's first q entries
+            pick = -1
+            for i in range(k):
+                taken = False
+                for p in range(q):
+                    if order[r, p] == i:
+                        taken = True
+                if not taken and (pick < 0 or row_min[r, i] < row_min[r, pick]):
+                    pick = i
+            order[r, q] = pick
+
+
+def pick_routes(
+    first: np.ndarray,
+    d_s: np.ndarray,
+    goal_vis: np.ndarray,
+    goal_d: np.ndarray,
+    dist: np.ndarray,
+    last: np.ndarray,
+) -> bool:
+    """The last route vertex of each row's path, from its ``first`` (-1: none seen); False
+    if some row has no path (no first vertex, or no finite total from it).
+
+    The last vertex is the first of the smallest total ``(d_s + D) + d_g`` from ``first``,
+    as ``np.argmin``.
+    """
+    n_rows, k = d_s.shape
+    found = True
+    for r in range(n_rows):
+        i = first[r]
+        last[r] = 0
+        if i < 0:
+            found = False
+            continue
+        best = np.inf
+        for j in range(k):
+            g = goal_d[r, j] if goal_vis[r, j] else np.inf
+            total = d_s[r, i] + dist[i, j] + g
+            if total < best:
+                best = total
+                last[r] = j
+        if not best < np.inf:
+            found = False
+    return found
+
+
+def _path_point(
+    row: int,
+    index: int,
+    start: np.ndarray,
+    goal: np.ndarray,
+    bend: np.ndarray,
+    first: np.ndarray,
+    last: np.ndarray,
+    nodes: np.ndarray,
+    count: np.ndarray,
+    vertices: np.ndarray,
+) -> tuple[float, float]:
+    """Point ``index`` of row ``row``'s path: start, the route's vertices, goal."""
+    if index == 0:
+        return start[row, 0], start[row, 1]
+    b = bend[row]
+    if b >= 0 and index - 1 < count[first[b], last[b]]:
+        v = nodes[first[b], last[b], index - 1]
+        return vertices[v, 0], vertices[v, 1]
+    return goal[row, 0], goal[row, 1]
+
+
+def path_sizes(
+    bend: np.ndarray, first: np.ndarray, last: np.ndarray, count: np.ndarray, out: np.ndarray
+) -> None:
+    """(P,) points of each path: 2, plus the route's vertices where the path bends."""
+    for row in range(out.shape[0]):
+        b = bend[row]
+        out[row] = 2 if b < 0 else 2 + count[first[b], last[b]]
+
+
+def advance_rows(
+    start: np.ndarray,
+    goal: np.ndarray,
+    step_m: np.ndarray,
+    bend: np.ndarray,
+    first: np.ndarray,
+    last: np.ndarray,
+    nodes: np.ndarray,
+    count: np.ndarray,
+    vertices: np.ndarray,
+    moved: np.ndarray,
+) -> None:
+    """``moved`` (P, 2): each row's ``advance_along`` of its path by ``step_m`` (P,).
+
+    ``bend[p]``: the row among the bending paths (index into ``first``/``last``), or -1 for a
+    straight path. Segment lengths as :func:`math.hypot` (:func:`python_hypot`).
+    """
+    for row in range(start.shape[0]):
+        b = bend[row]
+        n = 2 if b < 0 else 2 + count[first[b], last[b]]
+        left = step_m[row]
+        moved[row, 0], moved[row, 1] = goal[row, 0], goal[row, 1]
+        ax, ay = start[row, 0], start[row, 1]
+        for seg in range(n - 1):
+            bx, by = _path_point(
+                row, seg + 1, start, goal, bend, first, last, nodes, count, vertices
+            )
+            dx, dy = bx - ax, by - ay
+            length = python_hypot(dx, dy)
+            if left < length:
+                t = left / length
+                moved[row, 0] = ax + t * dx
+                moved[row, 1] = ay + t * dy
+                break
+            left -= length
+            ax, ay = bx, by
+
+
+def path_lengths(
+    start: np.ndarray,
+    goal: np.ndarray,
+    bend: np.ndarray,
+    first: np.ndarray,
+    last: np.ndarray,
+    nodes: np.ndarray,
+    count: np.ndarray,
+    vertices: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """``out`` (P,): each row's path length, as ``Navigator.travel_distances`` (segment
+    lengths by ``np.hypot``, summed by :func:`numpy_sum`)."""
+    lengths = np.empty(nodes.shape[2] + 1)
+    for row in range(start.shape[0]):
+        b = bend[row]
+        n = 2 if b < 0 else 2 + count[first[b], last[b]]
+        ax, ay = start[row, 0], start[row, 1]
+        for seg in range(n - 1):
+            bx, by = _path_point(
+                row, seg + 1, start, goal, bend, first, last, nodes, count, vertices
+            )
+            lengths[seg] = np.hypot(bx - ax, by - ay)
+            ax, ay = bx, by
+        out[row] = numpy_sum(lengths, n - 1)

@@ -308,22 +308,26 @@ def autonomous_cells(out: str) -> dict[str, str]:
         )
     )
     batched = {
-        p: (_f(m), _f(s), _f(x))
-        for p, m, s, x in _numbers(
-            r"(?m)^  (greedy|hgad)\s+([\d.]+) missions,\s+([\d,]+) mission-slots,\s+([\d.]+)x", out
+        (p, engine): (_f(m), _f(x))
+        for p, m, x, engine in _numbers(
+            r"(?m)^  (greedy|hgad)\s+([\d.]+) missions,\s+[\d,]+ mission-slots,\s+([\d.]+)x "
+            r"the reference \((numpy|compiled)",
+            out,
         )
     }
-    return {
+    cells = {
         "^autonomous missions, reference engine": (
             f"Greedy {reference['greedy'][0]:.0f}, HGAD {reference['hgad'][0]:.0f} "
             "missions per CPU-s"
         ),
-        "^autonomous missions, batched engine": (
-            f"Greedy {batched['greedy'][0]:,.0f} missions per CPU-s "
-            f"(**×{batched['greedy'][2]:.0f}** the reference in the same run), "
-            f"HGAD {batched['hgad'][0]:,.0f} (×{batched['hgad'][2]:.0f})"
-        ),
     }
+    for engine in ("numpy", "compiled"):
+        greedy, hgad = batched["greedy", engine], batched["hgad", engine]
+        cells[f"^autonomous missions, batched engine, {engine}"] = (
+            f"Greedy {greedy[0]:,.0f} missions per CPU-s (**×{greedy[1]:.0f}** the reference in "
+            f"the same run), HGAD {hgad[0]:,.0f} (×{hgad[1]:.0f})"
+        )
+    return cells
 
 
 def planner_cells(out: str) -> dict[str, str]:

@@ -68,11 +68,7 @@ class Wind:
         g_max = u.w + sqrt(V^2 - |w|^2 + (u.w)^2), 0 when imaginary or negative; it grows with
         u.w, so the direct headwind is the slowest course: V - |w|.
         """
-        wind = self.vector_mps
-        along = np.asarray(course, dtype=float) @ wind
-        root = max_airspeed_mps**2 - float(wind @ wind) + along**2
-        g_max = np.where(root >= 0, along + np.sqrt(np.maximum(root, 0.0)), 0.0)
-        return np.asarray(np.maximum(g_max, 0.0))
+        return wind_triangle_ground_speed_mps(course, self.vector_mps, max_airspeed_mps)
 
     def achieved_step_m(
         self, commanded_step_m: np.ndarray, slot_s: float, max_airspeed_mps: float
@@ -90,6 +86,20 @@ class Wind:
         g_max = self.max_ground_speed_mps(course, max_airspeed_mps)
         achieved = np.minimum(length / slot_s, g_max) * slot_s
         return course * achieved[..., None]
+
+
+def wind_triangle_ground_speed_mps(
+    course: np.ndarray, wind_mps: np.ndarray, max_airspeed_mps: float
+) -> np.ndarray:
+    """Largest ground speed [m/s] along unit course vector(s) ``(..., 2)`` under the wind
+    velocity ``wind_mps`` (2,) at airspeed V: g = u.w + sqrt(V^2 - |w|^2 + (u.w)^2), 0 when
+    imaginary or negative (no headway). The one statement of the wind triangle: the engine's
+    :class:`Wind` and the planner's estimated wind both use it."""
+    wind = np.asarray(wind_mps, dtype=float)
+    along = np.asarray(course, dtype=float) @ wind
+    root = max_airspeed_mps**2 - float(wind @ wind) + along**2
+    g_max = np.where(root >= 0, along + np.sqrt(np.maximum(root, 0.0)), 0.0)
+    return np.asarray(np.maximum(g_max, 0.0))
 
 
 def leg_speeds_mps(

@@ -21,7 +21,8 @@ import numpy as np
 
 from skymule.errors import SkymuleError
 from skymule.policies.base import Action, MissionContext, Observation, Policy
-from skymule.policies.planner import Planner, held_karp, leg_slots
+from skymule.policies.planner import Planner
+from skymule.policies.touring import held_karp, leg_slots
 
 #: Largest number of assignments :func:`partition` enumerates (K^n); beyond, a greedy split.
 MAX_ASSIGNMENTS = 200_000

@@ -223,6 +223,18 @@ class Navigator:
         """Reflex vertices used as graph nodes, shape (k, 2), metres (read-only copy)."""
         return self._vertices.copy()
 
+    @property
+    def vertex_graph_m(self) -> np.ndarray:
+        """(k, k) all-pairs in-fence distances [m] between the graph vertices (read only)."""
+        view = self._dist.view()
+        view.flags.writeable = False
+        return view
+
+    def in_cover(self, points_xy: np.ndarray) -> np.ndarray:
+        """(P,) True where a point is inside the fence (within ``COVER_TOLERANCE_M``)."""
+        xy = np.asarray(points_xy, float).reshape(-1, 2)
+        return np.asarray(shapely.intersects_xy(self._cover, xy[:, 0], xy[:, 1]), bool)
+
     def covers_goal(self, xy: XY) -> bool:
         """True if ``xy`` is inside the fence (within 1e-6 m): a goal the UAV may fly to.
 
@@ -323,7 +335,7 @@ class Navigator:
     # engine); each equals the scalar method row by row, float for float -----------------
 
     @cached_property
-    def _routes(self) -> tuple[np.ndarray, np.ndarray]:
+    def vertex_routes(self) -> tuple[np.ndarray, np.ndarray]:
         """(k, k, k) vertex indices of the route i -> j (padded with j), (k, k) their count."""
         n = len(self._vertices)
         nodes = np.zeros((n, n, max(n, 1)), np.int64)
@@ -356,7 +368,7 @@ class Navigator:
         vis = np.asarray(shapely.covers(self._cover, lines), bool).reshape(d.shape)
         return vis | (d == 0.0), d
 
-    def _segments_visible(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    def segments_visible(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """(P,) the scalar segment test for P segments a -> b (one ``covers`` call)."""
         same = (a[:, 0] == b[:, 0]) & (a[:, 1] == b[:, 1])
         visible = same.copy()
@@ -385,10 +397,10 @@ class Navigator:
         starts = np.asarray(starts_xy, float).reshape(-1, 2)
         goals = np.asarray(goals_xy, float).reshape(-1, 2)
         for name, xy in (("start", starts), ("goal", goals)) if checked else ():
-            outside = ~shapely.intersects_xy(self._cover, xy[:, 0], xy[:, 1])
+            outside = ~self.in_cover(xy)
             if outside.any():
                 raise ValueError(f"{name} {_as_xy(xy[np.argmax(outside)])} is outside the fence")
-        direct = self._segments_visible(starts, goals)
+        direct = self.segments_visible(starts, goals)
         rest = np.flatnonzero(~direct)
         if not rest.size:
             return np.stack([starts, goals], axis=1), np.full(len(starts), 2, np.int64)
@@ -410,7 +422,7 @@ class Navigator:
             if not todo.size:
                 break
             vertex = order[todo, rank]
-            seen = self._segments_visible(start[todo], verts[vertex]) | (d_s[todo, vertex] == 0)
+            seen = self.segments_visible(start[todo], verts[vertex]) | (d_s[todo, vertex] == 0)
             seen &= np.isfinite(row_min[todo, vertex])
             first[todo[seen]] = vertex[seen]
         last = np.argmin(total[rows, np.maximum(first, 0)], axis=1)
@@ -421,7 +433,7 @@ class Navigator:
             first[todo], last[todo] = np.divmod(flat, len(verts))
         if not np.all(np.isfinite(total[rows, first, last])):
             raise ValueError("no in-fence path between start and goal")
-        route_nodes, route_count = self._routes
+        route_nodes, route_count = self.vertex_routes
         count = np.full(len(starts), 2, np.int64)
         count[rest] += route_count[first, last]
         points = np.repeat(goals[:, None, :], int(count.max()), axis=1)

@@ -24,7 +24,6 @@ from functools import cache
 from typing import Any, Protocol
 
 import numpy as np
-import shapely
 
 from skymule.flight.navigation import Navigator
 from skymule.sim import path_kernels as pk
@@ -103,8 +102,8 @@ class CompiledPaths:
         self._nav = navigator
         self._vertices = navigator.vertices
         # the navigator's graph tables (read only): all-pairs distances and vertex routes
-        self._dist = np.ascontiguousarray(navigator._dist, float)
-        nodes, count = navigator._routes
+        self._dist = np.ascontiguousarray(navigator.vertex_graph_m, float)
+        nodes, count = navigator.vertex_routes
         self._nodes, self._count = np.ascontiguousarray(nodes), np.ascontiguousarray(count)
         self._k = _kernels()
 
@@ -114,7 +113,7 @@ class CompiledPaths:
         """(P,) row among the bending paths or -1, then first and last route vertex of
         each bending path: the choices of ``Navigator.shortest_paths``."""
         nav = self._nav
-        direct = nav._segments_visible(starts, goals)
+        direct = nav.segments_visible(starts, goals)
         rest = np.flatnonzero(~direct)
         bend = np.full(len(starts), -1, np.int64)
         bend[rest] = np.arange(rest.size)
@@ -145,7 +144,7 @@ class CompiledPaths:
             vertex = order[todo, rank]
             finite = np.isfinite(row_min[todo, vertex])
             todo, vertex = todo[finite], vertex[finite]
-            seen = nav._segments_visible(start[todo], self._vertices[vertex])
+            seen = nav.segments_visible(start[todo], self._vertices[vertex])
             seen |= d_s[todo, vertex] == 0
             first[todo[seen]] = vertex[seen]
         found = self._k["pick_routes"](first, d_s, vis_g, d_g, self._dist, last)
@@ -199,7 +198,7 @@ class CompiledPaths:
 def _check_inside(nav: Navigator, starts: np.ndarray, goals: np.ndarray) -> None:
     """The numpy methods' check that every start and goal is inside the fence."""
     for name, xy in (("start", starts), ("goal", goals)):
-        outside = ~shapely.intersects_xy(nav._cover, xy[:, 0], xy[:, 1])
+        outside = ~nav.in_cover(xy)
         if outside.any():
             point = xy[np.argmax(outside)]
             raise ValueError(f"{name} {(float(point[0]), float(point[1]))} is outside the fence")

@@ -115,3 +115,22 @@ def run_cli(
     if check:
         result.check_returncode()
     return result
+
+
+SMALL_SWEEP = """
+base = "paper-sim-fixed"
+seed = 3
+[axes]
+policy.name = ["greedy", "hgad"]
+seed = {{ range = [0, {n}] }}
+"sensors[*].buffer_mbit" = {{ dist = "uniform", low = 50, high = 600 }}
+"mission.duration_s" = [120, 200]
+"""
+"""A small sweep template (``.format(n=seeds)``): 2 policies x n seeds x 2 durations."""
+
+
+def write(tmp_path: Path, text: str, name: str = "sweep.toml") -> Path:
+    """``text`` saved as ``tmp_path / name``; the path."""
+    path = tmp_path / name
+    path.write_text(text)
+    return path

@@ -12,7 +12,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from conftest import run_cli
+from conftest import SMALL_SWEEP, run_cli, write
 from skymule.experiments import store
 from skymule.experiments.run import run_sweep
 from skymule.experiments.sweep import iter_missions, load_sweep
@@ -21,21 +21,7 @@ from skymule.scenario import scenario_from_dict
 
 SKYMULE = str(Path(sys.executable).with_name("skymule"))
 
-SMALL = """
-base = "paper-sim-fixed"
-seed = 3
-[axes]
-policy.name = ["greedy", "hgad"]
-seed = {{ range = [0, {n}] }}
-"sensors[*].buffer_mbit" = {{ dist = "uniform", low = 50, high = 600 }}
-"mission.duration_s" = [120, 200]
-"""
-
-
-def write(tmp_path: Path, text: str, name: str = "sweep.toml") -> Path:
-    path = tmp_path / name
-    path.write_text(text)
-    return path
+SMALL = SMALL_SWEEP
 
 
 def test_rows_equal_single_mission_runs(tmp_path):

@@ -17,28 +17,14 @@ import pandas as pd
 import psutil
 import pytest
 
-from conftest import run_cli
+from conftest import SMALL_SWEEP, run_cli, write
 from skymule.experiments import store
 from skymule.experiments.run import auto_chunk_size, run_sweep
 from skymule.experiments.sweep import load_sweep, plan_missions
 from skymule.runner import simulate
 from skymule.scenario import load_scenario, scenario_from_dict
 
-SMALL = """
-base = "paper-sim-fixed"
-seed = 3
-[axes]
-policy.name = ["greedy", "hgad"]
-seed = {{ range = [0, {n}] }}
-"sensors[*].buffer_mbit" = {{ dist = "uniform", low = 50, high = 600 }}
-"mission.duration_s" = [120, 200]
-"""
-
-
-def write(tmp_path: Path, text: str, name: str = "sweep.toml") -> Path:
-    path = tmp_path / name
-    path.write_text(text)
-    return path
+SMALL = SMALL_SWEEP
 
 
 def test_a_second_sweep_on_a_locked_folder_names_the_holder_and_exits_2(tmp_path):

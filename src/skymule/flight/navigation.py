@@ -104,6 +104,15 @@ def hover_point(fence: Polygon, sensor_xy: XY, margin_m: float = 1.0) -> XY:
     return (nearest.x, nearest.y)
 
 
+def step_lengths(max_step_m: np.ndarray | float, n: int) -> np.ndarray:
+    """(n,) writable step lengths [m] from a scalar or (n,) ``max_step_m``; ValueError if any
+    is negative."""
+    steps = np.array(np.broadcast_to(np.asarray(max_step_m, float), (n,)))
+    if np.any(steps < 0):
+        raise ValueError(f"max_step_m must be >= 0, got {steps.min()}")
+    return steps
+
+
 def path_length(path: list[XY] | np.ndarray) -> float:
     """Total Euclidean length (m) of a polyline given as a sequence of ``(x, y)`` points."""
     pts = np.asarray(path, dtype=float).reshape(-1, 2)
@@ -234,6 +243,13 @@ class Navigator:
         """(P,) True where a point is inside the fence (within ``COVER_TOLERANCE_M``)."""
         xy = np.asarray(points_xy, float).reshape(-1, 2)
         return np.asarray(shapely.intersects_xy(self._cover, xy[:, 0], xy[:, 1]), bool)
+
+    def check_inside(self, starts: np.ndarray, goals: np.ndarray) -> None:
+        """ValueError naming the first start or goal (P, 2) outside the fence, if any."""
+        for name, xy in (("start", starts), ("goal", goals)):
+            outside = ~self.in_cover(xy)
+            if outside.any():
+                raise ValueError(f"{name} {_as_xy(xy[np.argmax(outside)])} is outside the fence")
 
     def covers_goal(self, xy: XY) -> bool:
         """True if ``xy`` is inside the fence (within 1e-6 m): a goal the UAV may fly to.
@@ -396,10 +412,8 @@ class Navigator:
         """
         starts = np.asarray(starts_xy, float).reshape(-1, 2)
         goals = np.asarray(goals_xy, float).reshape(-1, 2)
-        for name, xy in (("start", starts), ("goal", goals)) if checked else ():
-            outside = ~self.in_cover(xy)
-            if outside.any():
-                raise ValueError(f"{name} {_as_xy(xy[np.argmax(outside)])} is outside the fence")
+        if checked:
+            self.check_inside(starts, goals)
         direct = self.segments_visible(starts, goals)
         rest = np.flatnonzero(~direct)
         if not rest.size:
@@ -474,9 +488,7 @@ class Navigator:
     ) -> np.ndarray:
         """(P, 2) :meth:`step` of P (position, goal) pairs, each with its own step [m]."""
         points, count = self.shortest_paths(positions_xy, goals_xy, goal_sight, checked)
-        left = np.array(np.broadcast_to(np.asarray(max_step_m, float), count.shape))
-        if np.any(left < 0):
-            raise ValueError(f"max_step_m must be >= 0, got {left.min()}")
+        left = step_lengths(max_step_m, len(count))
         moved = points[np.arange(len(count)), count - 1].copy()  # the goal, if reached
         placed = np.zeros(len(count), bool)
         for seg in range(points.shape[1] - 1):  # advance_along, one segment for all rows

@@ -25,7 +25,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from skymule.flight.navigation import Navigator
+from skymule.flight.navigation import Navigator, step_lengths
 from skymule.sim import path_kernels as pk
 
 #: Longest route [vertices] the kernels sum as ``np.sum`` does (numpy's summation block, 128
@@ -81,6 +81,7 @@ def _kernels() -> dict[str, Callable[..., Any]]:
         pk.python_hypot,
         pk.numpy_sum,
         pk._path_point,
+        pk._path_size,
     )
     for helper in helpers:
         register_jitable(helper)
@@ -164,10 +165,8 @@ class CompiledPaths:
         starts = np.ascontiguousarray(positions_xy, float).reshape(-1, 2)
         goals = np.ascontiguousarray(goals_xy, float).reshape(-1, 2)
         if checked:
-            _check_inside(self._nav, starts, goals)
-        step = np.ascontiguousarray(np.broadcast_to(np.asarray(max_step_m, float), len(starts)))
-        if np.any(step < 0):
-            raise ValueError(f"max_step_m must be >= 0, got {step.min()}")
+            self._nav.check_inside(starts, goals)
+        step = step_lengths(max_step_m, len(starts))
         bend, first, last = self._routes(starts, goals, goal_sight)
         moved = np.empty_like(starts)
         self._k["advance_rows"](
@@ -186,19 +185,10 @@ class CompiledPaths:
         starts = np.ascontiguousarray(starts_xy, float).reshape(-1, 2)
         goals = np.ascontiguousarray(goals_xy, float).reshape(-1, 2)
         if checked:
-            _check_inside(self._nav, starts, goals)
+            self._nav.check_inside(starts, goals)
         bend, first, last = self._routes(starts, goals, goal_sight)
         out = np.empty(len(starts))
         self._k["path_lengths"](
             starts, goals, bend, first, last, self._nodes, self._count, self._vertices, out
         )
         return out
-
-
-def _check_inside(nav: Navigator, starts: np.ndarray, goals: np.ndarray) -> None:
-    """The numpy methods' check that every start and goal is inside the fence."""
-    for name, xy in (("start", starts), ("goal", goals)):
-        outside = ~nav.in_cover(xy)
-        if outside.any():
-            point = xy[np.argmax(outside)]
-            raise ValueError(f"{name} {(float(point[0]), float(point[1]))} is outside the fence")

@@ -202,13 +202,12 @@ def _path_point(
     return goal[row, 0], goal[row, 1]
 
 
-def path_sizes(
-    bend: np.ndarray, first: np.ndarray, last: np.ndarray, count: np.ndarray, out: np.ndarray
-) -> None:
-    """(P,) points of each path: 2, plus the route's vertices where the path bends."""
-    for row in range(out.shape[0]):
-        b = bend[row]
-        out[row] = 2 if b < 0 else 2 + count[first[b], last[b]]
+def _path_size(
+    row: int, bend: np.ndarray, first: np.ndarray, last: np.ndarray, count: np.ndarray
+) -> int:
+    """Points of row ``row``'s path: 2, plus the route's vertices where the path bends."""
+    b = bend[row]
+    return 2 if b < 0 else 2 + int(count[first[b], last[b]])
 
 
 def advance_rows(
@@ -229,8 +228,7 @@ def advance_rows(
     straight path. Segment lengths as :func:`math.hypot` (:func:`python_hypot`).
     """
     for row in range(start.shape[0]):
-        b = bend[row]
-        n = 2 if b < 0 else 2 + count[first[b], last[b]]
+        n = _path_size(row, bend, first, last, count)
         left = step_m[row]
         moved[row, 0], moved[row, 1] = goal[row, 0], goal[row, 1]
         ax, ay = start[row, 0], start[row, 1]
@@ -264,8 +262,7 @@ def path_lengths(
     lengths by ``np.hypot``, summed by :func:`numpy_sum`)."""
     lengths = np.empty(nodes.shape[2] + 1)
     for row in range(start.shape[0]):
-        b = bend[row]
-        n = 2 if b < 0 else 2 + count[first[b], last[b]]
+        n = _path_size(row, bend, first, last, count)
         ax, ay = start[row, 0], start[row, 1]
         for seg in range(n - 1):
             bx, by = _path_point(

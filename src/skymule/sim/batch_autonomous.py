@@ -48,6 +48,7 @@ from skymule.sim.batch import Engine
 from skymule.sim.batch_home import HomeDeadline
 from skymule.sim.batch_paths import Paths
 from skymule.sim.batch_signal import BatchSignal
+from skymule.sim.batch_stack import mission_geometry
 from skymule.sim.batch_tours import GreedyTours, HGADTours, TourGeometry
 from skymule.sim.context import autonomous_peak_rate_bps
 from skymule.sim.contract import NO_SENSOR
@@ -385,6 +386,7 @@ def tour_flights(result: TourResult, rows: np.ndarray, missions: Sequence[Missio
         axis=2,
     )
     n_run = result.n_slots[rows]
+    home, hover, radius, window = mission_geometry(missions, n_sensors)
     return Flights(
         n_run=n_run,
         slot_s=np.array([m.slot_s for m in missions], float),
@@ -398,13 +400,11 @@ def tour_flights(result: TourResult, rows: np.ndarray, missions: Sequence[Missio
         track_id=np.arange(n_missions),
         sample=np.minimum(np.arange(t_max)[None, :], n_run[:, None]),
         end_sample=n_run,
-        home_m=np.array([m.home_m for m in missions], float).reshape(n_missions, 2),
-        hover_points_m=np.array([m.hover_points_m for m in missions], float).reshape(
-            n_missions, -1, 2
-        ),
-        visit_radius_m=np.array([m.visit_radius_m for m in missions], float),
+        home_m=home,
+        hover_points_m=hover,
+        visit_radius_m=radius,
         target=result.target[rows],
-        aadm_window_s=np.array([m.score_window_s for m in missions], float),
+        aadm_window_s=window,
     )
 
 

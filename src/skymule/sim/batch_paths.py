@@ -4,7 +4,9 @@ The batched autonomous engine moves its UAVs with :meth:`Navigator.steps` and me
 and the way home with :meth:`Navigator.travel_distances`. Both pay numpy's per-call overhead
 on a few dozen small arrays per query. :class:`CompiledPaths` answers the same queries, row
 for row the same floats: the visibility predicate (shapely ``covers`` against the
-navigator's prepared cover polygon) is asked in Python, on segments the numpy methods also
+navigator's prepared cover polygon) is answered by a compiled certificate where it is certain
+(:mod:`skymule.sim.visibility_kernels`: segments clear of the fence's edges, ~99 % of those
+the engine asks about) and by shapely for the rest, on the segments the numpy methods also
 test (the direct segment, then the start's view of the vertices in order of their smallest
 total, one rank at a time until one is seen: the numpy method tests three ranks, then every
 vertex of the rows left, and both pick the first vertex seen in that order, so the same
@@ -27,6 +29,7 @@ import numpy as np
 
 from skymule.flight.navigation import Navigator, step_lengths
 from skymule.sim import path_kernels as pk
+from skymule.sim import visibility_kernels as vk
 
 #: Longest route [vertices] the kernels sum as ``np.sum`` does (numpy's summation block, 128
 #: values, minus the start and goal segments): larger fences keep the numpy path.
@@ -82,12 +85,27 @@ def _kernels() -> dict[str, Callable[..., Any]]:
         pk.numpy_sum,
         pk._path_point,
         pk._path_size,
+        vk._point_segment_distance2,
+        vk._segments_apart,
+        vk._clear_of_edges,
+        vk._inside,
+        vk._certainly_outside,
+        vk._hidden_or_unknown,
+        vk.segment_visibility,
     )
     for helper in helpers:
         register_jitable(helper)
-    digest = hashlib.sha256(inspect.getsource(pk).encode()).hexdigest()[:12]
+    source = inspect.getsource(pk) + inspect.getsource(vk)
+    digest = hashlib.sha256(source.encode()).hexdigest()[:12]
     out: dict[str, Callable[..., Any]] = {}
-    for function in (pk.rank_vertices, pk.pick_routes, pk.advance_rows, pk.path_lengths):
+    kernels = (
+        pk.rank_vertices,
+        pk.pick_routes,
+        pk.advance_rows,
+        pk.path_lengths,
+        vk.classify_segments,
+    )
+    for function in kernels:
         name = f"{function.__name__}_{digest}"
         copy = types.FunctionType(function.__code__, function.__globals__, name)
         copy.__qualname__ = name
@@ -106,7 +124,20 @@ class CompiledPaths:
         self._dist = np.ascontiguousarray(navigator.vertex_graph_m, float)
         nodes, count = navigator.vertex_routes
         self._nodes, self._count = np.ascontiguousarray(nodes), np.ascontiguousarray(count)
+        self._edges = vk.fence_edges(navigator.fence)
         self._k = _kernels()
+
+    def segments_visible(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """(P,) :meth:`Navigator.segments_visible`: segments clear of the fence's edges
+        answered by :mod:`~skymule.sim.visibility_kernels`, the rest by ``covers``."""
+        a, b = np.ascontiguousarray(a, float), np.ascontiguousarray(b, float)
+        answer = np.empty(len(a), np.int8)
+        self._k["classify_segments"](a, b, self._edges, vk.MARGIN_M, answer)
+        visible = answer == vk.VISIBLE
+        unknown = np.flatnonzero(answer == vk.UNKNOWN)
+        if unknown.size:
+            visible[unknown] = self._nav.segments_visible(a[unknown], b[unknown])
+        return visible
 
     def _routes(
         self, starts: np.ndarray, goals: np.ndarray, goal_sight: Sight | None
@@ -114,7 +145,7 @@ class CompiledPaths:
         """(P,) row among the bending paths or -1, then first and last route vertex of
         each bending path: the choices of ``Navigator.shortest_paths``."""
         nav = self._nav
-        direct = nav.segments_visible(starts, goals)
+        direct = self.segments_visible(starts, goals)
         rest = np.flatnonzero(~direct)
         bend = np.full(len(starts), -1, np.int64)
         bend[rest] = np.arange(rest.size)
@@ -145,7 +176,7 @@ class CompiledPaths:
             vertex = order[todo, rank]
             finite = np.isfinite(row_min[todo, vertex])
             todo, vertex = todo[finite], vertex[finite]
-            seen = nav.segments_visible(start[todo], self._vertices[vertex])
+            seen = self.segments_visible(start[todo], self._vertices[vertex])
             seen |= d_s[todo, vertex] == 0
             first[todo[seen]] = vertex[seen]
         found = self._k["pick_routes"](first, d_s, vis_g, d_g, self._dist, last)

@@ -15,6 +15,7 @@ its all-pairs shortest paths, are computed once per fence in :class:`Navigator`.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -374,15 +375,7 @@ class Navigator:
         Row p equals the scalar visibility test from ``points_xy[p]`` (one vectorised
         ``covers`` call); pass it as ``goal_sight`` to the methods below for goals used often.
         """
-        p = np.asarray(points_xy, float).reshape(-1, 2)
-        verts = self._vertices
-        d = np.hypot(verts[None, :, 0] - p[:, None, 0], verts[None, :, 1] - p[:, None, 1])
-        segs = np.empty((len(p), len(verts), 2, 2))
-        segs[:, :, 0] = p[:, None, :]
-        segs[:, :, 1] = verts[None]
-        lines = shapely.linestrings(segs.reshape(-1, 2, 2)) if d.size else np.empty(0)
-        vis = np.asarray(shapely.covers(self._cover, lines), bool).reshape(d.shape)
-        return vis | (d == 0.0), d
+        return vertex_sights(points_xy, self._vertices, self.segments_visible)
 
     def segments_visible(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """(P,) the scalar segment test for P segments a -> b (one ``covers`` call)."""
@@ -523,6 +516,21 @@ class Navigator:
             raise ValueError(f"max_step_m must be >= 0, got {max_step_m}")
         pos, _ = advance_along(self.shortest_path(position_xy, goal_xy), max_step_m)
         return pos
+
+
+def vertex_sights(
+    points_xy: np.ndarray,
+    vertices: np.ndarray,
+    segments_visible: Callable[[np.ndarray, np.ndarray], np.ndarray],
+) -> tuple[np.ndarray, np.ndarray]:
+    """(P, k) which of k ``vertices`` each of P points sees by ``segments_visible`` (a
+    navigator's segment test), and (P, k) distances [m] to them."""
+    p = np.asarray(points_xy, float).reshape(-1, 2)
+    d = np.hypot(vertices[None, :, 0] - p[:, None, 0], vertices[None, :, 1] - p[:, None, 1])
+    starts = np.repeat(p, len(vertices), axis=0)
+    ends = np.tile(vertices, (len(p), 1))
+    vis = segments_visible(starts, ends).reshape(d.shape)
+    return vis | (d == 0.0), d
 
 
 def shortest_path(fence: Polygon, start_xy: XY, goal_xy: XY) -> list[XY]:

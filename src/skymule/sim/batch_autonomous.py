@@ -149,6 +149,7 @@ def _geometry(
     sights of the legal goals and of the (raw) homes."""
     nav = missions[0].navigator
     assert nav is not None
+    paths: Paths = batch_paths.CompiledPaths(nav) if compiled_paths else nav
     home = np.array([m.home_m for m in missions], float).reshape(-1, 2)
     n_sensors = max(m.n_sensors for m in missions)
     hover = padded([np.asarray(m.hover_points_m, float) for m in missions], n_sensors, np.nan)
@@ -163,15 +164,14 @@ def _geometry(
         flat[index] = legal_goal(nav, _xy(flat[index]))
     # sights of the legal goals; the raw hover points and homes are almost always the same
     # points, computed again only where legal_goal moved them
-    vis, dist = nav.sights(flat)
+    vis, dist = paths.sights(flat)
     legal_sight = (vis.reshape(*legal.shape[:-1], -1), dist.reshape(*legal.shape[:-1], -1))
     raw = np.concatenate([places, home[None]], axis=0)
     raw_sight = (legal_sight[0].copy(), legal_sight[1].copy())
     moved = np.any(raw != legal, axis=2)
     if moved.any():
-        raw_sight[0][moved], raw_sight[1][moved] = nav.sights(raw[moved])
+        raw_sight[0][moved], raw_sight[1][moved] = paths.sights(raw[moved])
     hover_sight = (raw_sight[0][:-1], raw_sight[1][:-1])
-    paths: Paths = batch_paths.CompiledPaths(nav) if compiled_paths else nav
     geometry = TourGeometry(paths, hover, known, home, hover_sight)
     return geometry, legal, legal_sight, (raw_sight[0][-1], raw_sight[1][-1])
 

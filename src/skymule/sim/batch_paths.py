@@ -27,7 +27,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from skymule.flight.navigation import Navigator, step_lengths
+from skymule.flight.navigation import Navigator, step_lengths, vertex_sights
 from skymule.sim import path_kernels as pk
 from skymule.sim import visibility_kernels as vk
 
@@ -41,6 +41,8 @@ Sight = tuple[np.ndarray, np.ndarray]
 class Paths(Protocol):
     """What the batched autonomous engine asks of a navigator (:class:`Navigator` or
     :class:`CompiledPaths`)."""
+
+    def sights(self, points_xy: np.ndarray) -> Sight: ...
 
     def steps(
         self,
@@ -104,6 +106,7 @@ def _kernels() -> dict[str, Callable[..., Any]]:
         pk.advance_rows,
         pk.path_lengths,
         vk.classify_segments,
+        vk.first_seen,
     )
     for function in kernels:
         name = f"{function.__name__}_{digest}"
@@ -157,7 +160,7 @@ class CompiledPaths:
         if not k:
             raise ValueError("no in-fence path between start and goal")
         if goal_sight is None:
-            vis_g, d_g = nav.sights(goals[rest])
+            vis_g, d_g = self.sights(goals[rest])
         else:
             vis_g, d_g = goal_sight[0][rest], goal_sight[1][rest]
         start = np.ascontiguousarray(starts[rest])
@@ -168,21 +171,31 @@ class CompiledPaths:
         self._k["rank_vertices"](start, vis_g, d_g, self._vertices, self._dist, d_s, row_min, order)
         # the start's view of the vertices in order of their smallest total, rank by rank
         # (Navigator.shortest_paths: three ranks, then every vertex at once): the first seen
-        # is the minimiser's first vertex either way, and most rows stop within a few ranks
-        for rank in range(k):
-            todo = np.flatnonzero(first < 0)
-            if not todo.size:
-                break
-            vertex = order[todo, rank]
-            finite = np.isfinite(row_min[todo, vertex])
-            todo, vertex = todo[finite], vertex[finite]
-            seen = self.segments_visible(start[todo], self._vertices[vertex])
-            seen |= d_s[todo, vertex] == 0
-            first[todo[seen]] = vertex[seen]
+        # is the minimiser's first vertex either way, and most rows stop within a few ranks;
+        # shapely decides where the certificate cannot, and those rows go on from there
+        rows = np.arange(rest.size)
+        from_rank = np.zeros(rest.size, np.int64)
+        while rows.size:
+            unknown = np.empty(rows.size, np.int64)
+            self._k["first_seen"](
+                rows, from_rank, start, order, row_min, d_s, self._vertices, self._edges,
+                vk.MARGIN_M, first, unknown,
+            )  # fmt: skip
+            stuck = unknown >= 0
+            rows, from_rank = rows[stuck], unknown[stuck]
+            if rows.size:
+                vertex = order[rows, from_rank]
+                seen = nav.segments_visible(start[rows], self._vertices[vertex])
+                first[rows[seen]] = vertex[seen]
+                rows, from_rank = rows[~seen], from_rank[~seen] + 1
         found = self._k["pick_routes"](first, d_s, vis_g, d_g, self._dist, last)
         if not found:
             raise ValueError("no in-fence path between start and goal")
         return bend, first, last
+
+    def sights(self, points_xy: np.ndarray) -> Sight:
+        """(P, k) :meth:`Navigator.sights`, by :meth:`segments_visible`."""
+        return vertex_sights(points_xy, self._vertices, self.segments_visible)
 
     def steps(
         self,

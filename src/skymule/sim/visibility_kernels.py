@@ -208,3 +208,46 @@ def classify_segments(
             out[p] = VISIBLE
         else:
             out[p] = segment_visibility(ax, ay, bx, by, edges, margin_m, scratch)
+
+
+def first_seen(
+    rows: np.ndarray,
+    from_rank: np.ndarray,
+    start: np.ndarray,
+    order: np.ndarray,
+    row_min: np.ndarray,
+    d_s: np.ndarray,
+    vertices: np.ndarray,
+    edges: np.ndarray,
+    margin_m: float,
+    first: np.ndarray,
+    unknown_rank: np.ndarray,
+) -> None:
+    """The first vertex each start sees, in its ``order`` (R, k), from rank ``from_rank``.
+
+    For each of the C rows ``rows`` (into ``start`` (R, 2), ``order``, ``row_min`` and
+    ``d_s`` (R, k) of ``path_kernels.rank_vertices``): ``first[row]`` becomes the first vertex
+    of finite total that the start sees (or stands on), and ``unknown_rank`` (C,) -1; where
+    the certificate cannot tell before a vertex is seen, ``unknown_rank`` is that rank (the
+    caller asks ``covers`` and goes on from the next rank).
+    """
+    scratch = np.empty(edges.shape[0])
+    for i in range(rows.shape[0]):
+        r = rows[i]
+        unknown_rank[i] = -1
+        for rank in range(from_rank[i], order.shape[1]):
+            v = order[r, rank]
+            if not row_min[r, v] < math.inf:
+                break  # the totals are in order: no later vertex has a path either
+            if d_s[r, v] == 0.0:
+                first[r] = v
+                break
+            answer = segment_visibility(
+                start[r, 0], start[r, 1], vertices[v, 0], vertices[v, 1], edges, margin_m, scratch
+            )
+            if answer == VISIBLE:
+                first[r] = v
+                break
+            if answer == UNKNOWN:
+                unknown_rank[i] = rank
+                break

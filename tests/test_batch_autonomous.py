@@ -26,10 +26,13 @@ from skymule.sim.batch_autonomous import (
     TourParams,
     batchable,
     mission_log,
+    padded,
     run_autonomous_batch,
     run_tours,
     summarize_autonomous_batch,
 )
+from skymule.sim.batch_signal import BatchSignal
+from skymule.sim.context import autonomous_peak_rate_bps
 from skymule.sim.log import MissionLog
 from skymule.sim.run import run_mission
 from skymule.world import build_mission
@@ -107,6 +110,22 @@ def layouts(preset):
     missions = [build_mission(s) for s in scenarios]
     missions[15] = replace(missions[15], aadm_window_s=60.0)
     return missions
+
+
+def test_batch_peak_rates_equal_each_missions(layouts):
+    """HGAD's R*_i of the whole padded batch, bit for bit those of each mission (fading,
+    shadowing and two-ray layouts included)."""
+    n_sensors = max(m.n_sensors for m in layouts)
+    hover = padded([np.asarray(m.hover_points_m, float) for m in layouts], n_sensors, np.nan)
+    hover[0, 3] = np.nan  # a sensor without a hover point: rate 0
+    missions = list(layouts)
+    missions[3] = replace(missions[3], hover_points_m=hover[: missions[3].n_sensors, 3])
+    peak = BatchSignal(missions, n_sensors).peak_rate_bps(hover)
+    for b, mission in enumerate(missions):
+        want = autonomous_peak_rate_bps(mission)
+        np.testing.assert_array_equal(peak[: mission.n_sensors, b], want)
+        assert not peak[mission.n_sensors :, b].any()
+    assert peak[0, 3] == 0.0 and peak[1 : missions[3].n_sensors, 3].all()
 
 
 def test_navigator_batched_queries_equal_scalar_ones(preset):

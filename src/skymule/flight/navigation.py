@@ -233,6 +233,11 @@ class Navigator:
         """Reflex vertices used as graph nodes, shape (k, 2), metres (read-only copy)."""
         return self._vertices.copy()
 
+    @cached_property
+    def fence_key(self) -> bytes:
+        """The fence as WKB: equal for navigators of the same fence (to group missions)."""
+        return bytes(shapely.to_wkb(self.fence))
+
     @property
     def vertex_graph_m(self) -> np.ndarray:
         """(k, k) all-pairs in-fence distances [m] between the graph vertices (read only)."""

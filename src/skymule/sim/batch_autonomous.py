@@ -35,7 +35,6 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-import shapely
 
 from skymule.errors import SkymuleError
 from skymule.flight.navigation import Navigator
@@ -50,7 +49,6 @@ from skymule.sim.batch_paths import Paths
 from skymule.sim.batch_signal import BatchSignal
 from skymule.sim.batch_stack import mission_geometry
 from skymule.sim.batch_tours import GreedyTours, HGADTours, TourGeometry
-from skymule.sim.context import autonomous_peak_rate_bps
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.engine import log_fields
 from skymule.sim.log import MissionLog
@@ -188,7 +186,7 @@ def _stack(missions: Sequence[Mission]) -> None:
                 "the batched autonomous engine does not apply faults: run such missions with "
                 "skymule.sim.run.run_mission (the reference engines)"
             )
-    fences = {shapely.to_wkb(m.navigator.fence) for m in missions if m.navigator is not None}
+    fences = {m.navigator.fence_key for m in missions if m.navigator is not None}
     if len(fences) != 1:
         raise ValueError("a batch needs one geofence")
 
@@ -246,12 +244,12 @@ def _slot_loop(
     step_m = np.array([m.max_step_m for m in missions], float)
     window = np.array([m.n_slots if m.window_slots is None else m.window_slots for m in missions])
     buffers = padded([m.buffers_bit for m in missions], n_sensors, 0.0)
+    signal = BatchSignal(missions, n_sensors)
     tours: GreedyTours | HGADTours
     if params[0].hgad:
-        peak = padded([autonomous_peak_rate_bps(m) for m in missions], n_sensors, 0.0)
         tours = HGADTours(
             geometry,
-            peak,
+            signal.peak_rate_bps(geometry.hover_m),
             buffers,
             slot_s,
             np.array([p.max_hover_s for p in params], float),
@@ -259,7 +257,6 @@ def _slot_loop(
         )
     else:
         tours = GreedyTours(geometry, np.array([m.visit_radius_m for m in missions], float))
-    signal = BatchSignal(missions, n_sensors)
 
     t_max = int(n_slots.max())
     position = geometry.home_m.copy()
@@ -425,15 +422,11 @@ def _batches(
     """Indices of missions that can share a batch (fence, policy), at most ``batch_size``
     each."""
     groups: dict[tuple[bytes, bool], list[int]] = {}
-    fences: dict[int, bytes] = {}  # missions built together share one navigator object
     for index, (mission, param) in enumerate(zip(missions, params, strict=True)):
         nav = mission.navigator
         if nav is None:
             raise SkymuleError("the batched autonomous engine needs autonomous missions")
-        if id(nav) not in fences:
-            fences[id(nav)] = shapely.to_wkb(nav.fence)
-        key = (fences[id(nav)], param.hgad)
-        groups.setdefault(key, []).append(index)
+        groups.setdefault((nav.fence_key, param.hgad), []).append(index)
     for indices in groups.values():
         for start in range(0, len(indices), batch_size):
             yield indices[start : start + batch_size]

@@ -77,9 +77,9 @@ class BatchSignal:
             assert gains is not None
             self._fading_db[: gains.shape[0], : gains.shape[1], f] = gains
 
-    def snr_db(self, position_m: np.ndarray, slot: int) -> np.ndarray:
+    def snr_db(self, position_m: np.ndarray, slot: int | None) -> np.ndarray:
         """(N, A) SNR [dB] each of the first A missions sees at its position (A, 2) in slot
-        ``slot``, per-slot fading included (NaN: no link)."""
+        ``slot``, per-slot fading included (``slot=None``: without fading; NaN: no link)."""
         active = position_m.shape[0]
         snr = np.full((self._n_sensors, active), np.nan)
         for cols in self._offset:
@@ -104,7 +104,7 @@ class BatchSignal:
             here = np.column_stack([position_m[cols], self._altitude[cols]])
             snr[: self._missions[int(cols[0])].n_sensors, cols] = source.snr_db(here).T
         faded = self._fading_cols < active
-        if faded.any():
+        if slot is not None and faded.any():
             cols = self._fading_cols[faded]
             snr[:, cols] = snr[:, cols] + self._fading_db[slot][:, faded]
         return snr
@@ -119,3 +119,14 @@ class BatchSignal:
                 mission = self._missions[int(cols[0])]
                 rate[:, cols] = rate_bps(mission.rate_table, snr_db[:, cols], mission.bandwidth_hz)
         return rate
+
+    def peak_rate_bps(self, hover_m: np.ndarray) -> np.ndarray:
+        """(N, B) R*_i of every mission: the rate from sensor i at its own hover point
+        ``hover_m`` (N, B, 2) (NaN: unknown, rate 0), without fading, as
+        :func:`skymule.sim.context.autonomous_peak_rate_bps` gives each mission."""
+        peak = np.zeros(hover_m.shape[:2])
+        for sensor in range(hover_m.shape[0]):
+            snr = self.snr_db(np.nan_to_num(hover_m[sensor], nan=0.0), None)
+            peak[sensor] = self.rate_bps(snr)[sensor]
+        peak[~np.all(np.isfinite(hover_m), axis=2)] = 0.0
+        return peak

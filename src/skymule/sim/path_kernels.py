@@ -134,16 +134,16 @@ def rank_vertices(
                 if total < best:
                     best = total
             row_min[r, i] = best
-        for q in range(ranks):  # selection: a stable argsort's first q entries
-            pick = -1
-            for i in range(k):
-                taken = False
-                for p in range(q):
-                    if order[r, p] == i:
-                        taken = True
-                if not taken and (pick < 0 or row_min[r, i] < row_min[r, pick]):
-                    pick = i
-            order[r, q] = pick
+        # insertion sort of the vertices by total: a stable argsort (ties keep the lower
+        # vertex first, because a vertex moves only past strictly larger totals)
+        for i in range(k):
+            q = min(i, ranks)
+            while q > 0 and row_min[r, i] < row_min[r, order[r, q - 1]]:
+                if q < ranks:
+                    order[r, q] = order[r, q - 1]
+                q -= 1
+            if q < ranks:
+                order[r, q] = i
 
 
 def pick_routes(

@@ -171,9 +171,16 @@ def segment_visibility(
     """
     margin2 = margin_m * margin_m
     middle_x, middle_y = 0.5 * (ax + bx), 0.5 * (ay + by)
-    reach = margin_m * math.hypot(bx - ax, by - ay)
+    ux, uy = bx - ax, by - ay
+    reach = margin_m * math.hypot(ux, uy)
     for e in range(edges.shape[0]):
         x0, y0, x1, y1 = edges[e, 0], edges[e, 1], edges[e, 2], edges[e, 3]
+        # most edges lie on one side of the segment's line, beyond the margin (never one
+        # with an end at a or b: such an end is on the line, exactly)
+        side_0 = ux * (y0 - ay) - uy * (x0 - ax)
+        side_1 = ux * (y1 - ay) - uy * (x1 - ax)
+        if (side_0 > reach and side_1 > reach) or (side_0 < -reach and side_1 < -reach):
+            continue
         at_a_0, at_a_1 = ax == x0 and ay == y0, ax == x1 and ay == y1
         at_b_0, at_b_1 = bx == x0 and by == y0, bx == x1 and by == y1
         if (at_a_0 or at_a_1) and (at_b_0 or at_b_1):

@@ -112,6 +112,25 @@ def test_segments_to_vertices_are_answered():
         assert (answer[exact] == vk.VISIBLE).mean() > 0.9
 
 
+def test_segments_from_the_fence_edge_are_answered():
+    """A UAV flying along the fence starts its segments on an edge (up to round-off): those
+    leaving the edge into the fence are visible, those leaving it outward hidden, for certain."""
+    rng = np.random.default_rng(8)
+    for fence in fences():
+        navigator = Navigator(fence)
+        edges = vk.fence_edges(fence)
+        low, high = np.array(fence.bounds[:2]), np.array(fence.bounds[2:])
+        pick = edges[rng.integers(len(edges), size=600)]
+        share = rng.uniform(0.2, 0.8, (600, 1))
+        a = pick[:, :2] + share * (pick[:, 2:] - pick[:, :2])
+        b = rng.uniform(low, high, (600, 2))
+        answer = classify(a, b, edges, False)
+        exact = navigator.segments_visible(a, b)
+        certain = answer != vk.UNKNOWN
+        np.testing.assert_array_equal(answer[certain] == vk.VISIBLE, exact[certain])
+        assert certain[exact].mean() > 0.9 and certain[~exact].mean() > 0.9
+
+
 def test_edges_of_every_ring():
     edges = vk.fence_edges(HOLED)
     assert edges.shape == (7 + 5, 4)

@@ -93,6 +93,7 @@ def _kernels() -> dict[str, Callable[..., Any]]:
         vk._inside,
         vk._certainly_outside,
         vk._hidden_or_unknown,
+        vk._leaves_edge_inward,
         vk.segment_visibility,
     )
     for helper in helpers:

@@ -11,9 +11,12 @@ certain:
   wholly inside or wholly outside the fence, as its midpoint does; a midpoint more than
   ``margin_m`` from every edge is classified by the even-odd rule without round-off doubt:
   inside -> :data:`VISIBLE` (the fence covers the closed segment), outside -> :data:`HIDDEN`;
+* a segment that starts on an edge (a UAV flying along the fence, up to round-off) and ends
+  more than ``margin_m`` inside that edge's line moves steadily away from it: if the rest of
+  the boundary is clear of it and its midpoint is inside, :data:`VISIBLE`;
 * otherwise, if some point of the segment lies outside the fence and more than ``margin_m``
-  from every edge, the segment leaves the grown fence: :data:`HIDDEN`. Candidates are the
-  midpoints between the places where the segment crosses the edges' lines.
+  from every edge, the segment leaves the grown fence: :data:`HIDDEN`. Candidates are b and
+  the midpoints between a, the places where the segment crosses the edges' lines, and b.
 
 Everything else (segments grazing an edge or running along it) is :data:`UNKNOWN` and goes to
 ``covers``. Round-off in these formulas is ~1e-12 m for coordinates of kilometres, nine orders
@@ -30,6 +33,7 @@ import math
 import numpy as np
 import shapely
 from shapely.geometry import Polygon
+from shapely.geometry.polygon import orient
 
 VISIBLE, HIDDEN, UNKNOWN = 1, 0, -1
 
@@ -38,8 +42,14 @@ VISIBLE, HIDDEN, UNKNOWN = 1, 0, -1
 MARGIN_M = 1e-3
 
 
+#: A start this close to an edge [m] is on it: a UAV flying along the fence (round-off only).
+ON_EDGE_M = 1e-9
+
+
 def fence_edges(fence: Polygon) -> np.ndarray:
-    """(E, 4) edges x0, y0, x1, y1 of every ring of ``fence`` (exterior and holes) [m]."""
+    """(E, 4) edges x0, y0, x1, y1 of every ring of ``fence`` (exterior and holes) [m],
+    oriented so that the fence's inside is on the left of each edge."""
+    fence = orient(fence, sign=1.0)  # exterior counter-clockwise, holes clockwise
     parts = []
     for ring in (fence.exterior, *fence.interiors):
         xy = shapely.get_coordinates(ring)
@@ -127,8 +137,9 @@ def _certainly_outside(px: float, py: float, edges: np.ndarray, margin_m: float)
 def _hidden_or_unknown(
     ax: float, ay: float, bx: float, by: float, edges: np.ndarray, margin_m: float, t: np.ndarray
 ) -> int:
-    """:data:`HIDDEN` if b, or a point of ab halfway between a crossing of an edge's line and
-    the next one along ab, is certainly outside the fence; else :data:`UNKNOWN`.
+    """:data:`HIDDEN` if b, or a point of ab halfway between a (or a crossing of an edge's
+    line) and the next crossing along ab, is certainly outside the fence; else
+    :data:`UNKNOWN`.
     ``t``: scratch (E,)."""
     if _certainly_outside(bx, by, edges, margin_m):
         return HIDDEN
@@ -148,12 +159,13 @@ def _hidden_or_unknown(
         if 0.0 < along < 1.0:
             t[n] = along
             n += 1
-    for i in range(n):
+    for i in range(-1, n):  # -1: from a (a may lie on an edge itself)
+        after = 0.0 if i < 0 else t[i]
         following = 1.0
         for j in range(n):
-            if t[i] < t[j] < following:
+            if after < t[j] < following:
                 following = t[j]
-        middle = 0.5 * (t[i] + following)
+        middle = 0.5 * (after + following)
         if _certainly_outside(ax + middle * ux, ay + middle * uy, edges, margin_m):
             return HIDDEN
     return UNKNOWN
@@ -171,6 +183,7 @@ def segment_visibility(
     """
     margin2 = margin_m * margin_m
     middle_x, middle_y = 0.5 * (ax + bx), 0.5 * (ay + by)
+    from_edge = False
     ux, uy = bx - ax, by - ay
     reach = margin_m * math.hypot(ux, uy)
     for e in range(edges.shape[0]):
@@ -196,11 +209,36 @@ def segment_visibility(
             )
         else:
             clear = _segments_apart(ax, ay, bx, by, x0, y0, x1, y1, margin_m, reach)
+            if not clear and not from_edge:
+                from_edge = clear = _leaves_edge_inward(ax, ay, bx, by, x0, y0, x1, y1, margin_m)
         if not clear:
             return _hidden_or_unknown(ax, ay, bx, by, edges, margin_m, t)
     # the open segment does not meet the boundary: inside or outside as its midpoint, which is
     # clear of every edge (of the others because the whole segment is)
-    return VISIBLE if _inside(middle_x, middle_y, edges) else HIDDEN
+    if _inside(middle_x, middle_y, edges):
+        return VISIBLE
+    return UNKNOWN if from_edge else HIDDEN
+
+
+def _leaves_edge_inward(
+    ax: float,
+    ay: float,
+    bx: float,
+    by: float,
+    x0: float,
+    y0: float,
+    x1: float,
+    y1: float,
+    margin_m: float,
+) -> bool:
+    """True if a lies on the edge (within :data:`ON_EDGE_M`) and b is more than ``margin_m``
+    inside its line: the segment then moves steadily away from the edge into the fence (the
+    rest of the boundary must be clear of it, which the caller checks), so the fence grown by
+    1e-6 m covers it although it starts on the boundary."""
+    if _point_segment_distance2(ax, ay, x0, y0, x1, y1) > ON_EDGE_M * ON_EDGE_M:
+        return False
+    vx, vy = x1 - x0, y1 - y0
+    return vx * (by - y0) - vy * (bx - x0) > margin_m * math.hypot(vx, vy)
 
 
 def classify_segments(

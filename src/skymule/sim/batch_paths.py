@@ -94,6 +94,7 @@ def _kernels() -> dict[str, Callable[..., Any]]:
         vk._certainly_outside,
         vk._hidden_or_unknown,
         vk._leaves_edge_inward,
+        vk._along_edge,
         vk.segment_visibility,
     )
     for helper in helpers:

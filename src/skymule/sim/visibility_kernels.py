@@ -11,6 +11,7 @@ certain:
   wholly inside or wholly outside the fence, as its midpoint does; a midpoint more than
   ``margin_m`` from every edge is classified by the even-odd rule without round-off doubt:
   inside -> :data:`VISIBLE` (the fence covers the closed segment), outside -> :data:`HIDDEN`;
+* a segment along an edge (both ends on it, up to round-off) is covered: :data:`VISIBLE`;
 * a segment that starts on an edge (a UAV flying along the fence, up to round-off) and ends
   more than ``margin_m`` inside that edge's line moves steadily away from it: if the rest of
   the boundary is clear of it and its midpoint is inside, :data:`VISIBLE`;
@@ -197,7 +198,7 @@ def segment_visibility(
         at_a_0, at_a_1 = ax == x0 and ay == y0, ax == x1 and ay == y1
         at_b_0, at_b_1 = bx == x0 and by == y0, bx == x1 and by == y1
         if (at_a_0 or at_a_1) and (at_b_0 or at_b_1):
-            return UNKNOWN  # the segment is an edge
+            return VISIBLE  # the segment is the edge
         if at_a_0 or at_a_1 or at_b_0 or at_b_1:
             # p: the segment's end away from the vertex; q: the edge's end away from it
             px, py = (bx, by) if at_a_0 or at_a_1 else (ax, ay)
@@ -212,12 +213,27 @@ def segment_visibility(
             if not clear and not from_edge:
                 from_edge = clear = _leaves_edge_inward(ax, ay, bx, by, x0, y0, x1, y1, margin_m)
         if not clear:
+            if _along_edge(ax, ay, bx, by, x0, y0, x1, y1):
+                return VISIBLE
             return _hidden_or_unknown(ax, ay, bx, by, edges, margin_m, t)
     # the open segment does not meet the boundary: inside or outside as its midpoint, which is
     # clear of every edge (of the others because the whole segment is)
     if _inside(middle_x, middle_y, edges):
         return VISIBLE
     return UNKNOWN if from_edge else HIDDEN
+
+
+def _along_edge(
+    ax: float, ay: float, bx: float, by: float, x0: float, y0: float, x1: float, y1: float
+) -> bool:
+    """True if a and b both lie on the edge (within :data:`ON_EDGE_M`): then so does every
+    point between them (the distance to a segment is convex), and the fence grown by 1e-6 m
+    covers the segment (a UAV flying along the fence toward a vertex)."""
+    on2 = ON_EDGE_M * ON_EDGE_M
+    return (
+        _point_segment_distance2(ax, ay, x0, y0, x1, y1) <= on2
+        and _point_segment_distance2(bx, by, x0, y0, x1, y1) <= on2
+    )
 
 
 def _leaves_edge_inward(

@@ -31,7 +31,9 @@ def distance_3d_m(uav_m: np.ndarray, sensor_m: np.ndarray) -> np.ndarray:
     """3-D distances [m], shape (P, N), from UAV positions (P, 3) to sensors (N, 3)."""
     uav = np.asarray(uav_m, float)[:, None, :]
     sensors = np.asarray(sensor_m, float)[None, :, :]
-    return np.sqrt(np.sum((uav - sensors) ** 2, axis=-1))
+    dx, dy, dz = (uav[..., k] - sensors[..., k] for k in range(3))
+    # summed in np.sum's order over three values, without a reduction over a length-3 axis
+    return np.sqrt((dx * dx + dy * dy) + dz * dz)
 
 
 def fspl_db(distance_m: np.ndarray, frequency_hz: float) -> np.ndarray:

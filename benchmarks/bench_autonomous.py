@@ -88,7 +88,7 @@ def reference_speed(n_random: int, n_batched: int) -> None:
             )
 
 
-def main(n_random: int = size(10, 1), n_batched: int = size(1000, 8)) -> None:
+def main(n_random: int = size(30, 1), n_batched: int = size(1000, 8)) -> None:
     scenario = load_scenario(PRESET)
     mission = build_mission(scenario)
     print(f"{PRESET}: policy, Mbit, completion, hover s, distance m, energy kJ, AADM score, s/run")

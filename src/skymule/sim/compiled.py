@@ -334,7 +334,8 @@ def compiled_loop() -> Callable[..., None]:
 
 @cache
 def compiled_reduce() -> Callable[..., None]:
-    """:func:`~skymule.sim.summary_kernels.reduce_rows` compiled (a pass over logs kept)."""
+    """:func:`~skymule.sim.summary_kernels.reduce_rows` compiled (a pass over logs kept, or
+    over an autonomous batch's arrays)."""
     return jit(
         summary_kernels.reduce_rows,
         (
@@ -342,5 +343,6 @@ def compiled_reduce() -> Callable[..., None]:
             summary_kernels.pairwise_sum,
             summary_kernels.slots_before,
             summary_kernels.mission_totals,
+            summary_kernels.first_target_arrivals,
         ),
     )

@@ -32,13 +32,22 @@ def summary_tables(
     buffers_bit: np.ndarray,
     window_s: np.ndarray,
     width: int,
+    near_rows: np.ndarray | None = None,
 ) -> summary_kernels.SummaryTables:
     """The lookup tables of the reductions (``metrics``'s own table functions) for missions
-    on tracks ``track_position_m`` (U, K, 3) whose padded slot arrays are ``width`` long."""
+    on tracks ``track_position_m`` (U, K, 3) whose padded slot arrays are ``width`` long.
+
+    The first track samples near each sensor are looked up for missions ``near_rows`` only
+    (None: all); the others, whose first visits come from their targets, get "never"."""
     steps, power, pair = metrics.power_tables(track_position_m, track_samples, track_id, slot_s)
-    near, group = metrics.near_samples(
-        track_position_m, track_samples, track_id, hover_points_m, visit_radius_m
-    )
+    if near_rows is None:
+        near, group = metrics.near_samples(
+            track_position_m, track_samples, track_id, hover_points_m, visit_radius_m
+        )
+    else:
+        near, group = _near_of_rows(
+            near_rows, track_position_m, track_samples, track_id, hover_points_m, visit_radius_m
+        )
     # aadm_scores pads arrays with no slot to one; it masks slots per mission only when some
     # window closes before the last slot of the padded arrays
     width = max(width, 1)
@@ -53,6 +62,58 @@ def summary_tables(
         aadm_window_s=window_s,
         aadm_per_slot=per_slot,
         width=width,
+    )
+
+
+def _near_of_rows(
+    rows: np.ndarray,
+    track_position_m: np.ndarray,
+    track_samples: np.ndarray,
+    track_id: np.ndarray,
+    hover_points_m: np.ndarray,
+    visit_radius_m: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``metrics.near_samples`` of missions ``rows``, plus a last row of K (never near) that
+    every other mission points at: near_samples loops over its distinct rows in Python, and
+    an autonomous batch has one track per mission."""
+    n_missions, n_sensors = hover_points_m.shape[:2]
+    near = np.zeros((0, n_sensors), np.int64)
+    group = np.zeros(0, np.int64)
+    if rows.size:
+        near, group = metrics.near_samples(
+            track_position_m, track_samples, track_id[rows], hover_points_m[rows],
+            visit_radius_m[rows],
+        )  # fmt: skip
+    never = np.full((1, n_sensors), track_position_m.shape[1], np.int64)
+    groups = np.full(n_missions, near.shape[0], np.int64)
+    groups[rows] = group
+    return np.concatenate([near, never]), groups
+
+
+def target_tables(flights: metrics.Flights) -> summary_kernels.TargetTables:
+    """What :func:`~skymule.sim.summary_kernels.first_target_arrivals` looks up, with
+    ``visits.first_visit_slots``'s choice of rows: with targets, the missions that ran some
+    slots and know some hover point (none without targets)."""
+    n_missions = flights.n_run.shape[0]
+    if flights.target is None:
+        return summary_kernels.TargetTables(
+            target=np.zeros((0, 0), np.int64),
+            by_target=np.zeros(n_missions, np.bool_),
+            position_m=np.zeros((0, 0, 3)),
+            track_id=np.zeros(0, np.int64),
+            end_sample=np.zeros(0, np.int64),
+            hover_points_m=np.zeros((0, 0, 2)),
+            visit_radius_m=np.zeros(0),
+        )
+    known = np.isfinite(flights.hover_points_m).any(axis=(1, 2))
+    return summary_kernels.TargetTables(
+        target=np.ascontiguousarray(flights.target, np.int64),
+        by_target=(flights.n_run > 0) & known,
+        position_m=np.ascontiguousarray(flights.track_position_m, float),
+        track_id=np.ascontiguousarray(flights.track_id, np.int64),
+        end_sample=np.ascontiguousarray(flights.end_sample, np.int64),
+        hover_points_m=np.ascontiguousarray(flights.hover_points_m, float),
+        visit_radius_m=np.ascontiguousarray(flights.visit_radius_m, float),
     )
 
 
@@ -125,28 +186,29 @@ def flights_summaries(flights: metrics.Flights, use_numba: bool = True) -> metri
     """``metrics.summaries(flights)`` by the kernels, one pass over the slot arrays (compiled
     unless ``use_numba`` is False: then plain Python, as the tests run it).
 
-    For fixed-trajectory flights (no targets), e.g. the numpy loop's logs of a batch with
-    fading or faults, which the compiled loop does not run.
+    For fixed-trajectory flights, e.g. the numpy loop's logs of a batch with fading or
+    faults, which the compiled loop does not run, and for autonomous ones (with targets: the
+    batched autonomous engine's), whose first visits follow the targets.
     """
-    if flights.target is not None:
-        raise ValueError("flights_summaries: autonomous flights (targets) need metrics.summaries")
     n_missions, n_sensors = flights.buffers_bit.shape
     window = (
         np.full(n_missions, AADM_WINDOW_S)
         if flights.aadm_window_s is None
         else np.asarray(flights.aadm_window_s, float)
     )
+    targets = target_tables(flights)
+    near_rows = None if flights.target is None else np.flatnonzero(~targets.by_target)
     tables = summary_tables(
         flights.track_position_m, flights.track_samples, flights.track_id, flights.slot_s,
         flights.hover_points_m, flights.visit_radius_m, flights.buffers_bit, window,
-        flights.downloaded_bit.shape[1],
+        flights.downloaded_bit.shape[1], near_rows,
     )  # fmt: skip
     totals = summary_kernels.new_totals(n_missions, n_sensors)
     reduce = compiled.compiled_reduce() if use_numba else summary_kernels.reduce_rows
     reduce(
         np.ascontiguousarray(flights.served), np.ascontiguousarray(flights.downloaded_bit),
         np.ascontiguousarray(flights.hovering), np.ascontiguousarray(flights.sample),
-        flights.n_run, flights.slot_s, tables, totals,
+        flights.n_run, flights.slot_s, tables, totals, targets,
     )  # fmt: skip
     return summaries_from_slot_totals(
         totals,

@@ -80,6 +80,29 @@ class SummaryTables(NamedTuple):
     width: int
 
 
+class TargetTables(NamedTuple):
+    """What the first-visit rule of autonomous runs looks up (``visits.first_visit_slots``).
+
+    Attributes:
+        target: (B, T) sensor the UAV was heading for in each slot (NO_SENSOR: none).
+        by_target: (B,) True where that rule gives the first visits: the mission ran some slots
+            and knows some hover point; the other rows follow :func:`mission_totals`'s rules.
+        position_m: (U, K, 3) track positions [m].
+        track_id: (B,) each mission's track.
+        end_sample: (B,) track sample after the last slot.
+        hover_points_m: (B, N, 2) point each sensor is served from [m] (NaN: unknown).
+        visit_radius_m: (B,) a sensor counts as visited within this distance [m].
+    """
+
+    target: np.ndarray
+    by_target: np.ndarray
+    position_m: np.ndarray
+    track_id: np.ndarray
+    end_sample: np.ndarray
+    hover_points_m: np.ndarray
+    visit_radius_m: np.ndarray
+
+
 def new_totals(n_missions: int, n_sensors: int) -> SlotTotals:
     """Zeroed :class:`SlotTotals` for B missions."""
     return SlotTotals(
@@ -265,6 +288,38 @@ def slots_before(sample: np.ndarray, n_run: int, k: int) -> int:
     return low
 
 
+def first_target_arrivals(
+    b: int, sample: np.ndarray, n_run: int, targets: TargetTables, first: np.ndarray
+) -> None:
+    """Mission b's first visits (N,) into ``first`` by the autonomous rule: sensor i at the
+    first slot the UAV was heading for i (target i) and ended within the visit radius of i's
+    hover point, horizontally (n_run: never).
+
+    The UAV ends slot t at the sample of slot t + 1, the last slot at ``end_sample`` (as
+    ``visits._positions_after``); the distance is ``np.hypot``, as there (a NaN hover point
+    is never near). Targets outside 0..N-1 (NO_SENSOR, home) visit nothing.
+    """
+    n_sensors = first.shape[0]
+    first[:] = n_run
+    u = targets.track_id[b]
+    row = targets.target[b]
+    hover = targets.hover_points_m[b]
+    radius = targets.visit_radius_m[b]
+    left = n_sensors  # sensors not yet visited: the scan stops when none is left
+    for t in range(n_run):
+        i = row[t]
+        if i < 0 or i >= n_sensors or first[i] != n_run:
+            continue
+        k = sample[t + 1] if t + 1 < n_run else targets.end_sample[b]
+        dx = targets.position_m[u, k, 0] - hover[i, 0]
+        dy = targets.position_m[u, k, 1] - hover[i, 1]
+        if np.hypot(dx, dy) <= radius:
+            first[i] = t
+            left -= 1
+            if left == 0:
+                return
+
+
 def reduce_rows(
     served: np.ndarray,
     downloaded: np.ndarray,
@@ -274,8 +329,11 @@ def reduce_rows(
     slot_s: np.ndarray,
     tables: SummaryTables,
     totals: SlotTotals,
+    targets: TargetTables,
 ) -> None:
-    """:func:`mission_totals` of every row of (B, T) slot arrays (a ``metrics.Flights``)."""
+    """:func:`mission_totals` of every row of (B, T) slot arrays (a ``metrics.Flights``); rows
+    ``targets.by_target`` (autonomous runs) take their first visits from
+    :func:`first_target_arrivals` instead."""
     width = served.shape[1]
     scratch = np.empty((2, width))
     stack = np.empty((128, 3), np.int64)
@@ -286,3 +344,5 @@ def reduce_rows(
             b, served[b], downloaded[b], hovering[b], sample[b], n_run[b], slot_s[b], tables,
             scratch, stack, partial, memo, totals,
         )  # fmt: skip
+        if targets.by_target[b]:
+            first_target_arrivals(b, sample[b], n_run[b], targets, totals.first_visit[b])

@@ -1,8 +1,10 @@
 """The compiled summaries equal ``metrics.summaries`` value for value.
 
 The reductions of :mod:`skymule.sim.summary_kernels` run as plain Python here (and compiled
-where numba is installed) on the numpy loop's logs of random, fading and faulty missions; the
-compiled loop's own summaries (no per-slot log) are checked against the numpy path's.
+where numba is installed) on the numpy loop's logs of random, fading and faulty missions and on
+batched autonomous runs (first visits by target); the compiled loop's own summaries (no
+per-slot log) are checked against the numpy path's, and so are the batched autonomous
+engine's summary rows.
 """
 
 from __future__ import annotations
@@ -14,11 +16,19 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from skymule.metrics import Summaries, summaries
+from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
+from skymule.metrics import Flights, Summaries, summaries
 from skymule.scenario import PolicySpec, load_scenario
 from skymule.sim import compiled, summary_kernels
 from skymule.sim.batch import batch_flights, run_numpy, stack_missions
+from skymule.sim.batch_autonomous import (
+    TourParams,
+    run_tours,
+    summarize_autonomous_batch,
+    tour_flights,
+)
 from skymule.sim.compiled_summaries import compiled_summaries, flights_summaries
+from skymule.sim.contract import NO_SENSOR
 from skymule.world import build_mission
 from test_batch import (
     random_geometry,
@@ -133,3 +143,73 @@ def test_straight_walks_of_other_lengths_on_one_track(base_mission):
     assert len(set(want.distance_m.tolist())) == 5
     assert_summaries_equal(compiled_summaries(batch, missions), want)
     assert_summaries_equal(flights_summaries(flights, use_numba=False), want)
+
+
+@pytest.fixture(scope="module")
+def autonomous_flights() -> list[Flights]:
+    """Batched autonomous runs as the sweep path summarises them, Greedy and HGAD: the preset,
+    random layouts (return home or not; the preset's sensor count, so one batch), a mission
+    too short to reach any hover point and one that runs no slot."""
+    preset = load_scenario("paper-sim-autonomous")
+    rng = np.random.default_rng(11)
+    ranges = LayoutRanges(n_sensors=(4, 4), return_home_probability=0.5, duration_s=(120, 300))
+    missions = [build_mission(random_autonomous_scenario(rng, preset, ranges)) for _ in range(6)]
+    missions = [build_mission(preset), *missions]
+    missions += [replace(missions[1], n_slots=3), replace(missions[2], n_slots=0)]
+    assert {m.return_home for m in missions} == {True, False}
+    flights = []
+    for hgad in (False, True):
+        result = run_tours(missions, [TourParams(hgad=hgad)] * len(missions), False, "auto")
+        flights.append(tour_flights(result, result.row, missions))
+    return flights
+
+
+def assert_kernels_equal_metrics(flights: Flights) -> Summaries:
+    """Plain-Python kernels, and compiled ones where numba is installed, equal
+    ``metrics.summaries``; returns that."""
+    want = summaries(flights)
+    assert_summaries_equal(flights_summaries(flights, use_numba=False), want)
+    if compiled.available():
+        assert_summaries_equal(flights_summaries(flights), want)
+    return want
+
+
+def test_kernels_equal_metrics_on_autonomous_flights(autonomous_flights):
+    """First visits by target (heading for a sensor and ending the slot near it), HGAD hovers
+    included; the same flights without targets follow the hover and place rules instead."""
+    for flights in autonomous_flights:
+        want = assert_kernels_equal_metrics(flights)
+        assert (want.visit_order[-2:] == NO_SENSOR).all()  # too short to visit, no slot
+        assert (want.visit_order[:-2, 0] != NO_SENSOR).all()
+        untargeted = assert_kernels_equal_metrics(replace(flights, target=None))
+        assert (untargeted.visit_order != want.visit_order).any()  # the target rule matters
+    hgad = summaries(autonomous_flights[1])
+    assert (hgad.hover_time_s[:-2] > 0).all() and (hgad.aadm.score > 0).any()
+
+
+def test_kernels_equal_metrics_on_rows_the_target_rule_skips(autonomous_flights):
+    """Rows with no known hover point (a log without them) or no slot run fall back to the
+    hover rule (HGAD) or the place rule; other radii move the first visits."""
+    for flights in autonomous_flights:
+        hover = flights.hover_points_m.copy()
+        hover[1::3] = np.nan
+        hover[2, 1] = np.nan  # one sensor unknown: that row keeps the target rule
+        assert_kernels_equal_metrics(replace(flights, hover_points_m=hover))
+        for radius in (0.0, 5.0, 400.0):
+            wider = replace(flights, visit_radius_m=np.full_like(flights.visit_radius_m, radius))
+            assert_kernels_equal_metrics(wider)
+
+
+@needs_numba
+def test_compiled_autonomous_summaries_equal_numpy_summaries(autonomous_flights):
+    """The sweep path: ``summarize_autonomous_batch`` with the compiled engine (compiled path
+    queries and reductions) gives the numpy engine's rows, Greedy and HGAD."""
+    preset = load_scenario("paper-sim-autonomous")
+    mission = build_mission(preset)
+    missions = [mission, replace(mission, n_slots=3), replace(mission, n_slots=120)]
+    for policy in ("greedy", "hgad"):
+        specs = [PolicySpec(name=policy)] * len(missions)
+        names = [f"m{k}" for k in range(len(missions))]
+        want = summarize_autonomous_batch(missions, specs, names, engine="numpy")
+        assert summarize_autonomous_batch(missions, specs, names, engine="compiled") == want
+        assert want[1]["visit_order"] == [] and want[0]["visit_order"]

@@ -468,7 +468,12 @@ def summarize_autonomous_batch(
     engine: Engine = "auto",
 ) -> list[dict[str, Any]]:
     """``metrics.summarize`` dictionaries of autonomous Greedy/HGAD missions, in input order,
-    straight from the batch arrays (no per-mission log); ``engine`` as in :func:`run_tours`."""
+    straight from the batch arrays (no per-mission log); ``engine`` as in :func:`run_tours`.
+    The compiled engine reduces the arrays compiled too (``compiled_summaries.flights_summaries``,
+    equal to ``metrics.summaries``, which the numpy engine keeps)."""
+    from skymule.sim.compiled_summaries import flights_summaries
+
+    summarize = flights_summaries if engine != "numpy" and compiled.available() else summaries
     params = _params(specs)
     rows: list[dict[str, Any] | None] = [None] * len(missions)
     for part in _batches(missions, params, batch_size):
@@ -479,7 +484,7 @@ def summarize_autonomous_batch(
             chosen = np.flatnonzero(sizes == n_sensors)
             inputs = [int(i) for i in by_row[chosen]]
             dicts = summary_dicts(
-                summaries(tour_flights(result, chosen, [missions[i] for i in inputs])),
+                summarize(tour_flights(result, chosen, [missions[i] for i in inputs])),
                 [missions[i].sensor_names for i in inputs],
                 [specs[i].name for i in inputs],
                 [scenario_names[i] for i in inputs],

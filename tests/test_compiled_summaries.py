@@ -16,6 +16,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from skymule import metrics
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
 from skymule.metrics import Flights, Summaries, summaries
 from skymule.scenario import PolicySpec, load_scenario
@@ -77,6 +78,24 @@ def test_pairwise_sum_is_numpys_sum_bit_for_bit(seed, n, spread):
     rows = values[: n - n % 3].reshape(3, -1)  # as metrics.row_sums sums a block of rows
     for row, want in zip(rows, rows.sum(axis=1), strict=True):
         assert summary_kernels.pairwise_sum(row, row.size, stack, partial) == want
+
+
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n_tracks=st.integers(1, 40),
+    k_max=st.integers(1, 600),
+    scale=st.sampled_from([1e-3, 1.0, 150.0, 1e4]),
+)
+def test_track_steps_are_the_norm_float_for_float(seed, n_tracks, k_max, scale):
+    """The step table the reductions look up is ``np.linalg.norm`` of each 3-D step, bit for
+    bit (its three squares summed in numpy's order), altitude changes included."""
+    rng = np.random.default_rng(seed)
+    position = rng.normal(size=(n_tracks, k_max, 3)) * scale
+    n_samples = rng.integers(0, k_max + 1, n_tracks)
+    want = np.zeros((n_tracks, k_max))
+    want[:, :-1] = np.linalg.norm(np.diff(position, axis=1), axis=2)
+    want[np.arange(k_max) >= n_samples[:, None] - 1] = 0.0
+    np.testing.assert_array_equal(metrics.track_steps_m(position, n_samples), want, strict=True)
 
 
 @SETTINGS

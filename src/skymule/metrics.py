@@ -87,7 +87,11 @@ def track_steps_m(position_m: np.ndarray, n_samples: np.ndarray) -> np.ndarray:
     """(U, K) distance from track sample k to k + 1 [m]; 0 at and past the last sample."""
     n_tracks, k_max = position_m.shape[:2]
     steps = np.zeros((n_tracks, k_max))
-    steps[:, :-1] = np.linalg.norm(position_m[:, 1:] - position_m[:, :-1], axis=2)
+    square = np.subtract(position_m[:, 1:], position_m[:, :-1], dtype=float)
+    square *= square
+    # np.linalg.norm(offset, axis=2) float for float: numpy adds the three squares as
+    # (x² + y²) + z²; written out, without norm's reduction over a length-3 axis (4x the time)
+    steps[:, :-1] = np.sqrt((square[..., 0] + square[..., 1]) + square[..., 2])
     steps[np.arange(steps.shape[1]) >= n_samples[:, None] - 1] = 0.0
     return steps
 

@@ -6,15 +6,18 @@ each sensor was first visited in and the AADM score's progress. :mod:`skymule.me
 with numpy over (B, T) arrays, the reference; this module does the same reductions for one
 mission's rows in the subset of Python numba compiles, so the compiled slot loop
 (:mod:`skymule.sim.compiled`) can reduce each mission while its slots are still in cache and
-never write the (B, T) logs. Like :mod:`skymule.sim.kernels`, nothing here imports a compiler:
-the tests run these functions as plain Python too, and check the compiled summaries equal
-``metrics.summaries`` value for value.
+never write the (B, T) logs, and a pass over arrays already written (:func:`reduce_rows`: the
+numpy loop's logs, or the batched autonomous engine's arrays, whose first visits follow the
+targets, :func:`first_target_arrivals`). Like :mod:`skymule.sim.kernels`, nothing here imports
+a compiler: the tests run these functions as plain Python too, and check the compiled summaries
+equal ``metrics.summaries`` value for value.
 
 Value for value means the same floating-point sums: numpy sums a row pairwise
 (:func:`pairwise_sum` repeats its order exactly) and the AADM score uses a running sum.
 The lookup tables (distance and power per track sample, the first track sample near each
 sensor) come from the same functions ``metrics`` uses (``metrics.power_tables``,
-``metrics.near_samples``).
+``metrics.near_samples``); the distance to a hover point is ``np.hypot``, as in
+:mod:`skymule.visits` (numba calls the same C library function).
 """
 
 from __future__ import annotations

@@ -219,6 +219,26 @@ def test_kernels_equal_metrics_on_rows_the_target_rule_skips(autonomous_flights)
             assert_kernels_equal_metrics(wider)
 
 
+def test_kernels_equal_metrics_with_radii_on_the_boundary(autonomous_flights):
+    """Each mission's visit radius set to exactly the distance at which the UAV ended some slot
+    heading for a sensor: the test ``distance <= radius`` holds with equality there, so
+    the kernels' hypot must be numpy's to the last bit (numba calls the same C function)."""
+    for flights in autonomous_flights:
+        assert flights.target is not None
+        radius = flights.visit_radius_m.copy()
+        for b in range(radius.size):
+            n_run = flights.n_run[b]
+            heading = np.flatnonzero(flights.target[b, :n_run] != NO_SENSOR)
+            if heading.size == 0:
+                continue
+            t = heading[heading.size // 2]
+            k = flights.sample[b, t + 1] if t + 1 < n_run else flights.end_sample[b]
+            end = flights.track_position_m[flights.track_id[b], k, :2]
+            offset = end - flights.hover_points_m[b, flights.target[b, t]]
+            radius[b] = np.hypot(offset[0], offset[1])
+        assert_kernels_equal_metrics(replace(flights, visit_radius_m=radius))
+
+
 @needs_numba
 def test_compiled_autonomous_summaries_equal_numpy_summaries(autonomous_flights):
     """The sweep path: ``summarize_autonomous_batch`` with the compiled engine (compiled path

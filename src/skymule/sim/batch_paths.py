@@ -130,11 +130,14 @@ class CompiledPaths:
         nodes, count = navigator.vertex_routes
         self._nodes, self._count = np.ascontiguousarray(nodes), np.ascontiguousarray(count)
         self._edges = vk.fence_edges(navigator.fence)
+        self._certify = len(self._edges) <= vk.MAX_EDGES
         self._k = _kernels()
 
     def segments_visible(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """(P,) :meth:`Navigator.segments_visible`: segments clear of the fence's edges
         answered by :mod:`~skymule.sim.visibility_kernels`, the rest by ``covers``."""
+        if not self._certify:
+            return self._nav.segments_visible(a, b)
         a, b = np.ascontiguousarray(a, float), np.ascontiguousarray(b, float)
         answer = np.empty(len(a), np.int8)
         self._k["classify_segments"](a, b, self._edges, vk.MARGIN_M, answer)
@@ -181,7 +184,7 @@ class CompiledPaths:
             unknown = np.empty(rows.size, np.int64)
             self._k["first_seen"](
                 rows, from_rank, start, order, row_min, d_s, self._vertices, self._edges,
-                vk.MARGIN_M, first, unknown,
+                vk.MARGIN_M, self._certify, first, unknown,
             )  # fmt: skip
             stuck = unknown >= 0
             rows, from_rank = rows[stuck], unknown[stuck]

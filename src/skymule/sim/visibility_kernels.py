@@ -43,6 +43,11 @@ VISIBLE, HIDDEN, UNKNOWN = 1, 0, -1
 MARGIN_M = 1e-3
 
 
+#: Fences with more edges than this keep shapely's test: the certificate scans every edge
+#: (~4 ns each), the prepared ``covers`` test takes ~1-1.6 us whatever the fence (measured
+#: on random star-shaped fences: 256 edges 1.1 vs 1.7 us per segment, 512 edges 2.2 vs 1.6).
+MAX_EDGES = 256
+
 #: A start this close to an edge [m] is on it: a UAV flying along the fence (round-off only).
 ON_EDGE_M = 1e-9
 
@@ -281,6 +286,7 @@ def first_seen(
     vertices: np.ndarray,
     edges: np.ndarray,
     margin_m: float,
+    certify: bool,
     first: np.ndarray,
     unknown_rank: np.ndarray,
 ) -> None:
@@ -290,7 +296,8 @@ def first_seen(
     ``d_s`` (R, k) of ``path_kernels.rank_vertices``): ``first[row]`` becomes the first vertex
     of finite total that the start sees (or stands on), and ``unknown_rank`` (C,) -1; where
     the certificate cannot tell before a vertex is seen, ``unknown_rank`` is that rank (the
-    caller asks ``covers`` and goes on from the next rank).
+    caller asks ``covers`` and goes on from the next rank; every time when ``certify`` is
+    False).
     """
     scratch = np.empty(edges.shape[0])
     for i in range(rows.shape[0]):
@@ -303,9 +310,12 @@ def first_seen(
             if d_s[r, v] == 0.0:
                 first[r] = v
                 break
-            answer = segment_visibility(
-                start[r, 0], start[r, 1], vertices[v, 0], vertices[v, 1], edges, margin_m, scratch
-            )
+            answer = UNKNOWN
+            if certify:
+                answer = segment_visibility(
+                    start[r, 0], start[r, 1], vertices[v, 0], vertices[v, 1], edges, margin_m,
+                    scratch,
+                )  # fmt: skip
             if answer == VISIBLE:
                 first[r] = v
                 break

@@ -321,11 +321,19 @@ def autonomous_cells(out: str) -> dict[str, str]:
             "missions per CPU-s"
         ),
     }
+    versus_numpy = dict(
+        _numbers(r"(?m)^  (greedy|hgad)\s.*\(compiled, ([\d.]+)x numpy\)$", out)
+    )
     for engine in ("numpy", "compiled"):
         greedy, hgad = batched["greedy", engine], batched["hgad", engine]
+        faster = {
+            name: f", ×{_f(versus_numpy[name]):.1f} numpy" if engine == "compiled" else ""
+            for name in ("greedy", "hgad")
+        }
         cells[f"^autonomous missions, batched engine, {engine}"] = (
             f"Greedy {greedy[0]:,.0f} missions per CPU-s (**×{greedy[1]:.0f}** the reference in "
-            f"the same run), HGAD {hgad[0]:,.0f} (×{hgad[1]:.0f})"
+            f"the same run{faster['greedy']}), HGAD {hgad[0]:,.0f} (×{hgad[1]:.0f}"
+            f"{faster['hgad']})"
         )
     return cells
 

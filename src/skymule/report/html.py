@@ -135,7 +135,8 @@ SUMMARY_FIELDS: tuple[tuple[str, str, str], ...] = (
 )
 
 
-def _fmt(template: str, value: Any) -> str:
+def format_cell(template: str, value: Any) -> str:
+    """``value`` formatted by ``template`` for a table cell (escaped text if it does not fit)."""
     try:
         if template == "{:d}":
             return str(int(value))
@@ -155,7 +156,7 @@ def summary_table(runs: tuple[RunData, ...]) -> str:
     fields = [f for f in SUMMARY_FIELDS if any(f[0] in r.summary for r in runs)]
     rows = [
         [html.escape(label)]
-        + [_fmt(fmt, r.summary[key]) if key in r.summary else "-" for r in runs]
+        + [format_cell(fmt, r.summary[key]) if key in r.summary else "-" for r in runs]
         for key, label, fmt in fields
     ]
     visit = [r for r in runs if "visit_order" in r.summary]
@@ -176,9 +177,9 @@ def sensor_table(runs: tuple[RunData, ...]) -> str:
     for name in names:
         buffer = runs[0].summary.get("per_sensor_buffer_mbit", {}).get(name)
         rows.append(
-            [html.escape(name), _fmt("{:.1f}", buffer)]
+            [html.escape(name), format_cell("{:.1f}", buffer)]
             + [
-                _fmt("{:.1f}", r.summary.get("per_sensor_downloaded_mbit", {}).get(name))
+                format_cell("{:.1f}", r.summary.get("per_sensor_downloaded_mbit", {}).get(name))
                 for r in runs
             ]
         )

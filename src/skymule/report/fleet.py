@@ -140,6 +140,7 @@ def draw_fleet_trajectory(
     ax.set_xlabel("x east [m]")
     ax.set_ylabel("y north [m]")
     ax.set_aspect("equal", adjustable="datalim")
+    ax.margins(0.1)  # room for the tower names at the edges
     ax.autoscale_view()
     if legend:
         ax.legend(fontsize=7, loc="best")
@@ -178,15 +179,15 @@ def draw_uav_sensor_bars(
         ax.bar(positions, heights, bottom=bottom, width=0.6, color=colours[str(uav)], label=uav)
         bottom += heights
     buffers = np.array([float(buffers_mbit.get(s, np.nan)) for s in sensors])
+    top = float(np.nanmax([*bottom, *buffers, 0.0]))
     for x_pos, height, buffer in zip(positions, bottom, buffers, strict=True):
-        above = max(height, buffer) if np.isfinite(buffer) else height  # clear of the dash
-        ax.annotate(
-            f"{height:.0f}", (x_pos, above), xytext=(0, 2), textcoords="offset points",
-            ha="center", va="bottom", fontsize=7,
+        near = np.isfinite(buffer) and 0.0 <= buffer - height < 0.06 * top
+        ax.annotate(  # above the buffer's dash when the bar (nearly) reaches it
+            f"{height:.0f}", (x_pos, buffer if near else height), xytext=(0, 2),
+            textcoords="offset points", ha="center", va="bottom", fontsize=7,
         )  # fmt: skip
         if np.isfinite(buffer):
             ax.hlines(buffer, x_pos - 0.35, x_pos + 0.35, label="buffer", **TOTAL_STYLE)
-    top = float(np.nanmax([*bottom, *buffers, 0.0]))
     ax.set_ylim(0, 1.12 * top if top > 0 else 1.0)  # room for the value labels
     ax.set_xticks(positions, sensors)
     ax.set_xlabel("sensor")

@@ -138,11 +138,8 @@ def _uav_entries(summary: dict[str, Any], source: str) -> list[dict[str, Any]]:
     return entries
 
 
-def _check_uav_rows(
-    slots: pd.DataFrame, summary: dict[str, Any], names: list[str], source: str
-) -> None:
-    """slots.csv's ``uav`` column names exactly the summary's UAVs, each with ``slots`` rows."""
-    uav = slots["uav"]
+def _check_uav_names(uav: pd.Series, names: list[str], source: str) -> pd.Series:
+    """slots.csv's ``uav`` column as text, each cell one of ``names`` (summary.json's)."""
     text = uav.fillna("").astype(str)
     unknown = ~text.isin(names).to_numpy(dtype=bool)
     if unknown.any():
@@ -152,6 +149,34 @@ def _check_uav_rows(
             f"{source}: data row {index + 1}, column 'uav': {shown} is not allowed; allowed: "
             f"one of summary.json's uavs ({', '.join(names)})"
         )
+    return text
+
+
+def _precheck_uav_column(slots_path: Path, summary_path: Path) -> None:
+    """The ``uav`` cells against summary.json's names, before :func:`read_run`: its row count
+    is the summary's ``slots`` times the distinct ``uav`` cells, so a stray name would be
+    reported as a wrong row count. Skipped when either file does not read (read_run says why).
+    """
+    entries = _summary_uavs(summary_path)
+    if not isinstance(entries, list):
+        return
+    names = [e["uav"] for e in entries if isinstance(e, dict) and isinstance(e.get("uav"), str)]
+    if len(names) != len(entries) or len(set(names)) != len(names):
+        return  # a malformed entry or a repeated name: named after read_run (_uav_entries)
+    try:
+        column = pd.read_csv(
+            slots_path, usecols=["uav"], dtype=str, keep_default_na=False, encoding="utf-8"
+        )["uav"]
+    except (OSError, UnicodeDecodeError, ValueError):  # pandas' parse errors are ValueErrors
+        return
+    _check_uav_names(column, names, str(slots_path))
+
+
+def _check_uav_rows(
+    slots: pd.DataFrame, summary: dict[str, Any], names: list[str], source: str
+) -> None:
+    """slots.csv's ``uav`` column names exactly the summary's UAVs, each with ``slots`` rows."""
+    text = _check_uav_names(slots["uav"], names, source)
     counts = text.value_counts()
     expected = int(summary["slots"])
     for name in names:
@@ -168,9 +193,9 @@ def _check_uav_rows(
         if differ.any():
             index = int(np.flatnonzero((text == name).to_numpy())[int(np.argmax(differ))])
             raise SkymuleError(
-                f"{source}: data row {index + 1}, column 't_s': {times[name][differ][0]!r} is "
-                f"not allowed; allowed: UAV {first!r}'s time of the same slot "
-                f"({times[first][differ][0]!r}): every UAV flies the same slots"
+                f"{source}: data row {index + 1}, column 't_s': {float(times[name][differ][0])!r}"
+                f" is not allowed; allowed: {float(times[first][differ][0])!r} (the same slot's "
+                f"time as UAV {first!r}: every UAV flies the same slots)"
             )
 
 
@@ -200,6 +225,7 @@ def load_fleet_run(run_dir: Path, label: str | None = None) -> FleetRun:
             f"{slots_path}: missing column 'uav'; summary.json lists {listed} UAVs and a run "
             "of several UAVs has one row per UAV per slot (rewrite it with `skymule run`)"
         )
+    _precheck_uav_column(slots_path, summary_path)
     summary, slots = read_run(run_dir)
     entries = _uav_entries(summary, str(summary_path))
     names = [str(entry["uav"]) for entry in entries]

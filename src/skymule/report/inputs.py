@@ -62,10 +62,10 @@ def read_scenario(run_dir: Path) -> dict[str, Any]:
 def load_run(run_dir: Path, label: str | None = None) -> RunData:
     """Read a run folder, validated (one clear line if it is not one or is damaged)."""
     summary, slots = read_run(run_dir)
-    if "uav" in slots.columns:  # several UAVs: the report's panels are one UAV's (docs/fleet.md)
+    if "uav" in slots.columns:  # several UAVs: these panels are one UAV's (docs/fleet.md)
         raise SkymuleError(
-            f"{run_dir}: a run of several UAVs (slots.csv has a uav column); the HTML report "
-            "covers one UAV: use `skymule plot` for the fleet's trajectory figure"
+            f"{run_dir}: a run of several UAVs (slots.csv has a uav column); this reader covers "
+            "one UAV: `skymule report` gives the fleet report (skymule.report.fleet_inputs)"
         )
     scenario = read_run_scenario(run_dir)
     return RunData(

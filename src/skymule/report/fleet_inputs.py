@@ -60,7 +60,7 @@ class FleetRun:
         """
         slots = self.run.slots
         served = slots[slots["served"] != ""]
-        table = served.groupby(["uav", "served"])["downloaded_mbit"].sum().unstack(fill_value=0.0)
+        table = served.groupby(["uav", "served"])["downloaded_mbit"].sum().unstack(fill_value=0)
         return table.reindex(
             index=list(self.uavs), columns=self.run.sensor_names, fill_value=0.0
         ).astype(float)

@@ -185,6 +185,14 @@ def test_fixed_fleet_runs_each_path(tmp_path: Path) -> None:
     summary = json.loads((tmp_path / "summary.json").read_text())
     parts = sum(u["total_downloaded_mbit"] for u in summary["uavs"])
     assert summary["total_downloaded_mbit"] == pytest.approx(parts)
+    # each UAV's per-sensor download is its own share (the logs hold the shared buffers)
+    for uav in summary["uavs"]:
+        own = uav["per_sensor_downloaded_mbit"]
+        assert sum(own.values()) == pytest.approx(uav["total_downloaded_mbit"])
+    for sensor, fleet_mbit in summary["per_sensor_downloaded_mbit"].items():
+        shares = [uav["per_sensor_downloaded_mbit"][sensor] for uav in summary["uavs"]]
+        assert sum(shares) == pytest.approx(fleet_mbit)
+    assert all(u["total_downloaded_mbit"] > 0 for u in summary["uavs"])
     # the run folder reads back and draws one trajectory figure for the fleet
     from skymule.io.runs import read_run
     from skymule.report.plot import plot_run

@@ -66,6 +66,13 @@ def fleet_summary(fleet: Fleet, log: FleetLog, policy: str) -> dict[str, Any]:
     per_uav = []
     for name, uav_log, lost in zip(log.names, log.logs, log.lost.T, strict=True):
         part = summarize(uav_log, fleet.scenario.name)
+        # a UAV's log holds the shared buffers: its own share per sensor is what it served
+        own = np.zeros(mission.n_sensors)
+        served = uav_log.served != NO_SENSOR
+        np.add.at(own, uav_log.served[served], uav_log.downloaded_bit[served])
+        part["per_sensor_downloaded_mbit"] = dict(
+            zip(mission.sensor_names, (own / BITS_PER_MBIT).tolist(), strict=True)
+        )
         per_uav.append({"uav": name, **part, "lost_slots": int(lost.sum())})
     by_sensor = np.zeros(mission.n_sensors)
     for uav_log in log.logs:

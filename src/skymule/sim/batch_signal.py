@@ -72,14 +72,21 @@ class BatchSignal:
         self._fading_cols = np.flatnonzero([m.fading_db is not None for m in missions])
         t_max = max(m.n_slots for m in missions)
         self._fading_db = np.zeros((t_max, n_sensors, self._fading_cols.size))
+        self._fading_slots = np.zeros(self._fading_cols.size, np.int64)  # slots drawn, each
         for f, col in enumerate(self._fading_cols.tolist()):
             gains = missions[col].fading_db
             assert gains is not None
             self._fading_db[: gains.shape[0], : gains.shape[1], f] = gains
+            self._fading_slots[f] = gains.shape[0]
 
-    def snr_db(self, position_m: np.ndarray, slot: int | None) -> np.ndarray:
+    def snr_db(self, position_m: np.ndarray, slot: int | np.ndarray | None) -> np.ndarray:
         """(N, A) SNR [dB] each of the first A missions sees at its position (A, 2) in slot
-        ``slot``, per-slot fading included (``slot=None``: without fading; NaN: no link)."""
+        ``slot``, per-slot fading included (``slot=None``: without fading; NaN: no link).
+
+        ``slot`` may be an (A,) integer array, each mission's own slot (missions stepped
+        independently, :mod:`skymule.envs.vector`); a mission at or past its last slot then
+        sees no fading (the observation after its last slot, as the single environment's).
+        """
         active = position_m.shape[0]
         snr = np.full((self._n_sensors, active), np.nan)
         for cols in self._offset:
@@ -104,9 +111,17 @@ class BatchSignal:
             here = np.column_stack([position_m[cols], self._altitude[cols]])
             snr[: self._missions[int(cols[0])].n_sensors, cols] = source.snr_db(here).T
         faded = self._fading_cols < active
-        if slot is not None and faded.any():
-            cols = self._fading_cols[faded]
+        if slot is None or not faded.any():
+            return snr
+        cols = self._fading_cols[faded]
+        if np.ndim(slot) == 0:
             snr[:, cols] = snr[:, cols] + self._fading_db[slot][:, faded]
+            return snr
+        slots = np.asarray(slot, np.int64)[cols]
+        now = slots < self._fading_slots[faded]
+        cols, which = cols[now], np.flatnonzero(faded)[now]
+        # two advanced indices around a slice: the (F', N) gains of each column's own slot
+        snr[:, cols] = snr[:, cols] + self._fading_db[slots[now], :, which].T
         return snr
 
     def rate_bps(self, snr_db: np.ndarray) -> np.ndarray:

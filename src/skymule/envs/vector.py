@@ -1,22 +1,36 @@
 """Many autonomous missions stepped at once: a Gymnasium ``VectorEnv`` over numpy arrays.
 
 Each of the B sub-environments is one mission; a step runs one slot of all of them with array
-operations over missions x sensors: the served bits come from the slot contract
-(:func:`skymule.sim.contract.served_bits`), the SNR from the mission's own path-loss model and
-link budget, the rates from its rate table. The observation and action encodings are those of
-``skymule/DataMule-v0`` (:mod:`skymule.envs.observation`, ``move="headings"``).
+operations over missions x sensors, by the rules of the single environment's engine
+(:func:`skymule.sim.autonomous.next_position` and :mod:`skymule.sim.contract`), value for
+value. The observation and action encodings are those of ``skymule/DataMule-v0``
+(:mod:`skymule.envs.observation`, ``move="headings"``). Every step:
 
-What it supports exactly, and nothing else (:func:`unsupported_reason` says why a mission is
-refused): autonomous missions whose geofence is **convex** (or absent), whose signal is a
-``fspl`` or ``log-distance`` model without shadowing or fading, sharing one fence, radio, rate
-table and sensor count (positions, buffers, home, speed, altitude, duration and return home
-may differ). In a convex fence the shortest in-fence path is the straight line, so the
-engine's navigation reduces to: a goal outside the fence moves to the nearest point of the
-fence; the UAV flies straight toward it, at most ``max_speed_mps * slot_s``; with
-``return_home`` it turns home whenever the straight-line distance home would exceed the time
-left. These are the rules of :class:`~skymule.sim.autonomous.AutonomousFlight` for such fences
-and the tests check that single environments and this one agree step for step. Concave fences
-(Lake Wheeler's own) need the navigator's visibility graph: use :class:`DataMuleEnv` there.
+1. the served sensor delivers min(R dt, Q) bits (:func:`skymule.sim.contract.served_bits`);
+2. the heading's goal is made legal (:func:`legal_goals`, the engine's
+   :func:`~skymule.sim.autonomous.legal_goal` vectorised: kept where the fence covers it, else
+   the nearest point of the fence) and the UAV flies at most ``max_step_m`` along the
+   shortest in-fence path toward it (:meth:`~skymule.flight.navigation.Navigator.steps`,
+   concave fences included; with numba, :class:`~skymule.sim.batch_paths.CompiledPaths`,
+   the same floats);
+3. with ``return_home`` the goal is overridden by home where the engine overrides it
+   (:class:`HomeRule`: each mission at its own slot);
+4. SNR and rates at the new positions (:class:`~skymule.sim.batch_signal.BatchSignal`): each
+   mission's own signal source (any path-loss model, link budget, altitude, shadowing, radio
+   maps), its per-slot fading at its own slot, and its rate table.
+
+What it supports (:func:`unsupported_reason` says why a mission is refused): autonomous
+missions without faults (``[[faults]]`` need the engine: use :class:`DataMuleEnv`), sharing
+one geofence (missions built separately on the same fence are grouped by its geometry) and
+the sensor count; everything else may differ per mission (sensors, buffers, home, signal,
+rates, speed, altitude, duration, return home). ``tests/test_vector_env.py`` runs single
+environments and this one side by side and requires the same observations, rewards,
+terminations and positions at every step.
+
+Shadowing and fading are those of each built :class:`~skymule.world.Mission` (drawn once from
+its scenario's seed) in every episode: ``reset(seed=...)`` does not redraw them, as
+:class:`DataMuleEnv` given that built Mission (given a scenario, the single environment
+redraws them at each reset).
 
 Autoreset follows Gymnasium's ``NEXT_STEP`` mode: the step after an episode ends resets that
 mission (its action is ignored) and returns its first observation with reward 0.
@@ -28,53 +42,146 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+import shapely
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
-from shapely.geometry import Polygon
-from shapely.geometry.polygon import orient
 
 import skymule.envs.observation as enc
 from skymule.aadm.score import COMPLETE_RTOL
 from skymule.envs.datamule import REWARDS, anchors_m
 from skymule.errors import SkymuleError
-from skymule.radio.pathloss import FreeSpace, LogDistance
-from skymule.radio.sources import ModelSource
+from skymule.flight.navigation import Navigator
 from skymule.scenario import Scenario, load_scenario
-from skymule.sim import contract
+from skymule.sim import batch_paths, compiled, contract
 from skymule.sim.autonomous import FEASIBILITY_SLACK_M
+from skymule.sim.batch import Engine
+from skymule.sim.batch_home import BOUND_SLACK_M
+from skymule.sim.batch_paths import Paths, Sight
+from skymule.sim.batch_signal import BatchSignal
 from skymule.world import Mission, build_mission
-
-#: A goal within this distance [m] outside the fence counts as inside (the engine's tolerance).
-FENCE_TOLERANCE_M = 1e-6
-
-
-def _fence(mission: Mission) -> Polygon:
-    assert mission.navigator is not None
-    return mission.navigator.fence
 
 
 def unsupported_reason(mission: Mission) -> str | None:
     """Why the vector env cannot step ``mission`` exactly (None when it can)."""
-    if mission.mode != "autonomous" or mission.navigator is None:
+    if mission.mode != "autonomous" or mission.navigator is None or mission.home_m is None:
         return "it is not autonomous (trajectory.mode = 'fixed')"
-    source = mission.source
-    if not isinstance(source, ModelSource) or type(source.pathloss) not in (FreeSpace, LogDistance):
-        return "its signal is not an fspl / log-distance model without shadowing"
-    if mission.fading_db is not None:
-        return "it has per-slot fading"
-    fence = _fence(mission)
-    if fence.interiors or fence.convex_hull.area - fence.area > 1e-6 * fence.area:
-        return "its geofence is not convex (use DataMuleEnv: it navigates around corners)"
+    if mission.source is None:
+        return "it has no signal source"
+    if mission.faults is not None:
+        return "it has faults ([[faults]]; use DataMuleEnv: the engine applies them)"
     return None
 
 
-def _same(missions: Sequence[Mission], what: str, values: list[Any]) -> None:
-    if any(value != values[0] for value in values[1:]):
-        raise SkymuleError(
-            f"vector env: missions differ in {what}; all missions must share it "
-            f"(first: {values[0]!r})"
+def path_queries(navigator: Navigator, engine: Engine) -> Paths:
+    """The navigator's batched path queries: compiled (:class:`~skymule.sim.batch_paths.
+    CompiledPaths`, the same floats) for ``"compiled"``, or ``"auto"`` when numba is installed
+    and the fence is small enough; the navigator itself for ``"numpy"``."""
+    if engine not in ("auto", "numpy", "compiled"):
+        raise SkymuleError(f"vector env: engine = {engine!r}; allowed: auto, numpy, compiled")
+    usable = compiled.available() and batch_paths.supports(navigator)
+    if engine == "compiled" and not usable:
+        why = "numba is not installed" if not compiled.available() else "the fence is too large"
+        raise SkymuleError(f"vector env: engine = 'compiled' cannot run: {why}")
+    if engine == "compiled" or (engine == "auto" and usable):
+        return batch_paths.CompiledPaths(navigator)
+    return navigator
+
+
+class HomeRule:
+    """The engine's return-home override for B missions, each at its own slot.
+
+    :func:`~skymule.sim.autonomous.next_position` steps toward home instead of the goal when
+    d(position) + step > budget and d(moved) > budget, with d the in-fence distance home and
+    budget = (T - t - 1) step + FEASIBILITY_SLACK_M. The same test, the same floats, but d is
+    computed only where it may bind: ``bound`` is an upper bound on d(position) (0 at home,
+    exact where last computed, plus one step per slot: no slot takes the UAV farther), the
+    straight line a lower bound on d(moved), and d(moved) of a UAV that ends the slot there
+    is the next slot's d(position) (the same query).
+    """
+
+    def __init__(self, paths: Paths, missions: Sequence[Mission], home_m: np.ndarray) -> None:
+        self._paths = paths
+        self._home = home_m
+        self._sight: Sight = paths.sights(home_m)
+        self._step = np.array([m.max_step_m for m in missions], float)
+        self._n_slots = np.array([m.n_slots for m in missions], np.int64)
+        self.on = np.array([m.return_home for m in missions], bool)
+        self._bound = np.zeros(len(missions))
+        self._exact = np.full(len(missions), np.nan)
+
+    def restart(self, which: np.ndarray) -> None:
+        """The missions ``which`` (mask) start again at home."""
+        self._bound[which] = 0.0
+        self._exact[which] = np.nan
+
+    def _distances(self, rows: np.ndarray, points: np.ndarray) -> np.ndarray:
+        sight = (self._sight[0][rows], self._sight[1][rows])
+        return self._paths.travel_distances(points, self._home[rows], sight, checked=False)
+
+    def apply(
+        self, slot: np.ndarray, position: np.ndarray, moved: np.ndarray, live: np.ndarray
+    ) -> None:
+        """Override ``moved`` (B, 2) in place where the engine would, for the ``live`` missions
+        (mask) at ``slot`` (B,) starting from ``position`` (B, 2)."""
+        step = self._step
+        budget = (self._n_slots - slot - 1) * step + FEASIBILITY_SLACK_M
+        check = np.flatnonzero(self.on & live & ~(self._bound + step < budget - BOUND_SLACK_M))
+        now = self._exact[check]
+        self._exact[:] = np.nan  # every UAV moves on
+        ask = np.isnan(now)
+        if ask.any():
+            now[ask] = self._distances(check[ask], position[check[ask]])
+        self._bound[check] = now
+        self._bound += step
+        near = check[now + step[check] > budget[check]]
+        if not near.size:
+            return
+        limit = budget[near]
+        after = np.full(near.size, np.inf)  # the straight line decides where it clears the budget
+        beeline = np.hypot(
+            moved[near, 0] - self._home[near, 0], moved[near, 1] - self._home[near, 1]
         )
+        ask = beeline <= limit + BOUND_SLACK_M
+        if ask.any():
+            after[ask] = self._distances(near[ask], moved[near[ask]])
+        back = after > limit
+        self._exact[near[~back]] = after[~back]
+        rows = near[back]
+        if rows.size:
+            sight = (self._sight[0][rows], self._sight[1][rows])
+            moved[rows] = self._paths.steps(
+                position[rows], self._home[rows], step[rows], sight, checked=False
+            )
+
+
+def legal_goals(navigator: Navigator, goals: np.ndarray) -> np.ndarray:
+    """:func:`~skymule.sim.autonomous.legal_goal` of P goals (P, 2), float for float.
+
+    A goal the fence does not cover (``covers_goals``, one vectorised test) is replaced by the
+    nearest point of the fence: ``hover_point(fence, goal, margin_m=0)`` gives shapely's
+    ``nearest_points(fence, goal)[0]`` there (the goal is not in the fence, no clearance to
+    try), which is the first point of ``shapely.shortest_line`` (one vectorised call here).
+    """
+    legal = np.array(goals, float).reshape(-1, 2)
+    outside = np.flatnonzero(~navigator.covers_goals(legal))
+    if outside.size:
+        lines = shapely.shortest_line(navigator.fence, shapely.points(legal[outside]))
+        legal[outside] = shapely.get_coordinates(shapely.get_point(lines, 0))
+    return legal
+
+
+def _same_fence(missions: Sequence[Mission]) -> Navigator:
+    """The navigator of the missions' one geofence (SkymuleError if they differ)."""
+    navigators = [m.navigator for m in missions if m.navigator is not None]
+    keys = [nav.fence_key for nav in navigators]
+    for index, key in enumerate(keys):
+        if key != keys[0]:
+            raise SkymuleError(
+                f"vector env: mission {index} ({missions[index].scenario.name!r}) has another "
+                "geofence than mission 0; all missions must share one fence"
+            )
+    return navigators[0]
 
 
 class DataMuleVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
@@ -83,12 +190,18 @@ class DataMuleVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
     Args:
         missions: Missions, Scenarios, preset names or paths; one sub-environment each.
         reward: "mbit" or "aadm" (as in :class:`~skymule.envs.datamule.DataMuleEnv`).
+        engine: path queries "auto" (compiled when numba is installed), "numpy" or
+            "compiled"; the same steps either way.
     """
 
     metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.NEXT_STEP}  # noqa: RUF012
 
     def __init__(
-        self, missions: Sequence[Mission | Scenario | str], *, reward: str = "mbit"
+        self,
+        missions: Sequence[Mission | Scenario | str],
+        *,
+        reward: str = "mbit",
+        engine: Engine = "auto",
     ) -> None:
         if not missions:
             raise SkymuleError("vector env: give at least one mission")
@@ -102,19 +215,18 @@ class DataMuleVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
                     f"vector env: mission {index} ({mission.scenario.name!r}) is not supported: "
                     f"{reason}"
                 )
-        sources = [m.source for m in built]
-        _same(built, "number of sensors", [m.n_sensors for m in built])
-        _same(built, "path-loss model", [s.pathloss for s in sources if isinstance(s, ModelSource)])
-        _same(built, "link budget", [s.budget for s in sources if isinstance(s, ModelSource)])
-        _same(built, "rate table", [(m.rate_table, m.bandwidth_hz) for m in built])
-        _same(built, "geofence", [_fence(m).wkb for m in built])
+        sizes = [m.n_sensors for m in built]
+        if any(size != sizes[0] for size in sizes):
+            raise SkymuleError(
+                f"vector env: missions have {sorted(set(sizes))} sensors; all missions must "
+                f"have the same number (the observation's size)"
+            )
+        self._navigator = _same_fence(built)
+        self._paths = path_queries(self._navigator, engine)
         self.missions = tuple(built)
         self.reward_mode = reward
-        first = built[0]
-        assert isinstance(first.source, ModelSource)
-        self._pathloss, self._budget = first.source.pathloss, first.source.budget
         self.num_envs = len(built)
-        self.n_sensors = first.n_sensors
+        self.n_sensors = sizes[0]
         low, high = enc.observation_bounds(self.n_sensors)
         self.single_observation_space = spaces.Box(low, high, dtype=np.float32)
         self.single_action_space = spaces.MultiDiscrete([self.n_sensors + 1, enc.N_HEADINGS])
@@ -124,78 +236,49 @@ class DataMuleVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         self._home = np.array([m.home_m for m in built], float)
         self._buffers = np.array([m.buffers_bit for m in built], float)
         self._total = self._buffers.sum(axis=1)
-        self._sensor = np.array([m.sensor_m for m in built], float)
         self._anchors = np.array([anchors_m(m) for m in built], float)
         self._n_slots = np.array([m.n_slots for m in built])
         self._slot_s = np.array([m.slot_s for m in built], float)
         self._step_m = np.array([m.max_step_m for m in built], float)
-        self._altitude = np.array([m.altitude_m for m in built], float)
-        self._return_home = np.array([m.return_home for m in built], bool)
-        ring = np.asarray(orient(_fence(first), sign=1.0).exterior.coords)[:-1]
-        self._edge_a, self._edge_d = ring, np.roll(ring, -1, axis=0) - ring
-        self._edge_len = np.hypot(self._edge_d[:, 0], self._edge_d[:, 1])
+        self._window_s = np.array([m.score_window_s for m in built], float)
+        # slots that may serve (the download window, ``Mission.window_slots``)
+        self._serve_slots = np.array(
+            [m.n_slots if m.window_slots is None else m.window_slots for m in built], np.int64
+        )
+        self._signal = BatchSignal(built, self.n_sensors)
+        self._home_rule = HomeRule(self._paths, built, self._home)
         # state
         self.position_m = self._home.copy()
         self.slot = np.zeros(self.num_envs, np.int64)
         self.remaining_bit = self._buffers.copy()
         self._completed = np.zeros(self.num_envs, bool)
         self._counted_bit = np.zeros(self.num_envs)
-        self._window_s = np.array([m.score_window_s for m in built], float)
         self._needs_reset = np.zeros(self.num_envs, bool)
         self._snr = np.zeros((self.num_envs, self.n_sensors))
         self._rate = np.zeros((self.num_envs, self.n_sensors))
 
     # --- physics --------------------------------------------------------------------------------
 
-    def _link(self, position_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(B, N) SNR [dB] and rate [bit/s] at ``position_m`` (B, 2), as the source computes.
+    def _link(self) -> None:
+        """SNR [dB] and rates [bit/s] (B, N) at the positions, each mission at its slot."""
+        snr = self._signal.snr_db(self.position_m, self.slot)
+        self._snr, self._rate = snr.T, self._signal.rate_bps(snr).T
 
-        The models depend on the UAV-sensor difference vector only, so evaluating them at the
-        differences against a sensor at the origin gives the same numbers per pair.
-        """
-        batch, n = self.num_envs, self.n_sensors
-        diff = np.empty((batch, n, 3))
-        diff[..., :2] = position_m[:, None, :] - self._sensor[..., :2]
-        diff[..., 2] = self._altitude[:, None] - self._sensor[..., 2]
-        loss = self._pathloss.loss_db(diff.reshape(-1, 3), np.zeros((1, 3)))
-        snr = self._budget.snr_db(loss).reshape(batch, n)
-        return snr, self.missions[0].rate_bps(snr)
-
-    def _legal_goal(self, goal: np.ndarray) -> np.ndarray:
-        """Goals outside the (convex) fence replaced by the nearest point of the fence."""
-        rel = goal[:, None, :] - self._edge_a[None]  # (B, K, 2)
-        d = self._edge_d[None]
-        cross = (d[..., 0] * rel[..., 1] - d[..., 1] * rel[..., 0]) / self._edge_len
-        inside = np.all(cross >= -FENCE_TOLERANCE_M, axis=1)
-        if inside.all():
-            return goal
-        t = np.clip(np.sum(rel * d, axis=2) / self._edge_len**2, 0.0, 1.0)
-        nearest = self._edge_a[None] + t[..., None] * d  # (B, K, 2)
-        dist = np.hypot(*(nearest - goal[:, None, :]).transpose(2, 0, 1))
-        best = nearest[np.arange(len(goal)), np.argmin(dist, axis=1)]
-        return np.where(inside[:, None], goal, best)
-
-    @staticmethod
-    def _advance(start: np.ndarray, goal: np.ndarray, step_m: np.ndarray) -> np.ndarray:
-        """Straight toward ``goal``, at most ``step_m``; exactly ``goal`` when within reach."""
-        delta = goal - start
-        seg = np.hypot(delta[:, 0], delta[:, 1])
-        short = step_m < seg
-        fraction = np.where(short, step_m / np.where(short, seg, 1.0), 1.0)
-        return np.where(short[:, None], start + fraction[:, None] * delta, goal)
-
-    def _move(self, heading: np.ndarray) -> np.ndarray:
+    def _move(self, heading: np.ndarray, live: np.ndarray) -> np.ndarray:
+        """Where the live missions' UAVs end this slot (the others stay)."""
         position, step = self.position_m, self._step_m
-        goal = self._legal_goal(position + enc.heading_step_m(heading, step))
-        goal = np.where((heading == 0)[:, None], position, goal)
-        moved = self._advance(position, goal, step)
-        budget = (self._n_slots - self.slot - 1) * step + FEASIBILITY_SLACK_M
-        to_home = self._home - position
-        near_limit = np.hypot(to_home[:, 0], to_home[:, 1]) + step > budget
-        after = self._home - moved
-        override = self._return_home & near_limit & (np.hypot(after[:, 0], after[:, 1]) > budget)
-        if override.any():
-            moved = np.where(override[:, None], self._advance(position, self._home, step), moved)
+        moved = position.copy()
+        rows = np.flatnonzero(live & (heading != 0))  # heading 0: stay (no goal)
+        goal = legal_goals(
+            self._navigator, position[rows] + enc.heading_step_m(heading[rows], step[rows])
+        )
+        # a step toward the position itself stays put: ask only for the others
+        away = (goal[:, 0] != position[rows, 0]) | (goal[:, 1] != position[rows, 1])
+        rows, goal = rows[away], goal[away]
+        if rows.size:
+            # positions and legal goals are inside the fence by construction
+            moved[rows] = self._paths.steps(position[rows], goal, step[rows], checked=False)
+        self._home_rule.apply(self.slot, position, moved, live)
         return moved
 
     # --- gymnasium API --------------------------------------------------------------------------
@@ -213,13 +296,14 @@ class DataMuleVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         self._completed[which] = False
         self._counted_bit[which] = 0.0
         self._needs_reset[which] = False
+        self._home_rule.restart(which)
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)  # the missions are deterministic: the seed changes nothing
         self._restart(np.ones(self.num_envs, bool))
-        self._snr, self._rate = self._link(self.position_m)
+        self._link()
         return self._observe(), {}
 
     def _check(self, actions: np.ndarray) -> np.ndarray:
@@ -246,21 +330,20 @@ class DataMuleVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         restart = self._needs_reset.copy()
         live = ~restart
         sensor = values[:, 0] - 1
-        serving = live & (sensor >= 0)
+        serving = live & (sensor >= 0) & (self.slot < self._serve_slots)  # window open
         rows, cols = np.flatnonzero(serving), sensor[serving]
         bits = np.zeros(self.num_envs)
         bits[rows] = contract.served_bits(
             self._rate[rows, cols], self.remaining_bit[rows, cols], self._slot_s[rows]
         )
         self.remaining_bit[rows, cols] -= bits[rows]
-        moved = self._move(np.where(live, values[:, 1], 0))
-        self.position_m = np.where(live[:, None], moved, self.position_m)
+        self.position_m = self._move(values[:, 1], live)
         self.slot += live
         terminated = live & (self.slot >= self._n_slots)
         reward = self._reward(bits, live, terminated)
         self._restart(restart)
         self._needs_reset = terminated
-        self._snr, self._rate = self._link(self.position_m)
+        self._link()
         truncated = np.zeros(self.num_envs, bool)
         return self._observe(), reward, terminated, truncated, {}
 

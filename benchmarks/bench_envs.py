@@ -1,8 +1,9 @@
 """Environment steps per second: the vectorised env vs stepping single envs, in one run.
 
 Missions: random 4-sensor Lake Wheeler layouts (``skymule.experiments.layouts``) flown inside
-the convex hull of the fence (the vector env steps convex fences exactly; see
-``skymule.envs.vector``), free space, 200-450 s, return home. Actions are uniform random
+the convex hull of the fence (kept so that the figures compare with earlier runs; the vector
+env steps any fence: ``bench_vector_env.py`` measures Lake Wheeler's own, concave one), free
+space, 200-450 s, return home. Actions are uniform random
 (drawn before timing). The vector env steps ``--batch`` missions at once for ``--steps``
 steps (autoreset included); the single envs (``skymule/DataMule-v0``, the engine core) step
 the same missions one after another for ``--single-steps`` steps in all.

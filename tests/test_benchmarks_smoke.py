@@ -27,6 +27,7 @@ EXPECTED = {
     "bench_compilers.py": ["numba (skymule compiled loop)", "mission-slots/CPU-s"],
     "bench_engine.py": ["single (2 missions)", "numpy + summaries", "memory bandwidth"],
     "bench_envs.py": ["vector env", "single envs", "ratio"],
+    "bench_vector_env.py": ["single envs stepped in a loop", "numpy paths", "ratio to single"],
     "bench_fleet.py": ["coordinated", "bound", "coordinated - independent hgad"],
     "bench_invariants.py": ["missions with faults run", "y = min(R dt, Q)", "speed cap"],
     "bench_planner.py": ["planner gain over hgad", "mean gap to bound", "above the bound: 0"],

@@ -53,7 +53,7 @@ from skymule.envs.datamule import REWARDS, anchors_m
 from skymule.errors import SkymuleError
 from skymule.flight.navigation import Navigator
 from skymule.scenario import Scenario, load_scenario
-from skymule.sim import batch_paths, compiled, contract
+from skymule.sim import batch_paths, contract
 from skymule.sim.autonomous import FEASIBILITY_SLACK_M
 from skymule.sim.batch import Engine
 from skymule.sim.batch_home import BOUND_SLACK_M
@@ -71,21 +71,6 @@ def unsupported_reason(mission: Mission) -> str | None:
     if mission.faults is not None:
         return "it has faults ([[faults]]; use DataMuleEnv: the engine applies them)"
     return None
-
-
-def path_queries(navigator: Navigator, engine: Engine) -> Paths:
-    """The navigator's batched path queries: compiled (:class:`~skymule.sim.batch_paths.
-    CompiledPaths`, the same floats) for ``"compiled"``, or ``"auto"`` when numba is installed
-    and the fence is small enough; the navigator itself for ``"numpy"``."""
-    if engine not in ("auto", "numpy", "compiled"):
-        raise SkymuleError(f"vector env: engine = {engine!r}; allowed: auto, numpy, compiled")
-    usable = compiled.available() and batch_paths.supports(navigator)
-    if engine == "compiled" and not usable:
-        why = "numba is not installed" if not compiled.available() else "the fence is too large"
-        raise SkymuleError(f"vector env: engine = 'compiled' cannot run: {why}")
-    if engine == "compiled" or (engine == "auto" and usable):
-        return batch_paths.CompiledPaths(navigator)
-    return navigator
 
 
 class HomeRule:
@@ -222,7 +207,7 @@ class DataMuleVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
                 f"have the same number (the observation's size)"
             )
         self._navigator = _same_fence(built)
-        self._paths = path_queries(self._navigator, engine)
+        self._paths = batch_paths.path_queries(self._navigator, engine, "vector env: ")
         self.missions = tuple(built)
         self.reward_mode = reward
         self.num_envs = len(built)

@@ -37,7 +37,6 @@ from typing import Any
 import numpy as np
 
 from skymule.errors import SkymuleError
-from skymule.flight.navigation import Navigator
 from skymule.metrics import Flights, summaries, summary_dicts
 from skymule.policies.autonomous import Priority
 from skymule.scenario import PolicySpec
@@ -141,13 +140,12 @@ def padded(values: Sequence[np.ndarray], n_sensors: int, fill: float) -> np.ndar
 
 
 def _geometry(
-    missions: Sequence[Mission], compiled_paths: bool
+    missions: Sequence[Mission], paths: Paths
 ) -> tuple[TourGeometry, np.ndarray, Any, Any]:
     """The tours' geometry, the legal goals (N + 1, B, 2) (hover points, then home) and the
     sights of the legal goals and of the (raw) homes."""
     nav = missions[0].navigator
     assert nav is not None
-    paths: Paths = batch_paths.CompiledPaths(nav) if compiled_paths else nav
     home = np.array([m.home_m for m in missions], float).reshape(-1, 2)
     n_sensors = max(m.n_sensors for m in missions)
     hover = padded([np.asarray(m.hover_points_m, float) for m in missions], n_sensors, np.nan)
@@ -191,18 +189,6 @@ def _stack(missions: Sequence[Mission]) -> None:
         raise ValueError("a batch needs one geofence")
 
 
-def _compiled_paths(engine: Engine, navigator: Navigator) -> bool:
-    """True if ``engine`` runs the path queries compiled (:mod:`skymule.sim.batch_paths`):
-    ``"compiled"`` (numba needed), or ``"auto"`` when numba is installed."""
-    if engine not in ("auto", "numpy", "compiled"):
-        raise SkymuleError(f"engine = {engine!r}; allowed: auto, numpy, compiled")
-    usable = compiled.available() and batch_paths.supports(navigator)
-    if engine == "compiled" and not usable:
-        why = "numba is not installed" if not compiled.available() else "the fence is too large"
-        raise SkymuleError(f"engine = 'compiled' cannot run this batch: {why}")
-    return engine == "compiled" or (engine == "auto" and usable)
-
-
 def run_tours(
     missions: Sequence[Mission],
     params: Sequence[TourParams],
@@ -219,13 +205,13 @@ def run_tours(
     _stack(missions)
     nav = missions[0].navigator
     assert nav is not None
-    compiled_paths = _compiled_paths(engine, nav)
+    paths = batch_paths.path_queries(nav, engine)
     if len({p.hgad for p in params}) != 1 or len(params) != len(missions):
         raise ValueError("a batch runs one policy: one TourParams per mission, all Greedy or HGAD")
     lengths = np.array([m.n_slots for m in missions], np.int64)
     order = np.argsort(-lengths, kind="stable")  # active missions are a prefix of the columns
     sorted_missions = [missions[i] for i in order]
-    result = _slot_loop(sorted_missions, [params[i] for i in order], keep_logs, compiled_paths)
+    result = _slot_loop(sorted_missions, [params[i] for i in order], keep_logs, paths)
     return replace(result, row=np.argsort(order))
 
 
@@ -233,11 +219,11 @@ def _slot_loop(
     missions: Sequence[Mission],
     params: Sequence[TourParams],
     keep_logs: bool,
-    compiled_paths: bool,
+    paths: Paths,
 ) -> TourResult:
     """:func:`run_tours` on missions sorted by length, longest first."""
     n_missions, n_sensors = len(missions), max(m.n_sensors for m in missions)
-    geometry, legal, legal_sight, home_sight = _geometry(missions, compiled_paths)
+    geometry, legal, legal_sight, home_sight = _geometry(missions, paths)
     nav = geometry.navigator
     n_slots = np.array([m.n_slots for m in missions], np.int64)
     slot_s = np.array([m.slot_s for m in missions], float)

@@ -27,7 +27,9 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from skymule.errors import SkymuleError
 from skymule.flight.navigation import Navigator, step_lengths, vertex_sights
+from skymule.sim import compiled
 from skymule.sim import path_kernels as pk
 from skymule.sim import visibility_kernels as vk
 
@@ -116,6 +118,22 @@ def _kernels() -> dict[str, Callable[..., Any]]:
         copy.__qualname__ = name
         out[function.__name__] = numba.njit(nogil=True, cache=True)(copy)
     return out
+
+
+def path_queries(navigator: Navigator, engine: str, context: str = "") -> Paths:
+    """The navigator's batched path queries for an engine choice: :class:`CompiledPaths` (the
+    same floats) for ``"compiled"``, or ``"auto"`` when numba is installed and the fence is
+    small enough (:func:`supports`); the navigator itself for ``"numpy"``. A bad or impossible
+    choice is a one-line SkymuleError (prefixed with ``context``)."""
+    if engine not in ("auto", "numpy", "compiled"):
+        raise SkymuleError(f"{context}engine = {engine!r}; allowed: auto, numpy, compiled")
+    usable = compiled.available() and supports(navigator)
+    if engine == "compiled" and not usable:
+        why = "numba is not installed" if not compiled.available() else "the fence is too large"
+        raise SkymuleError(f"{context}engine = 'compiled' cannot run this batch: {why}")
+    if engine == "compiled" or (engine == "auto" and usable):
+        return CompiledPaths(navigator)
+    return navigator
 
 
 class CompiledPaths:

@@ -1,15 +1,14 @@
 """Every command in a ```bash block of README.md and docs/*.md runs as written.
 
-The documents' blocks run in order, in one temporary folder laid out like a clone (``examples/``
-``benchmarks/`` and ``scripts/``
-copied), so a block uses what an earlier one wrote, as a
-reader following the page would. ``skymule ...`` runs in this process (``run_cli``); ``cp`` is
-done here; ``python benchmarks/...`` and ``python scripts/...`` run as subprocesses with
-``SKYMULE_BENCH_TINY=1`` (their tiny size). The README's policy module (the Python block that
-starts ``# <file name>``) is written to the folder and put on the import path, as the README
-says. Two things keep the test fast without changing a command: the sweep file in the copied
-``examples/`` has 3 seeds instead of 500, and ``tcp://HOST:8786`` is replaced by a local
-in-process Dask scheduler's address.
+Each document's blocks run in order, in a temporary folder of its own laid out like a clone
+(``examples/``, ``benchmarks/`` and ``scripts/`` copied), so a block uses what an earlier
+block of the same page wrote, as a reader following the page would. ``skymule ...`` runs in
+this process (``run_cli``); ``cp`` is done here; ``python benchmarks/...`` and
+``python scripts/...`` run as subprocesses with ``SKYMULE_BENCH_TINY=1`` (their tiny size).
+The README's policy module (the Python block that starts ``# <file name>``) is written to the
+folder and put on the import path, as the README says. Two things keep the test fast without
+changing a command: the sweep file in the copied ``examples/`` has 3 seeds instead of 500,
+and ``tcp://HOST:8786`` is replaced by a local in-process Dask scheduler's address.
 
 Commands that cannot run inside the suite are listed in ``NOT_RUN`` with the reason; a command
 in the docs that is neither runnable nor listed fails the test.
@@ -178,20 +177,23 @@ def run(command: Command, folder: Path, scheduler: str) -> None:
 
 
 @pytest.mark.filterwarnings("ignore::ResourceWarning")
+@pytest.mark.parametrize(
+    "document", [*DOCUMENTS, SAMPLES_README], ids=lambda path: str(path.relative_to(ROOT))
+)
 def test_documented_commands_run_as_written(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, dask_scheduler: str
+    document: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, dask_scheduler: str
 ) -> None:
-    """All documents in one folder, in order; a command already run there is not run again
-    (same command, same folder: same result), which keeps the test fast."""
+    """Each document in a fresh clone-like folder, its commands in order (a reader follows one
+    page from a clone); a command already run there is not run again (same command, same
+    folder: same result). One test per document lets the suite spread them over cores."""
     clone_layout(tmp_path)
     write_named_files(tmp_path)
     monkeypatch.syspath_prepend(str(tmp_path))  # "in the folder you run skymule from"
     done: set[str] = set()
-    for document in [*DOCUMENTS, SAMPLES_README]:
-        for command in commands(document):
-            if command.text not in done:
-                run(command, tmp_path, dask_scheduler)
-                done.add(command.text)
+    for command in commands(document):
+        if command.text not in done:
+            run(command, tmp_path, dask_scheduler)
+            done.add(command.text)
 
 
 PENDING: set[str] = set()

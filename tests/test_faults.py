@@ -24,6 +24,7 @@ from skymule.faults import (
     stack_draws,
 )
 from skymule.faults.models import stationary_bad_share, two_state_chain
+from skymule.faults.motion import leg_seconds
 from skymule.scenario import load_scenario
 
 NAMES = ("LW1", "LW2", "LW3", "LW4")
@@ -175,19 +176,36 @@ def test_wind_is_vectorised_over_steps() -> None:
     assert achieved[2, 1] == pytest.approx(math.sqrt(75.0))
 
 
-def test_battery_forces_return_when_energy_only_covers_the_way_home() -> None:
+def test_battery_allows_a_move_only_if_the_way_home_still_fits() -> None:
     battery = Battery(capacity_j=3600.0 * 10, reserve_fraction=0.5, return_speed_mps=10.0)
     hover = float(propulsion_power_w(0.0))
     cruise = float(propulsion_power_w(10.0))
     distance = 600.0  # 60 s home at 10 m/s
-    needed = cruise * distance / 10.0 + hover * 1.0
-    used_limit = 18000.0 - needed
-    assert not battery.must_return(used_limit - 1.0, distance, 1.0)
-    assert battery.must_return(used_limit + 0.5, distance, 1.0)
-    flags = battery.must_return(np.array([0.0, used_limit + 0.5]), np.array([distance] * 2), 1.0)
-    assert flags.tolist() == [False, True]
+    home_j = float(battery.return_energy_j(distance))
+    assert home_j == pytest.approx(cruise * 60.0)
+    limit = 18000.0 - home_j - cruise  # one more slot out at 10 m/s, then the way home
+    assert battery.affords(limit - 1.0, cruise, home_j)
+    assert not battery.affords(limit + 0.5, cruise, home_j)
+    flags = battery.affords(np.array([0.0, limit + 0.5]), cruise, np.array([home_j] * 2))
+    assert flags.tolist() == [True, False]
     assert battery.exhausted(18000.0) and not battery.exhausted(17999.0)
     assert battery.slot_energy_j(0.0, 2.0) == pytest.approx(2 * hover)
+
+
+def test_flight_energy_is_each_legs_power_for_its_time_then_hover() -> None:
+    battery = Battery(capacity_j=3600.0)
+    bent = np.array([[0.0, 0.0], [30.0, 0.0], [30.0, 5.0]])
+    speeds = np.array([10.0, 5.0])
+    p10, p5, hover = (float(propulsion_power_w(v)) for v in (10.0, 5.0, 0.0))
+    assert leg_seconds(bent, 2.0, speeds) == pytest.approx([2.0, 0.0])
+    assert leg_seconds(bent, 3.5, speeds) == pytest.approx([3.0, 0.5])
+    assert leg_seconds(bent, 6.0, speeds) == pytest.approx([3.0, 1.0])  # ends after 4 s
+    assert battery.flight_energy_j(bent, 3.5, speeds) == pytest.approx(3 * p10 + 0.5 * p5)
+    assert battery.flight_energy_j(bent, 6.0, speeds) == pytest.approx(3 * p10 + p5 + 2 * hover)
+    landing = battery.flight_energy_j(bent, 6.0, speeds, hover_rest=False)
+    assert landing == pytest.approx(3 * p10 + p5)
+    # a whole path flown, landing at its end, costs what the way is priced at
+    assert landing == pytest.approx(battery.path_energy_j(bent, speeds))
 
 
 # --- drawing: seeds, independence, batches -------------------------------------------------

@@ -17,13 +17,13 @@ polyline (the in-fence way to a goal or home) each leg is flown at its own groun
 :func:`leg_speeds_mps`, :func:`path_time_s` (how long the way takes) and :func:`fly_for`
 (where one slot of it ends) are what the autonomous engine keeps its return home with.
 
-Battery. Energy used so far is the sum of propulsion power :math:`P(V_t)\,\Delta t`
-(:func:`skymule.energy.propulsion_power_w`). The UAV must turn home at the start of a slot
-when the usable energy left, capacity x (1 - reserve) - used, no longer covers flying home at
-the return speed, :math:`P(v_r)\,d_{home}/v_r`, plus one more slot at the hover power (the
-decision is taken at the slot's start and the slot is spent before the next check). Under a
-wind the way home is priced leg by leg at the ground speed the wind allows
-(:meth:`Battery.path_energy_j`).
+Battery. Energy used so far is the propulsion energy of what was flown
+(:func:`skymule.energy.propulsion_power_w`): each leg of a slot's path at its power for the
+time on it, hovering for the rest of the slot (:meth:`Battery.flight_energy_j`). The engine
+allows a move only if the energy used, plus the move's, plus the way home from where it ends
+(:meth:`Battery.path_energy_j`, leg by leg at the ground speed the wind allows) fits the usable
+energy, capacity x (1 - reserve) (:meth:`Battery.affords`); otherwise it flies home, so the
+reserve is never flown on (``docs/faults.md``, step 6).
 """
 
 from __future__ import annotations
@@ -36,6 +36,9 @@ import numpy as np
 from skymule.energy import DEFAULT_PARAMS, RotaryWingParams, propulsion_power_w
 
 J_PER_WH = 3600.0
+
+#: Round-off guard [J] in the battery's test of a move (:meth:`Battery.affords`).
+ENERGY_SLACK_J = 1e-6
 
 
 @dataclass(frozen=True)
@@ -146,6 +149,21 @@ def fly_for(path_m: np.ndarray, seconds: float, speeds_mps: np.ndarray) -> tuple
     return float(path[-1, 0]), float(path[-1, 1])
 
 
+def leg_seconds(path_m: np.ndarray, seconds: float, speeds_mps: np.ndarray) -> np.ndarray:
+    """(K - 1,) seconds spent on each leg of a polyline ``(K, 2)`` in ``seconds`` of flight
+    from its start at ``speeds_mps[k]`` on leg k: the legs :func:`fly_for` covers, whole legs
+    at their full time, the leg it stops on at the part flown (0 after it). Their sum is less
+    than ``seconds`` when the polyline ends first (the UAV is then at its last point)."""
+    legs = np.diff(np.asarray(path_m, dtype=float).reshape(-1, 2), axis=0)
+    length = np.hypot(legs[:, 0], legs[:, 1])
+    speeds = np.asarray(speeds_mps, dtype=float)
+    headway = speeds > 0
+    need = np.where(length > 0, np.inf, 0.0)  # a leg of positive length without headway
+    np.divide(length, speeds, out=need, where=headway & (length > 0))
+    start = np.concatenate([[0.0], np.cumsum(need)[:-1]])
+    return np.asarray(np.clip(seconds - start, 0.0, need))
+
+
 @dataclass(frozen=True)
 class Battery:
     """Battery limit on propulsion energy.
@@ -167,44 +185,82 @@ class Battery:
         return self.capacity_j * (1.0 - self.reserve_fraction)
 
     def slot_energy_j(self, speed_mps: np.ndarray | float, slot_s: float) -> np.ndarray:
-        """Energy [J] of one slot flown at ``speed_mps`` (vectorised)."""
+        """Energy [J] of one slot flown at the airspeed ``speed_mps`` (vectorised)."""
         return propulsion_power_w(speed_mps, self.airframe) * slot_s
 
     def return_energy_j(self, distance_home_m: np.ndarray | float) -> np.ndarray:
-        """Energy [J] to fly ``distance_home_m`` at the return speed (vectorised)."""
+        """Energy [J] to fly ``distance_home_m`` at the return speed in calm air (vectorised)."""
         power = float(propulsion_power_w(self.return_speed_mps, self.airframe))
         return power * np.asarray(distance_home_m, dtype=float) / self.return_speed_mps
 
-    def path_energy_j(self, path_m: np.ndarray, speeds_mps: np.ndarray) -> float:
-        """Energy [J] to fly a polyline ``(K, 2)`` at ground speed ``speeds_mps[k]`` on leg k
-        (the way home under a wind: :func:`leg_speeds_mps`); ``inf`` without headway.
+    def hover_power_w(self, wind: Wind | None = None) -> float:
+        """Power [W] to hold position: P(0) (ground speed 0)."""
+        return float(propulsion_power_w(0.0, self.airframe))
 
-        Power is taken at the ground speed, as the engine accounts it per slot."""
+    def leg_power_w(
+        self, path_m: np.ndarray, speeds_mps: np.ndarray, wind: Wind | None = None
+    ) -> np.ndarray:
+        """(K - 1,) propulsion power [W] on each leg of a polyline ``(K, 2)`` flown at ground
+        speed ``speeds_mps[k]``: P(g_k) (power taken at the ground speed)."""
+        return propulsion_power_w(np.asarray(speeds_mps, dtype=float), self.airframe)
+
+    def leg_energy_j(
+        self, path_m: np.ndarray, speeds_mps: np.ndarray, wind: Wind | None = None
+    ) -> np.ndarray:
+        """(K - 1,) energy [J] to fly each leg of a polyline ``(K, 2)`` at ground speed
+        ``speeds_mps[k]`` (power :meth:`leg_power_w` for ℓ_k / g_k seconds); ``inf`` on a leg
+        of positive length without headway, 0 on a leg of length 0."""
         legs = np.diff(np.asarray(path_m, dtype=float).reshape(-1, 2), axis=0)
         length = np.hypot(legs[:, 0], legs[:, 1])
+        speeds = np.asarray(speeds_mps, dtype=float)
         moving = length > 0
-        if np.any(moving & (speeds_mps <= 0)):
-            return math.inf
-        speeds = speeds_mps[moving]
-        power = propulsion_power_w(speeds, self.airframe)
-        return float(np.sum(power * length[moving] / speeds))
+        energy = np.where(moving, np.inf, 0.0)
+        flying = moving & (speeds > 0)
+        power = self.leg_power_w(path_m, speeds, wind)
+        energy[flying] = power[flying] * length[flying] / speeds[flying]
+        return energy
 
-    def must_return(
+    def path_energy_j(
+        self, path_m: np.ndarray, speeds_mps: np.ndarray, wind: Wind | None = None
+    ) -> float:
+        """Energy [J] to fly a polyline ``(K, 2)`` at ground speed ``speeds_mps[k]`` on leg k
+        (:meth:`leg_energy_j` summed; under a wind the legs' speeds come from
+        :func:`leg_speeds_mps`); ``inf`` without headway."""
+        return float(np.sum(self.leg_energy_j(path_m, speeds_mps, wind)))
+
+    def flight_energy_j(
+        self,
+        path_m: np.ndarray,
+        seconds: float,
+        speeds_mps: np.ndarray,
+        wind: Wind | None = None,
+        hover_rest: bool = True,
+    ) -> float:
+        """Energy [J] of ``seconds`` of flight from the start of a polyline ``(K, 2)``, leg k at
+        ground speed ``speeds_mps[k]`` (:func:`leg_seconds`, as :func:`fly_for` flies it):
+        each leg's power for the time on it, and, when the polyline ends first, the rest of
+        the time hovering at its end (``hover_rest``; False: the UAV lands there, paid from
+        the reserve)."""
+        flown = leg_seconds(path_m, seconds, speeds_mps)
+        power = self.leg_power_w(path_m, speeds_mps, wind)
+        on_legs = flown > 0
+        energy = float(np.sum(power[on_legs] * flown[on_legs]))
+        rest = seconds - float(np.sum(flown))
+        if hover_rest and rest > 0:
+            energy += self.hover_power_w(wind) * rest
+        return energy
+
+    def affords(
         self,
         used_j: np.ndarray | float,
-        distance_home_m: np.ndarray | float,
-        slot_s: float,
-        return_j: np.ndarray | float | None = None,
+        move_j: np.ndarray | float,
+        home_j: np.ndarray | float,
     ) -> np.ndarray:
-        """True where the UAV must head home now (vectorised over missions).
-
-        ``return_j``: the energy of the way home when known otherwise (under a wind,
-        :meth:`path_energy_j`); by default :meth:`return_energy_j` of ``distance_home_m``.
-        """
-        margin = float(propulsion_power_w(0.0, self.airframe)) * slot_s  # one more slot
-        left = self.usable_j - np.asarray(used_j, dtype=float)
-        way_home = self.return_energy_j(distance_home_m) if return_j is None else return_j
-        return np.asarray(left <= np.asarray(way_home, dtype=float) + margin)
+        """True where the energy used so far, plus a slot's move, plus the way home from where
+        that move ends, stays within the usable energy (less :data:`ENERGY_SLACK_J` against
+        round-off): the engine allows a move only then (vectorised over missions)."""
+        total = np.asarray(used_j, dtype=float) + np.asarray(move_j, dtype=float)
+        return np.asarray(total + np.asarray(home_j, dtype=float) <= self.usable_j - ENERGY_SLACK_J)
 
     def exhausted(self, used_j: np.ndarray | float) -> np.ndarray:
         """True where the usable energy is spent: the UAV lands where it is."""

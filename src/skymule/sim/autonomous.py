@@ -185,13 +185,18 @@ class AutonomousFlight(ServingFlight):
         speeds = leg_speeds_mps(path, faults.wind, speed_mps, mission.max_speed_mps)
         return fly_for(path, mission.slot_s, speeds)
 
-    def _way_home(self, xy: XY, speed_mps: float) -> tuple[np.ndarray, np.ndarray]:
-        """The in-fence path home from ``xy`` and its legs' ground speeds at ``speed_mps``."""
+    def _way(self, xy: XY, goal: XY, speed_mps: float) -> tuple[np.ndarray, np.ndarray]:
+        """The in-fence path from ``xy`` to ``goal`` and its legs' ground speeds at
+        ``speed_mps`` (each at most what the wind allows on its course)."""
         mission = self.mission
         assert mission.navigator is not None and mission.faults is not None
-        path = np.asarray(mission.navigator.shortest_path(xy, self._home), float)
+        path = np.asarray(mission.navigator.shortest_path(xy, goal), float)
         speeds = leg_speeds_mps(path, mission.faults.wind, speed_mps, mission.max_speed_mps)
         return path, speeds
+
+    def _way_home(self, xy: XY, speed_mps: float) -> tuple[np.ndarray, np.ndarray]:
+        """The in-fence path home from ``xy`` and its legs' ground speeds at ``speed_mps``."""
+        return self._way(xy, self._home, speed_mps)
 
     def _in_time(self, xy: XY) -> bool:
         """True when home is still reachable from ``xy`` (the position after this slot) by the
@@ -201,49 +206,91 @@ class AutonomousFlight(ServingFlight):
         slack_s = FEASIBILITY_SLACK_M / mission.max_speed_mps
         return path_time_s(*self._way_home(xy, mission.max_speed_mps)) <= budget_s + slack_s
 
-    def _battery_says_return(self, battery: Battery, back_mps: float) -> bool:
-        """True when the energy left only covers the way home (``Battery.must_return``); under
-        a wind the way home is priced leg by leg at the ground speed the wind allows."""
+    def _home_speeds(self, battery: Battery) -> tuple[float, ...]:
+        """The speeds the engine may fly home at: the return speed (capped) and, with
+        ``return_home``, the cap (the in-time rule's)."""
+        cap = self.mission.max_speed_mps
+        back = min(battery.return_speed_mps, cap)
+        return (back, cap) if self.mission.return_home and back != cap else (back,)
+
+    def _home_price_j(self, battery: Battery, xy: XY) -> float:
+        """Energy [J] the way home from ``xy`` may take: leg by leg the dearer of flying it at
+        each speed the engine may fly home at (:meth:`_home_speeds`), power at the airspeed.
+
+        Taking the dearer per leg makes any slot of the way home, at either speed, cost at
+        most what it takes off this price: the battery invariant survives the in-time rule
+        sending the UAV home at the cap instead of the return speed."""
+        wind = self.mission.faults.wind if self.mission.faults is not None else None
+        price: np.ndarray | None = None
+        for speed in self._home_speeds(battery):
+            path, speeds = self._way_home(xy, speed)
+            legs = battery.leg_energy_j(path, speeds, wind)
+            price = legs if price is None else np.maximum(price, legs)
+        assert price is not None
+        return float(np.sum(price))
+
+    def _move_energy_j(
+        self, battery: Battery, goal: XY, speed_mps: float, hover_rest: bool = True
+    ) -> float:
+        """Energy [J] of this slot flying toward ``goal`` at ``speed_mps`` (each leg at the
+        ground speed the wind allows, power at the airspeed), hovering for the rest of the
+        slot if it gets there first (``hover_rest``; False: it lands there)."""
         mission = self.mission
-        assert mission.navigator is not None and mission.faults is not None
-        if mission.faults.wind is None:  # the fault-free formula, P(v_r) d / v_r
-            distance = mission.navigator.travel_distance(self.position, self._home)
-            return bool(battery.must_return(self.used_j, distance, mission.slot_s))
-        way_j = battery.path_energy_j(*self._way_home(self.position, back_mps))
-        return bool(battery.must_return(self.used_j, 0.0, mission.slot_s, return_j=way_j))
+        assert mission.faults is not None
+        path, speeds = self._way(self.position, goal, speed_mps)
+        return battery.flight_energy_j(
+            path, mission.slot_s, speeds, mission.faults.wind, hover_rest
+        )
+
+    def _policy_move(self, goto_m: XY | None) -> tuple[XY, bool, XY]:
+        """The policy's move under a wind and/or a battery, kept in time for the return home:
+        where it ends, whether the engine overrode the goal, and the goal flown to (at the
+        speed cap)."""
+        mission, faults = self.mission, self.mission.faults
+        assert faults is not None and mission.navigator is not None
+        goal = self.position if goto_m is None else legal_goal(mission.navigator, goto_m)
+        if faults.wind is None:  # the calm rule, checked in distance
+            moved, overridden = next_position(mission, self.position, goto_m, self.slot)
+            return moved, overridden, self._home if overridden else goal
+        moved = self._fly(goal, mission.max_speed_mps)
+        if mission.return_home and not self._in_time(moved):
+            return self._fly(self._home, mission.max_speed_mps), True, self._home  # too late
+        return moved, False, goal
 
     def _faulted_move(self, goto_m: XY | None) -> tuple[XY, bool]:
         """The move under wind and/or a battery limit (``docs/faults.md``, steps 5-6).
 
-        A battery that no longer covers the way home (flown at the return speed, each leg at
-        the ground speed the wind allows) overrides the goal with home; a spent battery keeps
-        the UAV where it is. The UAV flies along the in-fence path, each leg at the ground
-        speed the wind allows; with ``return_home`` the engine sends it home instead whenever
-        the move would leave too little time to get back at those speeds, so
-        ``time_home(r_{t+1}) <= (T - t - 1) dt`` holds after every slot and r_T = home.
+        The UAV flies along the in-fence path, each leg at the ground speed the wind allows;
+        with ``return_home`` the engine sends it home at the cap whenever the move would leave
+        too little time to get back at those speeds, so ``time_home(r_{t+1}) <= (T - t - 1)
+        dt`` holds after every slot and r_T = home.
+
+        With a battery the move is allowed only if the energy used, plus this slot's, plus the
+        (priced) way home from where it ends stays within the usable energy; otherwise the
+        UAV heads home at the return speed (at the cap if that would be late) and lands on
+        arrival. Each slot home costs at most what it takes off the price of the way home, so
+        ``used + price(r_t) <= usable`` holds after every slot (it does at home, at the
+        start): the UAV gets home on the usable energy and the reserve is never flown on.
         """
         mission, faults = self.mission, self.mission.faults
-        assert faults is not None and mission.navigator is not None
-        battery, slot_s, cap = faults.battery, mission.slot_s, mission.max_speed_mps
+        assert faults is not None
+        battery = faults.battery
         if self.landed:
             return self.position, True
-        back_mps = cap if battery is None else min(battery.return_speed_mps, cap)
-        returning = battery is not None and self._battery_says_return(battery, back_mps)
-        if returning:
-            moved, overridden = self._fly(self._home, back_mps), True
-        elif faults.wind is None:
-            moved, overridden = next_position(mission, self.position, goto_m, self.slot)
-        else:
-            goal = self.position if goto_m is None else legal_goal(mission.navigator, goto_m)
-            moved, overridden = self._fly(goal, cap), False
-        # (a calm move by the policy was checked by next_position already)
-        timed = returning or faults.wind is not None
-        if mission.return_home and timed and not self._in_time(moved):
-            moved, overridden = self._fly(self._home, cap), True  # too late: home at the cap
-        if battery is not None:
-            speed = float(np.hypot(*np.subtract(moved, self.position))) / slot_s
-            self.used_j += float(battery.slot_energy_j(speed, slot_s))
-            self.landed = bool(battery.exhausted(self.used_j))
+        moved, overridden, goal = self._policy_move(goto_m)
+        if battery is None:
+            return moved, overridden
+        energy = self._move_energy_j(battery, goal, mission.max_speed_mps)
+        if not battery.affords(self.used_j, energy, self._home_price_j(battery, moved)):
+            speed = self._home_speeds(battery)[0]
+            moved, overridden = self._fly(self._home, speed), True
+            if mission.return_home and not self._in_time(moved):
+                speed = mission.max_speed_mps  # the return speed would get home too late
+                moved = self._fly(self._home, speed)
+            energy = self._move_energy_j(battery, self._home, speed, hover_rest=False)
+            self.landed = moved == self._home  # home: it lands (the reserve pays for that)
+        self.used_j += energy
+        self.landed = self.landed or bool(battery.exhausted(self.used_j))
         return moved, overridden
 
     @property

@@ -125,6 +125,9 @@ def test_a_wind_the_uav_cannot_fly_against_is_refused_in_one_line() -> None:
         build_fleet(scenario)
 
 
+P_HOVER, P_10, P_4 = (float(propulsion_power_w(v)) for v in (0.0, 10.0, 4.0))
+
+
 def test_the_battery_prices_the_way_home_at_the_ground_speed_the_wind_allows() -> None:
     battery = Battery(capacity_j=3600.0 * 10.0, reserve_fraction=0.5, return_speed_mps=10.0)
     east = np.array([[0.0, 0.0], [100.0, 0.0]])
@@ -141,6 +144,29 @@ def test_the_battery_prices_the_way_home_at_the_ground_speed_the_wind_allows() -
     assert not battery.affords(used, 126.1, slow)  # headwind: the same move is refused
     flags = battery.affords(np.array([0.0, used]), 126.1, np.array([slow, slow]))
     assert flags.tolist() == [True, False]
+
+
+def test_power_under_wind_is_taken_at_the_airspeed() -> None:
+    # Zeng et al.'s P is the power of level flight through the air: |g u - w|, not g
+    battery = Battery(capacity_j=3600.0)
+    wind = Wind(6.0, 90.0)  # from the east: blows west at 6 m/s
+    east, west = np.array([[0.0, 0.0], [40.0, 0.0]]), np.array([[0.0, 0.0], [-40.0, 0.0]])
+    north = np.array([[0.0, 0.0], [0.0, 40.0]])
+    headwind = battery.leg_power_w(east, np.array([4.0]), wind)  # 4 + 6 through the air
+    tailwind = battery.leg_power_w(west, np.array([10.0]), wind)  # 10 - 6
+    crosswind = battery.leg_power_w(north, np.array([8.0]), wind)  # hypot(8, 6)
+    assert [float(headwind[0]), float(tailwind[0]), float(crosswind[0])] == pytest.approx(
+        [P_10, P_4, P_10]
+    )
+    assert battery.hover_power_w(wind) == pytest.approx(float(propulsion_power_w(6.0)))
+    assert battery.hover_power_w() == pytest.approx(P_HOVER)
+    # the way home into it: 10 s at P(10); a slot spent holding position: P(6)
+    assert battery.path_energy_j(east, np.array([4.0]), wind) == pytest.approx(10 * P_10)
+    still = np.array([[5.0, 5.0], [5.0, 5.0]])
+    held = battery.flight_energy_j(still, 1.0, np.array([10.0]), wind)
+    assert held == pytest.approx(float(propulsion_power_w(6.0)))
+    # calm air: the ground speed is the airspeed
+    assert battery.path_energy_j(east, np.array([4.0])) == pytest.approx(10 * P_4)
 
 
 class _Trace(AutonomousFlight):
@@ -163,9 +189,6 @@ def _fly(mission: Mission, policy: Any) -> tuple[_Trace, Any]:
     return flight, flight.log(policy.name)
 
 
-P_HOVER, P_10, P_4 = (float(propulsion_power_w(v)) for v in (0.0, 10.0, 4.0))
-
-
 def test_a_calm_battery_mission_never_flies_on_the_reserve() -> None:
     # Out west at 10 m/s: each slot costs P(10) = 126 J and adds 10 m (126 J) to the way home,
     # 252 J in all, more than the one hover slot (168 J) the old check at the slot's start
@@ -184,9 +207,10 @@ def test_a_calm_battery_mission_never_flies_on_the_reserve() -> None:
 @pytest.mark.parametrize("from_deg", [90.0, 270.0, 45.0])
 def test_a_windy_battery_mission_gets_home_on_the_usable_energy(from_deg: float) -> None:
     # 6 m/s from the east: out west with the tailwind, back against it at 4 m/s. The old
-    # check (one hover slot in hand) with usable = 19 (P(10) + 376.5) + P(0) + 1 J turned at
-    # x = -200 m 333 J short of the way home and landed 8 m from home (bench_resilience
-    # saw 0.5-3 % of its missions end so). Other winds: the same invariant.
+    # check (one hover slot in hand; power then at the ground speed) with usable =
+    # 19 (P(10) + 376.5) + P(0) + 1 J turned at x = -200 m 333 J short of the way home and
+    # landed 8 m from home (bench_resilience saw 0.5-3 % of its missions end so). Other
+    # winds: the same invariant.
     usable = 19 * (P_10 + 10 * P_4 / 4) + P_HOVER + 1.0
     battery = Battery(capacity_j=usable / 0.8, reserve_fraction=0.2, return_speed_mps=10.0)
     mission = _square_mission(Wind(6.0, from_deg), n_slots=300, battery=battery)

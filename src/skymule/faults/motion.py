@@ -19,7 +19,8 @@ polyline (the in-fence way to a goal or home) each leg is flown at its own groun
 
 Battery. Energy used so far is the propulsion energy of what was flown
 (:func:`skymule.energy.propulsion_power_w`): each leg of a slot's path at its power for the
-time on it, hovering for the rest of the slot (:meth:`Battery.flight_energy_j`). The engine
+time on it, hovering for the rest of the slot (:meth:`Battery.flight_energy_j`). The power is
+the model's at the airspeed :math:`|g \hat u - w|` (hovering in a wind: at :math:`|w|`). The engine
 allows a move only if the energy used, plus the move's, plus the way home from where it ends
 (:meth:`Battery.path_energy_j`, leg by leg at the ground speed the wind allows) fits the usable
 energy, capacity x (1 - reserve) (:meth:`Battery.affords`); otherwise it flies home, so the
@@ -194,15 +195,26 @@ class Battery:
         return power * np.asarray(distance_home_m, dtype=float) / self.return_speed_mps
 
     def hover_power_w(self, wind: Wind | None = None) -> float:
-        """Power [W] to hold position: P(0) (ground speed 0)."""
-        return float(propulsion_power_w(0.0, self.airframe))
+        """Power [W] to hold position: P(0) in calm air, P(|w|) in a steady wind (the rotor
+        meets the air at the wind speed)."""
+        return float(propulsion_power_w(0.0 if wind is None else wind.speed_mps, self.airframe))
 
     def leg_power_w(
         self, path_m: np.ndarray, speeds_mps: np.ndarray, wind: Wind | None = None
     ) -> np.ndarray:
         """(K - 1,) propulsion power [W] on each leg of a polyline ``(K, 2)`` flown at ground
-        speed ``speeds_mps[k]``: P(g_k) (power taken at the ground speed)."""
-        return propulsion_power_w(np.asarray(speeds_mps, dtype=float), self.airframe)
+        speed ``speeds_mps[k]``: P at the airspeed |g_k u_k - w| (Zeng et al. model the power
+        of level flight through the air); P(g_k) without wind."""
+        speeds = np.asarray(speeds_mps, dtype=float)
+        if wind is None:
+            return propulsion_power_w(speeds, self.airframe)
+        legs = np.diff(np.asarray(path_m, dtype=float).reshape(-1, 2), axis=0)
+        length = np.hypot(legs[:, 0], legs[:, 1])
+        course = np.divide(
+            legs, length[:, None], out=np.zeros_like(legs), where=length[:, None] > 0
+        )
+        air = course * speeds[:, None] - wind.vector_mps
+        return propulsion_power_w(np.hypot(air[:, 0], air[:, 1]), self.airframe)
 
     def leg_energy_j(
         self, path_m: np.ndarray, speeds_mps: np.ndarray, wind: Wind | None = None

@@ -136,8 +136,10 @@ class WindParams(_Params):
 class BatteryParams(_Params):
     """Battery that forces the return home (propulsion energy, Zeng, Xu & Zhang 2019).
 
-    The UAV must turn home when the energy left above the reserve no longer covers flying
-    home at ``return_speed_mps`` plus one more slot.
+    The engine allows a move only if the energy used, the move's and the way home from where
+    it ends (at ``return_speed_mps``, each leg at the ground speed a wind allows) fit the
+    energy above the reserve; otherwise the UAV flies home and lands (``docs/faults.md``,
+    step 6).
     """
 
     capacity_wh: Annotated[float, Field(gt=0, le=1e6)]

@@ -16,8 +16,7 @@ from __future__ import annotations
 
 import html
 import json
-from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 from matplotlib.axes import Axes
@@ -26,22 +25,20 @@ from skymule.report.fleet import draw_fleet_trajectory, draw_uav_cumulative, dra
 from skymule.report.fleet_inputs import FleetRun, load_fleet_input
 from skymule.report.html import (
     FIGURES_DIR,
-    REPORT_DPI,
     REPORT_FILE,
+    PanelSpec,
     figure_html,
     format_cell,
     page_html,
     render_bars,
+    render_panels,
     sensor_table,
     table_html,
 )
 from skymule.report.panels import draw_remaining
 from skymule.report.style import (
     PANEL_WIDTH_IN,
-    finish_figure,
-    panel_figure,
-    paper_style,
-    save_figure,
+    report_formats,
     scenario_description,
 )
 
@@ -71,19 +68,6 @@ UAV_FIELDS: tuple[tuple[str, str, str], ...] = (
 )
 
 
-@dataclass(frozen=True)
-class FleetPanel:
-    """A per-run fleet figure: one panel per run, runs side by side in a compare report."""
-
-    key: str
-    title: str
-    caption: str
-    draw: Callable[[Axes, FleetRun], object]
-    height_in: float
-    #: panels of a compare figure share their axes ranges (same scale side by side)
-    shared: bool = True
-
-
 def _draw_map(ax: Axes, fleet: FleetRun) -> None:
     run = fleet.run
     draw_fleet_trajectory(
@@ -105,8 +89,8 @@ def _draw_shared_buffers(ax: Axes, fleet: FleetRun) -> None:
     draw_remaining(ax, replace(fleet.run, slots=fleet.slots_of(fleet.uavs[0])), fleet.label)
 
 
-FLEET_PANELS: tuple[FleetPanel, ...] = (
-    FleetPanel(
+FLEET_PANELS: tuple[PanelSpec[FleetRun], ...] = (
+    PanelSpec(
         "trajectory",
         "Trajectories",
         "Flown paths, one colour per UAV: dots where it served a sensor, crosses where it lost "
@@ -115,7 +99,7 @@ FLEET_PANELS: tuple[FleetPanel, ...] = (
         4.2,
         shared=False,  # equal aspect per map
     ),
-    FleetPanel(
+    PanelSpec(
         "uav-sensors",
         "Downloads by sensor and UAV",
         "Data downloaded from each sensor, stacked by the UAV that downloaded it (from "
@@ -123,7 +107,7 @@ FLEET_PANELS: tuple[FleetPanel, ...] = (
         _draw_bars,
         2.9,
     ),
-    FleetPanel(
+    PanelSpec(
         "download",
         "Cumulative download",
         "Data downloaded by the end of every slot by each UAV and by the whole fleet (grey, "
@@ -131,7 +115,7 @@ FLEET_PANELS: tuple[FleetPanel, ...] = (
         _draw_cumulative,
         2.9,
     ),
-    FleetPanel(
+    PanelSpec(
         "remaining",
         "Remaining data",
         "Data left in each sensor's buffer (shared by the UAVs) at the end of every slot.",
@@ -150,26 +134,12 @@ def fleet_title(fleets: tuple[FleetRun, ...]) -> str:
     )
 
 
-def _formats(pdf: bool) -> tuple[str, ...]:
-    return ("png", "pdf") if pdf else ("png",)
-
-
 def render_fleet_panel(
-    panel: FleetPanel, fleets: tuple[FleetRun, ...], folder: Path, pdf: bool = True
+    panel: PanelSpec[FleetRun], fleets: tuple[FleetRun, ...], folder: Path, pdf: bool = True
 ) -> Path:
     """Draw ``panel`` for every run side by side, one legend below, the fleet as title;
     writes ``folder/<key>.png`` (and ``.pdf``) and returns the PNG."""
-    with paper_style():
-        fig, axes = panel_figure(
-            len(fleets), panel.height_in, sharex=panel.shared, sharey=panel.shared
-        )
-        for ax, fleet in zip(axes, fleets, strict=True):
-            panel.draw(ax, fleet)
-        if panel.shared:
-            for ax in axes[1:]:  # one y label for a row of panels on the same scale
-                ax.set_ylabel("")
-        finish_figure(fig, fleet_title(fleets))
-        return save_figure(fig, folder, panel.key, _formats(pdf), REPORT_DPI)["png"]
+    return render_panels(panel, fleets, folder, fleet_title(fleets), report_formats(pdf))["png"]
 
 
 def fleet_table(fleets: tuple[FleetRun, ...]) -> str:

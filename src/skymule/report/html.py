@@ -12,10 +12,10 @@ from __future__ import annotations
 import base64
 import html
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 from matplotlib.axes import Axes
 
@@ -40,6 +40,7 @@ from skymule.report.style import (
     finish_figure,
     panel_figure,
     paper_style,
+    report_formats,
     save_figure,
     scenario_description,
 )
@@ -52,20 +53,24 @@ REPORT_DPI = 200
 CSS_PX_PER_IN = 96
 
 
+Item = TypeVar("Item")
+
+
 @dataclass(frozen=True)
-class PanelSpec:
-    """A per-run figure: one panel per run, runs side by side in a compare report."""
+class PanelSpec(Generic[Item]):
+    """A per-run figure: one panel per run (a :class:`RunData`, or a fleet run), runs side by
+    side in a compare report."""
 
     key: str
     title: str
     caption: str
-    draw: Callable[[Axes, RunData], object]
+    draw: Callable[[Axes, Item], object]
     height_in: float
     #: panels of a compare figure share their axes ranges (same scale side by side)
     shared: bool = True
 
 
-PER_RUN_PANELS: tuple[PanelSpec, ...] = (
+PER_RUN_PANELS: tuple[PanelSpec[RunData], ...] = (
     PanelSpec(
         "trajectory",
         "Trajectory",
@@ -227,17 +232,35 @@ def figure_html(key: str, png: Path, caption: str, width_in: float | None = None
     )
 
 
-def _formats(pdf: bool) -> tuple[str, ...]:
-    return ("png", "pdf") if pdf else ("png",)
-
-
 def figure_title(runs: tuple[RunData, ...]) -> str:
     """A figure's title: the scenario in words (the runs of a compare share it)."""
     return scenario_description(runs[0].scenario, runs[0].summary)
 
 
+def render_panels(
+    spec: PanelSpec[Item],
+    items: Sequence[Item],
+    folder: Path,
+    title: str,
+    formats: tuple[str, ...],
+    dpi: int = REPORT_DPI,
+    stem: str | None = None,
+) -> dict[str, Path]:
+    """Draw ``spec`` for every item side by side, one print-sized panel each, one legend and
+    ``title``; returns the written files by format."""
+    with paper_style():
+        fig, axes = panel_figure(len(items), spec.height_in, sharex=spec.shared, sharey=spec.shared)
+        for ax, item in zip(axes, items, strict=True):
+            spec.draw(ax, item)
+        if spec.shared:
+            for ax in axes[1:]:  # one y label for a row of panels on the same scale
+                ax.set_ylabel("")
+        finish_figure(fig, title)
+        return save_figure(fig, folder, stem or spec.key, formats, dpi)
+
+
 def render_panel(
-    spec: PanelSpec,
+    spec: PanelSpec[RunData],
     runs: tuple[RunData, ...],
     folder: Path,
     pdf: bool = True,
@@ -246,18 +269,9 @@ def render_panel(
     dpi: int = REPORT_DPI,
     stem: str | None = None,
 ) -> dict[str, Path]:
-    """Draw ``spec`` for every run side by side, one print-sized panel each, one legend and
-    the scenario as title; returns the written files by format (``formats`` overrides
-    ``pdf``)."""
-    with paper_style():
-        fig, axes = panel_figure(len(runs), spec.height_in, sharex=spec.shared, sharey=spec.shared)
-        for ax, run in zip(axes, runs, strict=True):
-            spec.draw(ax, run)
-        if spec.shared:
-            for ax in axes[1:]:  # one y label for a row of panels on the same scale
-                ax.set_ylabel("")
-        finish_figure(fig, figure_title(runs))
-        return save_figure(fig, folder, stem or spec.key, formats or _formats(pdf), dpi)
+    """:func:`render_panels` of runs, the scenario as title (``formats`` overrides ``pdf``)."""
+    chosen = formats or report_formats(pdf)
+    return render_panels(spec, runs, folder, figure_title(runs), chosen, dpi, stem)
 
 
 def render_bars(runs: tuple[RunData, ...], folder: Path, pdf: bool = True) -> Path:
@@ -265,7 +279,7 @@ def render_bars(runs: tuple[RunData, ...], folder: Path, pdf: bool = True) -> Pa
         fig, (ax,) = panel_figure(1, 2.9)
         draw_policy_bars(ax, runs)
         finish_figure(fig, figure_title(runs))
-        return save_figure(fig, folder, "policies", _formats(pdf), REPORT_DPI)["png"]
+        return save_figure(fig, folder, "policies", report_formats(pdf), REPORT_DPI)["png"]
 
 
 def render_score(
@@ -275,7 +289,7 @@ def render_score(
         fig, (ax,) = panel_figure(1, 2.9)
         draw_score(ax, [r.label for r in runs], scores)
         finish_figure(fig, "AADM score breakdown", columns=3)
-        return save_figure(fig, folder, "score", _formats(pdf), REPORT_DPI)["png"]
+        return save_figure(fig, folder, "score", report_formats(pdf), REPORT_DPI)["png"]
 
 
 def page_html(

@@ -135,6 +135,12 @@ def sensor_colours(names: Sequence[str]) -> dict[str, str]:
     return {name: matplotlib.colors.to_hex(cmap(0.05 + i * step)) for i, name in enumerate(names)}
 
 
+def report_formats(pdf: bool) -> tuple[str, ...]:
+    """The formats a report writes each figure in: PNG (embedded), and PDF (vector) unless
+    ``pdf`` is False."""
+    return ("png", "pdf") if pdf else ("png",)
+
+
 def parse_formats(text: str) -> tuple[str, ...]:
     """``"png,pdf,svg"`` -> ``("png", "pdf", "svg")``; a one-line error for anything else."""
     formats = tuple(dict.fromkeys(f.strip().lower().lstrip(".") for f in text.split(",")))

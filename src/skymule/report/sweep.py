@@ -42,6 +42,7 @@ from skymule.report.style import (
     panel_figure,
     paper_style,
     parameter_label,
+    report_formats,
     save_figure,
     sensor_colours,
 )
@@ -295,11 +296,7 @@ def draw_distribution(
         cdf.set_ylabel("fraction of missions")
         cdf.set_title("empirical CDF")
         finish_figure(fig, f"{len(results)} missions")
-        return save_figure(fig, folder, stem, _formats(pdf), REPORT_DPI)["png"]
-
-
-def _formats(pdf: bool) -> tuple[str, ...]:
-    return ("png", "pdf") if pdf else ("png",)
+        return save_figure(fig, folder, stem, report_formats(pdf), REPORT_DPI)["png"]
 
 
 def draw_gains(paired: Paired, policies: list[str], folder: Path, pdf: bool) -> Path:
@@ -320,7 +317,7 @@ def draw_gains(paired: Paired, policies: list[str], folder: Path, pdf: bool) -> 
         ax.set_xlabel(f"gain over {paired.baseline} per mission [Mbit]")
         ax.set_ylabel("fraction of missions")
         finish_figure(fig, f"Paired gain over {paired.baseline}", columns=1)
-        return save_figure(fig, folder, "sweep-gain", _formats(pdf), REPORT_DPI)["png"]
+        return save_figure(fig, folder, "sweep-gain", report_formats(pdf), REPORT_DPI)["png"]
 
 
 def _binned(x: np.ndarray, discrete: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -360,9 +357,8 @@ def draw_parameter(
             ax.set_xlabel(parameter.label + ("" if parameter.discrete else " (binned)"))
             ax.set_ylabel(f"mean {METRIC_LABELS[metric][0]}")
         finish_figure(fig, f"Mean per policy vs {parameter.label} (bands: 95% CI)")
-        return save_figure(fig, folder, f"sweep-parameter-{number}", _formats(pdf), REPORT_DPI)[
-            "png"
-        ]
+        stem = f"sweep-parameter-{number}"
+        return save_figure(fig, folder, stem, report_formats(pdf), REPORT_DPI)["png"]
 
 
 def _num(value: float, template: str) -> str:

@@ -20,10 +20,9 @@ import numpy as np
 import pandas as pd
 
 from skymule.errors import SkymuleError
-from skymule.io.runs import SLOTS_FILE, SUMMARY_FILE, is_run_dir, read_run, read_run_scenario
+from skymule.io.runs import SLOTS_FILE, SUMMARY_FILE, is_run_dir, read_run
 from skymule.io.runschema import validate_summary
-from skymule.report.inputs import RunData
-from skymule.report.site import site_geometry
+from skymule.report.inputs import RunData, run_data
 
 #: Slack between a UAV's download summed over slots.csv and its summary.json entry [Mbit]:
 #: slots.csv keeps 10 significant digits, so 500 slots of ~10 Mbit add up to ~1e-6 Mbit.
@@ -232,16 +231,7 @@ def load_fleet_run(run_dir: Path, label: str | None = None) -> FleetRun:
     _check_uav_rows(slots, summary, names, str(slots_path))
     slots = slots.assign(uav=slots["uav"].astype(str))
     _check_downloads(slots, entries, slots_path, summary_path)
-    scenario = read_run_scenario(run_dir)
-    run = RunData(
-        path=run_dir,
-        label=label or str(summary.get("policy", run_dir.name)),
-        summary=summary,
-        slots=slots,
-        scenario=scenario,
-        site=site_geometry(scenario, run_dir),
-    )
-    return FleetRun(run, tuple(names), tuple(entries))
+    return FleetRun(run_data(run_dir, summary, slots, label), tuple(names), tuple(entries))
 
 
 def load_fleet_input(path: Path) -> tuple[str, tuple[FleetRun, ...]]:

@@ -67,6 +67,13 @@ def load_run(run_dir: Path, label: str | None = None) -> RunData:
             f"{run_dir}: a run of several UAVs (slots.csv has a uav column); this reader covers "
             "one UAV: `skymule report` gives the fleet report (skymule.report.fleet_inputs)"
         )
+    return run_data(run_dir, summary, slots, label)
+
+
+def run_data(
+    run_dir: Path, summary: dict[str, Any], slots: pd.DataFrame, label: str | None
+) -> RunData:
+    """:class:`RunData` of a run folder whose summary and slots are read and checked."""
     scenario = read_run_scenario(run_dir)
     return RunData(
         path=run_dir,

@@ -219,3 +219,16 @@ def test_the_download_window_closes_like_the_aadm_controller(preset: str) -> Non
     assert (log.served[101:] == NO_SENSOR).all() and not log.downloaded_bit[101:].any()
     np.testing.assert_array_equal(log.downloaded_bit[:101], open_log.downloaded_bit[:101])
     assert log.downloaded_bit.sum() < open_log.downloaded_bit.sum()
+
+
+def test_first_true_is_the_first_sensor_down_each_column() -> None:
+    """Ties in the choices go to the lowest sensor index: the first True of each column, 0
+    where a column has none (the callers mark those NO_SENSOR)."""
+    from skymule.sim.contract import first_true
+
+    rng = np.random.default_rng(3)
+    for n_sensors in (1, 2, 5, 17):
+        mask = rng.random((n_sensors, 64)) < rng.uniform(0.0, 0.5)
+        want = [int(np.flatnonzero(col)[0]) if col.any() else 0 for col in mask.T]
+        assert first_true(mask).tolist() == want
+    assert first_true(np.zeros((0, 3), bool)).tolist() == [0, 0, 0]

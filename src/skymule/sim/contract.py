@@ -94,12 +94,12 @@ def servable(rate_bps: np.ndarray, remaining_bit: np.ndarray) -> np.ndarray:
 
 
 def first_true(mask: np.ndarray) -> np.ndarray:
-    """(B,) index of the first True down each column of ``mask`` (N, B); 0 where none."""
-    index = np.zeros(mask.shape[1], np.int64)
-    for sensor in range(mask.shape[0] - 1, 0, -1):
-        index[mask[sensor]] = sensor
-    index[mask[0]] = 0
-    return index
+    """(B,) index of the first True down each column of ``mask`` (N, B); 0 where none
+    (``argmax`` returns the first of equal maxima, and 0 for a column of False)."""
+    mask = np.asarray(mask, bool)
+    if mask.shape[0] == 0:
+        return np.zeros(mask.shape[1], np.int64)
+    return mask.argmax(axis=0).astype(np.int64, copy=False)
 
 
 def greedy_choice(snr_db: np.ndarray, has_data: np.ndarray) -> np.ndarray:

@@ -220,6 +220,37 @@ def test_a_windy_battery_mission_gets_home_on_the_usable_energy(from_deg: float)
     assert log.position_m[:, 0].min() < -100.0  # it did fly out (the check is no veto)
 
 
+def test_the_battery_account_is_logged_and_summarised(tmp_path: Path) -> None:
+    """The log, slots.csv and summary.json carry what the battery paid, slot by slot; under a
+    wind it is not the calm-air energy_kj (docs/faults.md)."""
+    from skymule.io.runs import read_run, slots_frame
+    from skymule.metrics import summarize
+    from skymule.runner import RunResult
+
+    usable = 19 * (P_10 + 10 * P_4 / 4) + P_HOVER + 1.0
+    battery = Battery(capacity_j=usable / 0.8, reserve_fraction=0.2, return_speed_mps=10.0)
+    mission = _square_mission(Wind(6.0, 90.0), n_slots=300, battery=battery)
+    flight, log = _fly(mission, _GoWest())
+    used = log.battery_used_j
+    assert used is not None and used.shape == (log.n_slots,)
+    assert used[-1] == flight.used_j <= battery.usable_j
+    assert np.all(np.diff(used) >= 0) and used[0] > 0
+    summary = summarize(log, "battery")
+    assert summary["battery_used_kj"] == pytest.approx(flight.used_j / 1e3)
+    assert summary["battery_used_kj"] != pytest.approx(summary["energy_kj"])
+    frame = slots_frame(log, mission.frame)
+    np.testing.assert_allclose(frame["battery_used_kj"], used / 1e3)
+    # a mission without a battery logs none
+    calm = run_mission(_square_mission(None, n_slots=30), _GoWest())
+    assert calm.battery_used_j is None and "battery_used_kj" not in summarize(calm, "calm")
+    assert "battery_used_kj" not in slots_frame(calm, mission.frame)
+    # and the run folder reads back
+    RunResult(mission, log, summary).write(tmp_path)
+    read_summary, slots = read_run(tmp_path)
+    assert read_summary["battery_used_kj"] == summary["battery_used_kj"]
+    assert "battery_used_kj" in slots.columns
+
+
 class _Wander(_GoWest):
     """Flies to a new random point of the fence every 15 slots (seeded)."""
 

@@ -336,6 +336,11 @@ def summarize(log: MissionLog, scenario_name: str) -> dict[str, Any]:
     (row,) = summary_dicts(
         summaries(flights_from_log(log)), [log.sensor_names], [log.policy], [scenario_name]
     )
+    if log.battery_used_j is not None:
+        # the battery's own account (power at the airspeed), which energy_kj (from the track,
+        # as if the air were calm) is not under a wind or after a landing
+        used = log.battery_used_j
+        row["battery_used_kj"] = float(used[-1]) / 1e3 if used.size else 0.0
     return row
 
 

@@ -61,6 +61,8 @@ def slots_frame(log: MissionLog, frame: LocalFrame) -> pd.DataFrame:
     columns["power_w"] = power_w(log)
     if log.affected is not None:  # only with [[faults]]: fault-free folders are unchanged
         columns["fault"] = log.affected.astype(int)
+    if log.battery_used_j is not None:  # a battery fault: what the pack has paid so far
+        columns["battery_used_kj"] = log.battery_used_j / 1e3
     return pd.DataFrame(columns)
 
 

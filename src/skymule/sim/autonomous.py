@@ -129,6 +129,7 @@ class AutonomousFlight(ServingFlight):
         self._deliver = self._rates  # what a served sensor yields (true rate, 0 if blocked)
         self._chosen: list[int] = []
         self.used_j = 0.0  # propulsion energy so far (battery fault only)
+        self._used_after: list[float] = []  # used_j after each slot (battery fault only)
         self.landed = False  # battery fault: the usable energy is spent
 
     @property
@@ -313,6 +314,7 @@ class AutonomousFlight(ServingFlight):
         self._remaining_after.append(self._remaining.copy())
         self._hovering.append(moved == self.position and not overridden)
         self._targets.append(NO_SENSOR if action.target is None else int(action.target))
+        self._used_after.append(self.used_j)
         self.position = moved
         self.slot += 1
 
@@ -336,6 +338,11 @@ class AutonomousFlight(ServingFlight):
             target=np.asarray(self._targets, int),
             affected=affected,
             chosen=chosen,
+            battery_used_j=(
+                None
+                if mission.faults is None or mission.faults.battery is None
+                else np.asarray(self._used_after, float)
+            ),
         )
 
 

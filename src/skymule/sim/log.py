@@ -28,6 +28,7 @@ _ARRAY_FIELDS = (
     "target",
     "affected",
     "chosen",
+    "battery_used_j",
 )
 
 
@@ -59,6 +60,9 @@ class MissionLog:
             None for a fault-free mission.
         chosen: (T',) the sensor the policy chose (``served`` is NO_SENSOR where a fault kept
             it from delivering), or None for a fault-free mission (then equal to ``served``).
+        battery_used_j: (T',) propulsion energy the battery has paid after each slot [J]
+            (``kind = "battery"``: power at the airspeed, docs/faults.md), or None without a
+            battery fault.
     """
 
     policy: str
@@ -80,6 +84,7 @@ class MissionLog:
     aadm_window_s: float = 500.0
     affected: np.ndarray | None = None
     chosen: np.ndarray | None = None
+    battery_used_j: np.ndarray | None = None
 
     @property
     def n_slots(self) -> int:

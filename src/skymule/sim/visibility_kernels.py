@@ -19,10 +19,11 @@ certain:
   from every edge, the segment leaves the grown fence: :data:`HIDDEN`. Candidates are b and
   the midpoints between a, the places where the segment crosses the edges' lines, and b.
 
-Everything else (segments grazing an edge or running along it) is :data:`UNKNOWN` and goes to
-``covers``. Round-off in these formulas is ~1e-12 m for coordinates of kilometres, nine orders
-below the 1 mm margin, so a certain answer is the predicate's answer; the test suite checks
-them against ``covers`` on many random segments in concave fences with holes.
+Everything else (segments that graze an edge, e.g. from within 1 mm of a vertex) is
+:data:`UNKNOWN` and goes to ``covers``. Round-off in these formulas is ~1e-12 m for
+coordinates of kilometres, nine orders below the 1 mm margin, so a certain answer is the
+predicate's answer; the test suite checks them against ``covers`` on many random segments in
+concave fences with holes.
 
 Plain Python that numba compiles (``skymule.sim.batch_paths``); it also runs uncompiled.
 """
@@ -41,7 +42,6 @@ VISIBLE, HIDDEN, UNKNOWN = 1, 0, -1
 #: Clearance [m] from every fence edge that makes an answer certain: far above round-off, far
 #: below any distance that matters to a flight.
 MARGIN_M = 1e-3
-
 
 #: Fences with more edges than this keep shapely's test: the certificate scans every edge
 #: (~4 ns each), the prepared ``covers`` test takes ~1-1.6 us whatever the fence (measured

@@ -232,3 +232,21 @@ def test_first_true_is_the_first_sensor_down_each_column() -> None:
         want = [int(np.flatnonzero(col)[0]) if col.any() else 0 for col in mask.T]
         assert first_true(mask).tolist() == want
     assert first_true(np.zeros((0, 3), bool)).tolist() == [0, 0, 0]
+
+
+def test_take_one_is_take_bits_for_one_uav() -> None:
+    """The reference engines' one-UAV download equals the fleet form, float for float."""
+    from skymule.sim.contract import NO_SENSOR, take_bits, take_one
+
+    rng = np.random.default_rng(4)
+    for _ in range(300):
+        remaining = rng.uniform(0.0, 3e7, 4) * (rng.random(4) < 0.8)
+        rates = rng.uniform(0.0, 2e7, 4)
+        sensor = int(rng.integers(-1, 4))
+        slot_s = float(rng.choice([0.5, 1.0, 2.0]))
+        want_left = remaining.copy()
+        want = take_bits(want_left, np.array([sensor]), rates[None], slot_s)
+        left = remaining.copy()
+        rate = float(rates[sensor]) if sensor != NO_SENSOR else 0.0
+        assert take_one(left, sensor, rate, slot_s) == float(want[0])
+        np.testing.assert_array_equal(left, want_left)

@@ -14,7 +14,8 @@ a rule cannot drift between them.
   machine on fixed trajectories (cooldown, trigger, budget);
 * :func:`fleet_served` -- several UAVs: each sensor serves at most one UAV per slot (the
   higher rate wins a conflict, ties to the lower UAV index);
-* :func:`take_bits` -- the one place a slot's downloads leave the buffers (one UAV or many).
+* :func:`take_bits` -- the one place a slot's downloads leave the buffers (several UAVs;
+  :func:`take_one` is its one-UAV row, without arrays, for the reference engines).
 """
 
 from __future__ import annotations
@@ -81,6 +82,24 @@ def take_bits(
     rows = rate_bps[serving, sensors] if sensors.size else np.zeros(0)
     bits[serving] = served_bits(rows, remaining_bit[sensors], slot_s)
     remaining_bit[sensors] -= bits[serving]
+    return bits
+
+
+def take_one(remaining_bit: np.ndarray, sensor: int, rate_bps: float, slot_s: float) -> float:
+    """:func:`take_bits` for one UAV: the bits ``sensor`` delivers this slot (0 for
+    NO_SENSOR), taken from ``remaining_bit`` (N,) in place; the same floats.
+
+    Args:
+        remaining_bit: (N,) buffers at the start of the slot [bit]; updated in place.
+        sensor: the sensor served, or NO_SENSOR.
+        rate_bps: the UAV's rate to ``sensor`` this slot [bit/s].
+        slot_s: slot length dt [s].
+    """
+    if sensor == NO_SENSOR:
+        return 0.0
+    remaining = remaining_bit[sensor]
+    bits = float(served_bits(rate_bps, remaining, slot_s))
+    remaining_bit[sensor] = remaining - bits
     return bits
 
 

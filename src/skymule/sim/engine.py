@@ -81,11 +81,10 @@ class ServingFlight:
     def apply(self, action: Action, who: str = "policy") -> float:
         """Apply ``action`` to the slot last observed; returns the bits downloaded."""
         sensor = self.windowed(check_serve(action.serve, self.mission.n_sensors, who))
-        bits = contract.take_bits(
-            self._remaining, np.array([sensor]), self.rate_bps[None], self.mission.slot_s
-        )
-        self.record(action, sensor, float(bits[0]))
-        return float(bits[0])
+        rate = float(self.rate_bps[sensor]) if sensor != NO_SENSOR else 0.0
+        bits = contract.take_one(self._remaining, sensor, rate, self.mission.slot_s)
+        self.record(action, sensor, bits)
+        return bits
 
 
 class FixedFlight(ServingFlight):

@@ -8,6 +8,7 @@ Missing SNR samples (NaN) have no link: efficiency 0.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -45,13 +46,18 @@ class StepTable:
     thresholds_db: tuple[float, ...]
     efficiencies: tuple[float, ...]
 
+    @cached_property
+    def _lookup(self) -> tuple[np.ndarray, np.ndarray]:
+        """(thresholds, efficiencies with 0 prepended) as arrays, built once per table (the
+        engines look rates up every slot)."""
+        thresholds = np.asarray(self.thresholds_db, float)
+        return thresholds, np.concatenate([[0.0], np.asarray(self.efficiencies, float)])
+
     def efficiency(self, snr_db: np.ndarray) -> np.ndarray:
         snr = np.asarray(snr_db, float)
-        table = np.concatenate([[0.0], np.asarray(self.efficiencies, float)])
+        thresholds, table = self._lookup
         # searchsorted(side="right") counts thresholds <= snr, i.e. ">= threshold" semantics
-        index = np.searchsorted(
-            np.asarray(self.thresholds_db), np.nan_to_num(snr, nan=-np.inf), side="right"
-        )
+        index = np.searchsorted(thresholds, np.nan_to_num(snr, nan=-np.inf), side="right")
         return table[index]
 
 

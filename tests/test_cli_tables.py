@@ -98,10 +98,18 @@ def flight(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
-def test_fit_radiomap_table(width: int | None, flight: Path, tmp_path: Path) -> None:
-    out = tmp_path / "map.json"
-    fit = json.loads(run_cli("fit-radiomap", flight, "--out", out, "--json", check=True).stdout)
-    text = run_cli("fit-radiomap", flight, "--out", out, check=True).stdout
+@pytest.fixture(scope="module")
+def flight_fit(flight: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """The fit's JSON record, once (it does not depend on the terminal width)."""
+    out = tmp_path_factory.mktemp("fit") / "map.json"
+    return json.loads(run_cli("fit-radiomap", flight, "--out", out, "--json", check=True).stdout)
+
+
+def test_fit_radiomap_table(
+    width: int | None, flight: Path, flight_fit: dict[str, Any], tmp_path: Path
+) -> None:
+    fit = flight_fit
+    text = run_cli("fit-radiomap", flight, "--out", tmp_path / "map.json", check=True).stdout
     values = [row[c] for row in fit["sensors"] for c in RadioMapFit.COLUMNS]
     assert any(k.startswith("cv_rmse") for k in fit["sensors"][0])
     assert_intact(text, values, width)

@@ -321,9 +321,7 @@ def autonomous_cells(out: str) -> dict[str, str]:
             "missions per CPU-s"
         ),
     }
-    versus_numpy = dict(
-        _numbers(r"(?m)^  (greedy|hgad)\s.*\(compiled, ([\d.]+)x numpy\)$", out)
-    )
+    versus_numpy = dict(_numbers(r"(?m)^  (greedy|hgad)\s.*\(compiled, ([\d.]+)x numpy\)$", out))
     for engine in ("numpy", "compiled"):
         greedy, hgad = batched["greedy", engine], batched["hgad", engine]
         faster = {

@@ -13,12 +13,12 @@ pytest.importorskip("gymnasium")
 
 import skymule
 from skymule.envs.datamule import DataMuleEnv
-from skymule.envs.vector import DataMuleVectorEnv, legal_goals
+from skymule.envs.vector import DataMuleVectorEnv
 from skymule.errors import SkymuleError
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
 from skymule.scenario import load_scenario
 from skymule.sim import compiled
-from skymule.sim.autonomous import legal_goal
+from skymule.sim.autonomous import legal_goal, legal_goals
 from skymule.sim.batch_signal import BatchSignal
 from skymule.world import Mission, build_mission, with_fence
 

@@ -74,6 +74,8 @@ def fleet_summary(fleet: Fleet, log: FleetLog, policy: str) -> dict[str, Any]:
             zip(mission.sensor_names, (own / BITS_PER_MBIT).tolist(), strict=True)
         )
         per_uav.append({"uav": name, **part, "lost_slots": int(lost.sum())})
+    # the fleet's per-sensor total in one pass over all UAVs' slots (not the sum of the shares
+    # above: another summation order, so other last bits than the fleet summaries so far)
     by_sensor = np.zeros(mission.n_sensors)
     for uav_log in log.logs:
         served = uav_log.served

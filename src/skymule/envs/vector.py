@@ -7,7 +7,7 @@ value. The observation and action encodings are those of ``skymule/DataMule-v0``
 (:mod:`skymule.envs.observation`, ``move="headings"``). Every step:
 
 1. the served sensor delivers min(R dt, Q) bits (:func:`skymule.sim.contract.served_bits`);
-2. the heading's goal is made legal (:func:`legal_goals`, the engine's
+2. the heading's goal is made legal (:func:`~skymule.sim.autonomous.legal_goals`, the engine's
    :func:`~skymule.sim.autonomous.legal_goal` vectorised: kept where the fence covers it, else
    the nearest point of the fence) and the UAV flies at most ``max_step_m`` along the
    shortest in-fence path toward it (:meth:`~skymule.flight.navigation.Navigator.steps`,
@@ -42,7 +42,6 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-import shapely
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
@@ -54,7 +53,7 @@ from skymule.errors import SkymuleError
 from skymule.flight.navigation import Navigator
 from skymule.scenario import Scenario, load_scenario
 from skymule.sim import batch_paths, contract
-from skymule.sim.autonomous import FEASIBILITY_SLACK_M
+from skymule.sim.autonomous import FEASIBILITY_SLACK_M, legal_goals
 from skymule.sim.batch import Engine
 from skymule.sim.batch_home import BOUND_SLACK_M
 from skymule.sim.batch_paths import Paths, Sight
@@ -138,22 +137,6 @@ class HomeRule:
             moved[rows] = self._paths.steps(
                 position[rows], self._home[rows], step[rows], sight, checked=False
             )
-
-
-def legal_goals(navigator: Navigator, goals: np.ndarray) -> np.ndarray:
-    """:func:`~skymule.sim.autonomous.legal_goal` of P goals (P, 2), float for float.
-
-    A goal the fence does not cover (``covers_goals``, one vectorised test) is replaced by the
-    nearest point of the fence: ``hover_point(fence, goal, margin_m=0)`` gives shapely's
-    ``nearest_points(fence, goal)[0]`` there (the goal is not in the fence, no clearance to
-    try), which is the first point of ``shapely.shortest_line`` (one vectorised call here).
-    """
-    legal = np.array(goals, float).reshape(-1, 2)
-    outside = np.flatnonzero(~navigator.covers_goals(legal))
-    if outside.size:
-        lines = shapely.shortest_line(navigator.fence, shapely.points(legal[outside]))
-        legal[outside] = shapely.get_coordinates(shapely.get_point(lines, 0))
-    return legal
 
 
 def _same_fence(missions: Sequence[Mission]) -> Navigator:

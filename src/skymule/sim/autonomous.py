@@ -29,6 +29,7 @@ the engine overrode it) is logged as ``hovering``. The engine reads only the :cl
 from __future__ import annotations
 
 import numpy as np
+import shapely
 
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.faults.motion import Battery, fly_for, leg_speeds_mps, path_time_s
@@ -51,6 +52,22 @@ def legal_goal(navigator: Navigator, goal: XY) -> XY:
     if navigator.covers_goal(goal):
         return goal
     return hover_point(navigator.fence, goal, margin_m=0.0)
+
+
+def legal_goals(navigator: Navigator, goals: np.ndarray) -> np.ndarray:
+    """:func:`legal_goal` of P goals (P, 2), float for float (one vectorised query).
+
+    A goal the fence does not cover (``covers_goals``, one vectorised test) is replaced by the
+    nearest point of the fence: ``hover_point(fence, goal, margin_m=0)`` gives shapely's
+    ``nearest_points(fence, goal)[0]`` there (the goal is not in the fence, no clearance to
+    try), which is the first point of ``shapely.shortest_line`` (one vectorised call here).
+    """
+    legal = np.array(goals, float).reshape(-1, 2)
+    outside = np.flatnonzero(~navigator.covers_goals(legal))
+    if outside.size:
+        lines = shapely.shortest_line(navigator.fence, shapely.points(legal[outside]))
+        legal[outside] = shapely.get_coordinates(shapely.get_point(lines, 0))
+    return legal
 
 
 def next_position(mission: Mission, position: XY, goto_m: XY | None, slot: int) -> tuple[XY, bool]:

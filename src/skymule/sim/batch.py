@@ -41,7 +41,7 @@ from skymule.sim.batch_stack import BATCH_POLICIES as BATCH_POLICIES
 from skymule.sim.batch_stack import Batch as Batch
 from skymule.sim.batch_stack import PolicyParams as PolicyParams
 from skymule.sim.batch_stack import batchable as batchable
-from skymule.sim.batch_stack import mission_geometry
+from skymule.sim.batch_stack import in_batches, mission_geometry
 from skymule.sim.batch_stack import policy_params as policy_params
 from skymule.sim.batch_stack import stack_missions as stack_missions
 from skymule.sim.contract import NO_SENSOR
@@ -317,9 +317,7 @@ def _batches(missions: Sequence[Mission], batch_size: int) -> Iterator[list[int]
     groups: dict[int, list[int]] = {}
     for index, mission in enumerate(missions):
         groups.setdefault(mission.n_sensors, []).append(index)
-    for indices in groups.values():
-        for start in range(0, len(indices), batch_size):
-            yield indices[start : start + batch_size]
+    return in_batches(groups.values(), batch_size)
 
 
 def run_fixed_batch(

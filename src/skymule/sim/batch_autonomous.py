@@ -41,12 +41,12 @@ from skymule.metrics import Flights, summaries, summary_dicts
 from skymule.policies.autonomous import Priority
 from skymule.scenario import PolicySpec
 from skymule.sim import batch_paths, compiled, contract
-from skymule.sim.autonomous import legal_goal
+from skymule.sim.autonomous import legal_goals
 from skymule.sim.batch import Engine
 from skymule.sim.batch_home import HomeDeadline
 from skymule.sim.batch_paths import Paths
 from skymule.sim.batch_signal import BatchSignal
-from skymule.sim.batch_stack import mission_geometry
+from skymule.sim.batch_stack import batched_params, in_batches, mission_geometry
 from skymule.sim.batch_tours import GreedyTours, HGADTours, TourGeometry
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.engine import log_fields
@@ -124,10 +124,6 @@ class TourResult:
     row: np.ndarray
 
 
-def _xy(point: np.ndarray) -> tuple[float, float]:
-    return (float(point[0]), float(point[1]))
-
-
 def padded(values: Sequence[np.ndarray], n_sensors: int, fill: float) -> np.ndarray:
     """(N, B, ...) per-sensor arrays of B missions, missions with fewer sensors padded with
     ``fill``: padded sensors have no data and no hover point, so no tour or choice ever
@@ -152,17 +148,15 @@ def _geometry(
     known = np.all(np.isfinite(hover), axis=2)
     # unknown hover points are never goals; home stands in for them in the sight tables
     places = np.where(known[..., None], hover, home[None])
-    # legal_goal of every hover point and home: kept where the fence covers it, else the
-    # nearest fence point (rare: one scalar call each)
-    legal = np.concatenate([places, home[None]], axis=0)
-    flat = legal.reshape(-1, 2)
-    for index in np.flatnonzero(~nav.covers_goals(flat)):
-        flat[index] = legal_goal(nav, _xy(flat[index]))
+    # the legal goal of every hover point and home: kept where the fence covers it, else the
+    # nearest fence point
+    raw = np.concatenate([places, home[None]], axis=0)
+    flat = legal_goals(nav, raw.reshape(-1, 2))
+    legal = flat.reshape(raw.shape)
     # sights of the legal goals; the raw hover points and homes are almost always the same
     # points, computed again only where legal_goal moved them
     vis, dist = paths.sights(flat)
     legal_sight = (vis.reshape(*legal.shape[:-1], -1), dist.reshape(*legal.shape[:-1], -1))
-    raw = np.concatenate([places, home[None]], axis=0)
     raw_sight = (legal_sight[0].copy(), legal_sight[1].copy())
     moved = np.any(raw != legal, axis=2)
     if moved.any():
@@ -393,13 +387,7 @@ def tour_flights(result: TourResult, rows: np.ndarray, missions: Sequence[Missio
 
 def tour_params(spec: PolicySpec) -> TourParams:
     """The batched tours' parameters of a ``[policy]`` section (SkymuleError if none)."""
-    factory = AUTONOMOUS_POLICIES.get(spec.name)
-    if factory is None:
-        raise SkymuleError(
-            f"policy.name = {spec.name!r} has no batched autonomous engine; "
-            f"allowed: {', '.join(sorted(AUTONOMOUS_POLICIES))}"
-        )
-    return factory(spec)
+    return batched_params(AUTONOMOUS_POLICIES, spec, "batched autonomous engine")
 
 
 def _batches(
@@ -413,9 +401,7 @@ def _batches(
         if nav is None:
             raise SkymuleError("the batched autonomous engine needs autonomous missions")
         groups.setdefault((nav.fence_key, param.hgad), []).append(index)
-    for indices in groups.values():
-        for start in range(0, len(indices), batch_size):
-            yield indices[start : start + batch_size]
+    return in_batches(groups.values(), batch_size)
 
 
 def _params(specs: Sequence[PolicySpec]) -> list[TourParams]:

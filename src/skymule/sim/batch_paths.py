@@ -216,6 +216,17 @@ class CompiledPaths:
             raise ValueError("no in-fence path between start and goal")
         return bend, first, last
 
+    def _query(
+        self, starts_xy: np.ndarray, goals_xy: np.ndarray, goal_sight: Sight | None, checked: bool
+    ) -> tuple[np.ndarray, ...]:
+        """Starts and goals (P, 2) as contiguous floats (checked inside the fence if asked),
+        then :meth:`_routes` of them: what both path queries start from."""
+        starts = np.ascontiguousarray(starts_xy, float).reshape(-1, 2)
+        goals = np.ascontiguousarray(goals_xy, float).reshape(-1, 2)
+        if checked:
+            self._nav.check_inside(starts, goals)
+        return (starts, goals, *self._routes(starts, goals, goal_sight))
+
     def sights(self, points_xy: np.ndarray) -> Sight:
         """(P, k) :meth:`Navigator.sights`, by :meth:`segments_visible`."""
         return vertex_sights(points_xy, self._vertices, self.segments_visible)
@@ -229,12 +240,8 @@ class CompiledPaths:
         checked: bool = True,
     ) -> np.ndarray:
         """(P, 2) :meth:`Navigator.steps`, float for float."""
-        starts = np.ascontiguousarray(positions_xy, float).reshape(-1, 2)
-        goals = np.ascontiguousarray(goals_xy, float).reshape(-1, 2)
-        if checked:
-            self._nav.check_inside(starts, goals)
+        starts, goals, bend, first, last = self._query(positions_xy, goals_xy, goal_sight, checked)
         step = step_lengths(max_step_m, len(starts))
-        bend, first, last = self._routes(starts, goals, goal_sight)
         moved = np.empty_like(starts)
         self._k["advance_rows"](
             starts, goals, step, bend, first, last, self._nodes, self._count, self._vertices, moved
@@ -249,11 +256,7 @@ class CompiledPaths:
         checked: bool = True,
     ) -> np.ndarray:
         """(P,) :meth:`Navigator.travel_distances` [m], float for float."""
-        starts = np.ascontiguousarray(starts_xy, float).reshape(-1, 2)
-        goals = np.ascontiguousarray(goals_xy, float).reshape(-1, 2)
-        if checked:
-            self._nav.check_inside(starts, goals)
-        bend, first, last = self._routes(starts, goals, goal_sight)
+        starts, goals, bend, first, last = self._query(starts_xy, goals_xy, goal_sight, checked)
         out = np.empty(len(starts))
         self._k["path_lengths"](
             starts, goals, bend, first, last, self._nodes, self._count, self._vertices, out

@@ -11,8 +11,9 @@ autonomous missions run through the reference engine (see :mod:`skymule.experime
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 
@@ -114,14 +115,33 @@ class Batch:
         return int(self.track_id.shape[0])
 
 
-def policy_params(spec: PolicySpec) -> PolicyParams:
-    factory = BATCH_POLICIES.get(spec.name)
+Params = TypeVar("Params")
+
+
+def batched_params(
+    factories: Mapping[str, Callable[[PolicySpec], Params]], spec: PolicySpec, engine: str
+) -> Params:
+    """A batched engine's parameters of a ``[policy]`` section, from ``factories`` (policy
+    name -> parameters); the one-line SkymuleError naming ``engine`` if it has none."""
+    factory = factories.get(spec.name)
     if factory is None:
         raise SkymuleError(
-            f"policy.name = {spec.name!r} has no batched engine; "
-            f"allowed: {', '.join(sorted(BATCH_POLICIES))}"
+            f"policy.name = {spec.name!r} has no {engine}; allowed: {', '.join(sorted(factories))}"
         )
     return factory(spec)
+
+
+def policy_params(spec: PolicySpec) -> PolicyParams:
+    """The batched fixed-path engine's parameters of a ``[policy]`` section."""
+    return batched_params(BATCH_POLICIES, spec, "batched engine")
+
+
+def in_batches(groups: Iterable[list[int]], batch_size: int) -> Iterator[list[int]]:
+    """Each group of mission indices (missions that can share a batch) cut into batches of at
+    most ``batch_size``."""
+    for indices in groups:
+        for start in range(0, len(indices), batch_size):
+            yield indices[start : start + batch_size]
 
 
 def stack_missions(missions: Sequence[Mission], specs: Sequence[PolicySpec]) -> Batch:

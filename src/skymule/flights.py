@@ -42,6 +42,21 @@ class Flights:
         target: (B, T) autonomous: sensor the policy was heading for (NO_SENSOR: none), or
             None when no mission has targets.
         aadm_window_s: (B,) the AADM download window the score counts downloads in [s].
+        policy: (B,) policy name of each flight (empty when unknown).
+        sensor_names: (N,) sensor names.
+        snr_db: (B, T, N) SNR observed at the start of each slot [dB] (NaN: no sample), or
+            None when the run kept no per-slot detail.
+        rate_bps: (B, T, N) rate to each sensor [bit/s], or None (no detail).
+        remaining_bit: (B, T, N) buffers after each slot's download [bit], or None.
+        chosen: (B, T) the sensor the policy chose (``served`` is NO_SENSOR where a fault or
+            another UAV kept it from delivering), or None for fault-free single-UAV runs
+            (then equal to ``served``).
+        affected: (B, T) True where a per-slot fault touched the slot, or None (no faults).
+        battery_used_j: (B, T) propulsion energy the battery has paid after each slot [J],
+            or None without a battery fault.
+        fleet: (B,) the fleet mission each flight belongs to (its UAVs share buffers), or
+            None: every flight is a mission of its own.
+        lost: (B, T) True where a UAV chose a sensor another UAV won, or None (no fleet).
     """
 
     n_run: np.ndarray
@@ -61,6 +76,29 @@ class Flights:
     visit_radius_m: np.ndarray
     target: np.ndarray | None = None
     aadm_window_s: np.ndarray | None = None
+    policy: tuple[str, ...] = ()
+    sensor_names: tuple[str, ...] = ()
+    snr_db: np.ndarray | None = None
+    rate_bps: np.ndarray | None = None
+    remaining_bit: np.ndarray | None = None
+    chosen: np.ndarray | None = None
+    affected: np.ndarray | None = None
+    battery_used_j: np.ndarray | None = None
+    fleet: np.ndarray | None = None
+    lost: np.ndarray | None = None
+
+    @property
+    def size(self) -> int:
+        """B, the number of flights."""
+        return int(self.n_run.shape[0])
+
+    def position_m(self, b: int) -> np.ndarray:
+        """(T', 3) flight b's position at the start of each slot it ran [m]."""
+        return self.track_position_m[self.track_id[b], self.sample[b, : self.n_run[b]]]
+
+    def end_position_m(self, b: int) -> np.ndarray:
+        """(3,) flight b's position after its last slot [m]."""
+        return self.track_position_m[self.track_id[b], self.end_sample[b]]
 
 
 def flights_from_log(log: MissionLog) -> Flights:

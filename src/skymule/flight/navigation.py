@@ -46,7 +46,7 @@ _HOVER_HALVINGS = 10
 #: ``math.hypot`` over arrays: :func:`advance_along` measures segments with ``math.hypot``,
 #: which differs from ``np.hypot`` in the last bit for about 1 pair in 200; the vectorised
 #: :meth:`Navigator.steps` must land on the same floats.
-_math_hypot = np.frompyfunc(math.hypot, 2, 1)
+math_hypot = np.frompyfunc(math.hypot, 2, 1)
 
 #: :meth:`Navigator.shortest_paths` tests the start's view of this many vertices one at a time
 #: (smallest total first) before testing all of them at once for the rows left.
@@ -418,8 +418,7 @@ class Navigator:
             return np.stack([starts, goals], axis=1), np.full(len(starts), 2, np.int64)
         if not len(self._vertices):
             raise ValueError("no in-fence path between start and goal")
-        vis_g, d_g = self.sights(goals[rest]) if goal_sight is None else (
-            goal_sight[0][rest], goal_sight[1][rest])  # fmt: skip
+        vis_g, d_g = goal_sights(self.sights, goals, rest, goal_sight)
         verts, start = self._vertices, starts[rest]
         d_s = np.hypot(verts[None, :, 0] - start[:, None, 0], verts[None, :, 1] - start[:, None, 1])
         total = d_s[:, :, None] + self._dist[None] + np.where(vis_g, d_g, np.inf)[:, None, :]
@@ -495,7 +494,7 @@ class Navigator:
                 break
             a, b = points[rows, seg], points[rows, seg + 1]
             dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
-            length = _math_hypot(dx, dy).astype(float)
+            length = math_hypot(dx, dy).astype(float)
             short = left[rows] < length
             at = rows[short]
             t = left[at] / length[short]
@@ -521,6 +520,26 @@ class Navigator:
             raise ValueError(f"max_step_m must be >= 0, got {max_step_m}")
         pos, _ = advance_along(self.shortest_path(position_xy, goal_xy), max_step_m)
         return pos
+
+
+def goal_sights(
+    sights: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
+    goals: np.ndarray,
+    rows: np.ndarray,
+    known: tuple[np.ndarray, np.ndarray] | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(R, k) sights of ``goals[rows]``: from ``known`` (P, k) each where given, by
+    ``sights`` for the rest (all of them without ``known``; else the rows whose distances are
+    NaN, which are then written into ``known`` in place, so that a caller keeping the arrays
+    computes a goal's sight once)."""
+    if known is None:
+        return sights(goals[rows])
+    vis, dist = known
+    if dist.shape[1]:
+        unknown = rows[np.isnan(dist[rows, 0])]
+        if unknown.size:
+            vis[unknown], dist[unknown] = sights(goals[unknown])
+    return vis[rows], dist[rows]
 
 
 def vertex_sights(

@@ -1,13 +1,21 @@
-"""The policy contract: observations in, actions out.
+"""The policy contract: observations in, actions out, in two forms.
 
-A policy sees a :class:`MissionContext` once per mission (``reset``) and an
-:class:`Observation` every slot (``act``) and returns an :class:`Action`. It never touches
-engine state: buffers, position and the clock belong to the engine.
+A **per-mission** policy (:class:`Policy`) sees one :class:`MissionContext` per mission
+(``reset``) and one :class:`Observation` every slot (``act``) and returns an :class:`Action`.
+
+A **batched** policy (:class:`BatchPolicy`, ``batched = True``) decides for B missions at
+once: ``reset`` gets the B contexts, ``act`` a :class:`BatchObservation` whose arrays have a
+leading mission axis, and it returns a :class:`BatchAction` of arrays. The engine runs B
+missions as B columns either way; a per-mission policy runs through
+:class:`~skymule.policies.batched.PerMission`, one instance per column.
+
+Neither form touches engine state: buffers, position and the clock belong to the engine, and
+every array a policy is handed is read-only.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
@@ -105,6 +113,27 @@ class Observation:
         for name in ("position_m", "snr_db", "rate_bps", "remaining_bit"):
             object.__setattr__(self, name, read_only(getattr(self, name)))
 
+    @classmethod
+    def of_rows(
+        cls,
+        slot: int,
+        position_m: np.ndarray,
+        snr_db: np.ndarray,
+        rate_bps: np.ndarray,
+        remaining_bit: np.ndarray,
+    ) -> Observation:
+        """An observation of rows of read-only batch arrays, which are views that cannot be
+        made writeable (the engine's own fast path: no further views are taken)."""
+        observation = object.__new__(cls)
+        observation.__dict__.update(
+            slot=slot,
+            position_m=position_m,
+            snr_db=snr_db,
+            rate_bps=rate_bps,
+            remaining_bit=remaining_bit,
+        )
+        return observation
+
 
 @dataclass(frozen=True)
 class Action:
@@ -127,8 +156,8 @@ class Action:
 def read_only(values: np.ndarray) -> np.ndarray:
     """A view of ``values`` that raises on writing (the engine's arrays stay the engine's).
 
-    The engines hand policies read-only base arrays or fresh copies, so a policy cannot turn
-    writing back on and reach engine state through the view.
+    The engine hands policies fresh arrays it does not read again, or views of read-only
+    bases (whose views cannot be made writeable), so a policy cannot reach engine state.
     """
     view = np.asarray(values).view()
     view.flags.writeable = False
@@ -140,9 +169,90 @@ class Policy(Protocol):
 
     name: str
 
-    def reset(self, context: MissionContext) -> None: ...
+    def reset(self, context: MissionContext) -> None:
+        """Start a mission: ``context`` is all the policy may know before it (read-only)."""
+        ...
 
-    def act(self, observation: Observation) -> Action: ...
+    def act(self, observation: Observation) -> Action:
+        """Decide slot ``observation.slot``: whom to serve, whether to hover, where to fly."""
+        ...
+
+
+@dataclass(frozen=True)
+class BatchObservation:
+    """What the UAVs of B missions know at the start of their current slots (read-only).
+
+    Row b is mission b (the order of the contexts given to ``reset``). Missions that are over
+    (``active`` False) keep their last values; what a policy returns for them is ignored.
+
+    Attributes:
+        slot: (B,) slot index t of each mission.
+        active: (B,) True where the mission is still running.
+        position_m: (B, 3) UAV positions r_t [m].
+        snr_db: (B, N) SNR to each sensor [dB] (-inf where there is no link).
+        rate_bps: (B, N) rate to each sensor [bit/s].
+        remaining_bit: (B, N) data left in each buffer at the start of the slot [bit].
+    """
+
+    slot: np.ndarray
+    active: np.ndarray
+    position_m: np.ndarray
+    snr_db: np.ndarray
+    rate_bps: np.ndarray
+    remaining_bit: np.ndarray
+
+    @property
+    def size(self) -> int:
+        """B, the number of missions."""
+        return int(self.slot.shape[0])
+
+    def mission(self, b: int) -> Observation:
+        """Row b as a per-mission :class:`Observation` (read-only views, no copies)."""
+        return Observation.of_rows(
+            int(self.slot[b]),
+            self.position_m[b],
+            self.snr_db[b],
+            self.rate_bps[b],
+            self.remaining_bit[b],
+        )
+
+
+@dataclass(frozen=True)
+class BatchAction:
+    """What the UAVs of B missions do this slot (each field an array over missions).
+
+    Attributes:
+        serve: (B,) int sensor to download from, -1 (``NO_SENSOR``) for none.
+        hover: (B,) bool, True to stay where it is after this slot (fixed trajectories: do not
+            advance), or None: never.
+        goto_m: (B, 2) autonomous: point (x, y) [m] to fly toward, NaN to stay; None: stay.
+        target: (B,) autonomous: the sensor whose hover point the UAV heads for (logged;
+            defines the visit order), -1 for none; None: none.
+    """
+
+    serve: np.ndarray
+    hover: np.ndarray | None = None
+    goto_m: np.ndarray | None = None
+    target: np.ndarray | None = None
+
+
+class BatchPolicy(Protocol):
+    """A decision maker for B missions at once (``batched = True``).
+
+    ``reset`` starts B missions; ``act`` decides one slot of each. Keep per-mission state in
+    arrays with a leading mission axis; a single run is a batch of one.
+    """
+
+    name: str
+    batched: bool
+
+    def reset(self, contexts: Sequence[MissionContext]) -> None:
+        """Start B missions: ``contexts[b]`` is what mission b's policy may know (read-only)."""
+        ...
+
+    def act(self, observation: BatchObservation) -> BatchAction:
+        """Decide the current slot of every mission (rows of ``observation``)."""
+        ...
 
 
 def slot_download_bit(observation: Observation, sensor: int, slot_s: float) -> float:

@@ -81,16 +81,23 @@ def stack_faults(missions: Sequence[Mission], n_sensors: int) -> BatchFaults:
 
 
 def apply_faults(
-    faults: BatchFaults, slot: int, rate: np.ndarray, snr: np.ndarray
+    faults: BatchFaults, slot: int | np.ndarray, rate: np.ndarray, snr: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """One slot: (rate seen, SNR seen, rate delivered, deliverable), each (N, B).
 
     ``rate`` / ``snr`` (N, B) are the true values (fading included); they are not changed.
+    ``slot``: the slot of every mission, or (B,) each mission's own (clipped to its draws).
     """
     cols = faults.index
-    ok_g = faults.deliverable[:, slot].T
+    if np.ndim(slot) == 0:
+        ok_g = faults.deliverable[:, slot].T
+        error = faults.snr_error_db[:, slot].T
+    else:
+        rows = np.arange(cols.size)
+        at = np.minimum(np.asarray(slot)[cols], faults.deliverable.shape[1] - 1)
+        ok_g, error = faults.deliverable[rows, at].T, faults.snr_error_db[rows, at].T
     seen_snr, seen_rate, deliver = snr.copy(), rate.copy(), rate.copy()
-    seen = np.where(ok_g, snr[:, cols] + faults.snr_error_db[:, slot].T, -np.inf)
+    seen = np.where(ok_g, snr[:, cols] + error, -np.inf)
     seen_snr[:, cols] = seen
     for model, (table, bandwidth_hz) in enumerate(faults.rate_models):
         pick = faults.rate_model == model

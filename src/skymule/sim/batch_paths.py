@@ -28,7 +28,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from skymule.errors import SkymuleError
-from skymule.flight.navigation import Navigator, step_lengths, vertex_sights
+from skymule.flight.navigation import Navigator, goal_sights, step_lengths, vertex_sights
 from skymule.sim import compiled
 from skymule.sim import path_kernels as pk
 from skymule.sim import visibility_kernels as vk
@@ -182,10 +182,7 @@ class CompiledPaths:
         k = len(self._vertices)
         if not k:
             raise ValueError("no in-fence path between start and goal")
-        if goal_sight is None:
-            vis_g, d_g = self.sights(goals[rest])
-        else:
-            vis_g, d_g = goal_sight[0][rest], goal_sight[1][rest]
+        vis_g, d_g = goal_sights(self.sights, goals, rest, goal_sight)
         start = np.ascontiguousarray(starts[rest])
         d_s = np.empty((rest.size, k))
         row_min = np.empty((rest.size, k))

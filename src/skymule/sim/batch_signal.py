@@ -79,17 +79,25 @@ class BatchSignal:
             self._fading_db[: gains.shape[0], : gains.shape[1], f] = gains
             self._fading_slots[f] = gains.shape[0]
 
-    def snr_db(self, position_m: np.ndarray, slot: int | np.ndarray | None) -> np.ndarray:
+    def snr_db(
+        self,
+        position_m: np.ndarray,
+        slot: int | np.ndarray | None,
+        running: np.ndarray | None = None,
+    ) -> np.ndarray:
         """(N, A) SNR [dB] each of the first A missions sees at its position (A, 2) in slot
         ``slot``, per-slot fading included (``slot=None``: without fading; NaN: no link).
 
         ``slot`` may be an (A,) integer array, each mission's own slot (missions stepped
-        independently, :mod:`skymule.envs.vector`); a mission at or past its last slot then
-        sees no fading (the observation after its last slot, as the single environment's).
+        independently); a mission at or past its last slot then sees no fading (the
+        observation after its last slot). ``running`` (A,): only those missions (NaN
+        elsewhere).
         """
         active = position_m.shape[0]
         snr = np.full((self._n_sensors, active), np.nan)
-        for cols in self._offset:
+        offset = self._offset if running is None else [g[running[g]] for g in self._offset]
+        other = self._other if running is None else [g[running[g]] for g in self._other]
+        for cols in offset:
             cols = cols[cols < active]
             if not cols.size:
                 continue
@@ -102,7 +110,7 @@ class BatchSignal:
             uav = np.array([[0.0, 0.0, mission.altitude_m]])
             loss = source.pathloss.loss_db(uav, sensors.reshape(-1, 3))
             snr[:, cols] = source.budget.snr_db(loss).reshape(self._n_sensors, cols.size)
-        for cols in self._other:
+        for cols in other:
             cols = cols[cols < active]
             if not cols.size:
                 continue

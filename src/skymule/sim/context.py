@@ -28,38 +28,54 @@ def autonomous_peak_rate_bps(mission: Mission) -> np.ndarray:
 def mission_context(mission: Mission) -> MissionContext:
     """The context a policy's ``reset`` gets (fixed or autonomous), read-only."""
     if mission.mode == "autonomous":
-        if mission.source is None:
-            raise SkymuleError("autonomous missions need signal.source = 'model' or 'radiomap'")
-        return MissionContext(
-            sensor_names=mission.sensor_names,
-            slot_s=mission.slot_s,
-            n_slots=mission.n_slots,
-            buffers_bit=mission.buffers_bit,
-            peak_rate_bps=autonomous_peak_rate_bps(mission),
-            mode=mission.mode,
-            sensor_m=mission.sensor_m,
-            hover_points_m=mission.hover_points_m,
-            home_m=mission.home_m,
-            max_step_m=mission.max_step_m,
-            visit_radius_m=mission.visit_radius_m,
-            navigator=mission.navigator,
-            predict_snr_db=mission.source.snr_db,
-            return_home=mission.return_home,
-            rate_of_snr_bps=mission.rate_bps,
-        )
+        return autonomous_context(mission, autonomous_peak_rate_bps(mission))
     track = mission.track
     if track is None:
         raise SkymuleError("a fixed-trajectory mission needs a track (trajectory.waypoints)")
     rates = mission.rate_bps(track.snr_db)
+    return fixed_context(mission, rates, rates.max(axis=0))
+
+
+def autonomous_context(mission: Mission, peak_rate_bps: np.ndarray) -> MissionContext:
+    """The context of an autonomous mission given its peak rates R*_i (N,) (the rate at each
+    sensor's own hover point, computed for a whole batch at once)."""
+    if mission.source is None:
+        raise SkymuleError("autonomous missions need signal.source = 'model' or 'radiomap'")
     return MissionContext(
         sensor_names=mission.sensor_names,
         slot_s=mission.slot_s,
         n_slots=mission.n_slots,
         buffers_bit=mission.buffers_bit,
-        peak_rate_bps=rates.max(axis=0),
+        peak_rate_bps=peak_rate_bps,
+        mode=mission.mode,
+        sensor_m=mission.sensor_m,
+        hover_points_m=mission.hover_points_m,
+        home_m=mission.home_m,
+        max_step_m=mission.max_step_m,
+        visit_radius_m=mission.visit_radius_m,
+        navigator=mission.navigator,
+        predict_snr_db=mission.source.snr_db,
+        return_home=mission.return_home,
+        rate_of_snr_bps=mission.rate_bps,
+    )
+
+
+def fixed_context(
+    mission: Mission, rates_bps: np.ndarray, peak_rate_bps: np.ndarray
+) -> MissionContext:
+    """The context of a fixed-trajectory mission given its track's rates (K, N) and their
+    peak (N,) (computed once for every mission on one track)."""
+    track = mission.track
+    assert track is not None
+    return MissionContext(
+        sensor_names=mission.sensor_names,
+        slot_s=mission.slot_s,
+        n_slots=mission.n_slots,
+        buffers_bit=mission.buffers_bit,
+        peak_rate_bps=peak_rate_bps,
         mode=mission.mode,
         sensor_m=mission.sensor_m,
         visit_radius_m=mission.visit_radius_m,
-        track_rate_bps=rates,
+        track_rate_bps=rates_bps,
         track_hold_at_end=track.hold_at_end,
     )

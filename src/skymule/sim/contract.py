@@ -85,6 +85,64 @@ def take_bits(
     return bits
 
 
+def serve_slot(
+    sensor: np.ndarray,
+    deliver_bps: np.ndarray,
+    deliverable: np.ndarray | None,
+    remaining_bit: np.ndarray,
+    group: np.ndarray,
+    uavs: int,
+    slot_s: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """One slot's downloads of B flights: (served (B,), bits (B,), lost (B,) or None).
+
+    The one place bits leave buffers. Flights are columns; ``group`` names the buffers each
+    one downloads from (the UAVs of a fleet mission share theirs, K = ``uavs`` contiguous
+    columns per mission). In order:
+
+    1. UAVs of one fleet mission that chose the same sensor: :func:`fleet_served` (the higher
+       rate to it wins, ties to the lower UAV index); the others lose it (``lost``);
+    2. a fault blocks a link (``deliverable`` False): nothing is served there;
+    3. each served sensor delivers y = min(R dt, Q) at its true rate (:func:`served_bits`),
+       taken from its buffer in place (no sensor is served twice in one mission).
+
+    Args:
+        sensor: (B,) the sensor each flight's policy chose (NO_SENSOR: none, and for flights
+            that are over or whose download window has closed).
+        deliver_bps: (N, B) the rate a served sensor delivers at [bit/s] (C order).
+        deliverable: (N, B) False where a fault blocks the link, or None (no faults).
+        remaining_bit: (N, G) buffers [bit] (C order), updated in place.
+        group: (B,) each flight's buffer column.
+        uavs: K, the UAVs of each fleet mission (1: every flight is a mission of its own).
+        slot_s: (B,) slot length [s].
+    """
+    columns = np.arange(sensor.shape[0])
+    cell = cells(sensor, columns)
+    rate = deliver_bps.reshape(-1).take(cell)
+    lost = None
+    if uavs > 1:
+        k, g = uavs, sensor.shape[0] // uavs
+        won = fleet_served(sensor.reshape(g, k).T, rate.reshape(g, k).T).T.reshape(-1)
+        lost = (sensor != NO_SENSOR) & (won == NO_SENSOR)
+        sensor = won
+    if deliverable is not None:
+        sensor = np.where(deliverable.reshape(-1).take(cell), sensor, NO_SENSOR)
+    flat = remaining_bit.reshape(-1)
+    if uavs == 1:  # buffers are (N, B): a flight that serves nobody rewrites its row 0 as it is
+        left = flat.take(cell)
+        bits = served_bits(rate, left, slot_s)
+        bits[sensor < 0] = 0.0
+        flat[cell] = left - bits
+        return sensor, bits, lost
+    cell = np.maximum(sensor, 0) * remaining_bit.shape[1] + group
+    left = flat.take(cell)
+    bits = served_bits(rate, left, slot_s)
+    bits[sensor < 0] = 0.0
+    serving = np.flatnonzero(sensor >= 0)
+    flat[cell[serving]] = left[serving] - bits[serving]
+    return sensor, bits, lost
+
+
 def take_one(remaining_bit: np.ndarray, sensor: int, rate_bps: float, slot_s: float) -> float:
     """:func:`take_bits` for one UAV: the bits ``sensor`` delivers this slot (0 for
     NO_SENSOR), taken from ``remaining_bit`` (N,) in place; the same floats.

@@ -35,7 +35,7 @@ from skymule.errors import SkymuleError
 from skymule.experiments.layouts import random_autonomous_scenario
 from skymule.policies import make_policy
 from skymule.scenario import Scenario, load_scenario, scenario_from_dict
-from skymule.sim.log import NO_SENSOR, MissionLog
+from skymule.flights import NO_SENSOR, MissionLog
 from skymule.sim.run import run_mission
 from skymule.world import Mission, build_mission
 

@@ -38,7 +38,7 @@ from skymule.policies.hgad import HGAD
 from skymule.policies.planner import Planner
 from skymule.scenario import Scenario, load_scenario
 from skymule.sim import plans
-from skymule.sim.log import MissionLog
+from skymule.flights import MissionLog
 from skymule.sim.run import run_mission
 from skymule.world import build_mission
 

@@ -15,7 +15,7 @@ from skymule.policies import make_policy
 from skymule.policies.base import Action, MissionContext, Observation
 from skymule.policies.hgad import HGAD
 from skymule.scenario import PolicySpec, load_scenario
-from skymule.sim.log import NO_SENSOR
+from skymule.flights import NO_SENSOR
 from skymule.sim.run import run_mission
 from skymule.world import build_mission
 

@@ -25,7 +25,7 @@ from skymule.sim.batch import (
     summarize_fixed_batch,
 )
 from skymule.sim.engine import run_fixed
-from skymule.sim.log import MissionLog
+from skymule.flights import MissionLog
 from skymule.sim.run import run_mission
 from skymule.world import build_mission
 

@@ -33,7 +33,7 @@ from skymule.sim.batch_autonomous import (
 )
 from skymule.sim.batch_signal import BatchSignal
 from skymule.sim.context import autonomous_peak_rate_bps
-from skymule.sim.log import MissionLog
+from skymule.flights import MissionLog
 from skymule.sim.run import run_mission
 from skymule.world import build_mission
 

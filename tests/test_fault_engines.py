@@ -31,7 +31,7 @@ from skymule.sim.context import mission_context
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.engine import FixedFlight
 from skymule.sim.fleet import build_fleet
-from skymule.sim.log import MissionLog
+from skymule.flights import MissionLog
 from skymule.sim.run import run_mission
 from skymule.world import Mission, build_mission
 

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from skymule.energy import propulsion_power_w
 from skymule.metrics import summarize
-from skymule.sim.log import NO_SENSOR, MissionLog
+from skymule.flights import NO_SENSOR, MissionLog
 
 
 def random_log(rng: np.random.Generator, autonomous: bool) -> MissionLog:

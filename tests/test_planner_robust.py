@@ -16,7 +16,7 @@ from skymule.policies.planner_robust import RobustPlanner
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
 from skymule.sim.context import mission_context
 from skymule.sim.contract import NO_SENSOR
-from skymule.sim.log import MissionLog
+from skymule.flights import MissionLog
 from skymule.sim.run import run_mission
 from skymule.world import Mission, build_mission
 from test_autonomous_bound import random_scenario

@@ -14,7 +14,7 @@ from skymule.policies import planner as planner_module
 from skymule.policies.planner import Planner
 from skymule.scenario import load_scenario
 from skymule.sim import compiled, plans
-from skymule.sim.log import MissionLog
+from skymule.flights import MissionLog
 from skymule.sim.run import run_mission
 from skymule.world import build_mission
 

@@ -14,7 +14,7 @@ from skymule.policies import make_policy
 from skymule.resilience import leveled, run_study
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
 from skymule.sim.contract import NO_SENSOR
-from skymule.sim.log import MissionLog
+from skymule.flights import MissionLog
 from skymule.sim.run import run_mission
 from skymule.world import Mission, build_mission
 

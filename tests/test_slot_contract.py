@@ -14,7 +14,7 @@ from skymule.policies import HGAD, Greedy, make_policy
 from skymule.runner import simulate
 from skymule.scenario import load_scenario
 from skymule.sim.engine import run_fixed
-from skymule.sim.log import NO_SENSOR
+from skymule.flights import NO_SENSOR
 from skymule.world import mission_from_track
 
 # Two sensors A, B over a ten-sample trace. With bandwidth 1 MHz the AADM table gives rates

@@ -50,13 +50,13 @@ import pandas as pd
 from skymule.aadm import files as aadm_files
 from skymule.aadm.score import aadm_score_one, share_slot_from_altitude
 from skymule.errors import SkymuleError
+from skymule.flights import NO_SENSOR, MissionLog, flight_record
 from skymule.geo import load_site
 from skymule.io.runs import slots_frame, write_run
 from skymule.io.traces import Trace, normalise_column, read_trace, read_volumes
 from skymule.metrics import summarize
 from skymule.policies import check_policies
 from skymule.scenario import Scenario, scenario_from_dict
-from skymule.sim.log import NO_SENSOR, MissionLog
 from skymule.world import BITS_PER_MBIT, Mission, build_mission
 
 #: Buffer per tower when neither a volume file nor --buffers is given [Mbit].
@@ -284,19 +284,21 @@ def flight_log(mission: Mission, downloads: DownloadLog) -> MissionLog:
         remaining[t] = left
     positions = track.position_m[:n_slots]
     return MissionLog(
-        policy=FLIGHT_RUN,
-        sensor_names=mission.sensor_names,
-        slot_s=mission.slot_s,
-        buffers_bit=mission.buffers_bit,
-        position_m=positions,
-        end_position_m=positions[-1],
-        snr_db=track.snr_db[:n_slots],
-        rate_bps=mission.rate_bps(track.snr_db[:n_slots]),
-        served=served,
-        downloaded_bit=downloaded,
-        remaining_bit=remaining,
-        hovering=np.zeros(n_slots, bool),
-        home_m=np.zeros(2),
+        flight_record(
+            policy=FLIGHT_RUN,
+            sensor_names=mission.sensor_names,
+            slot_s=mission.slot_s,
+            buffers_bit=mission.buffers_bit,
+            position_m=positions,
+            end_position_m=positions[-1],
+            snr_db=track.snr_db[:n_slots],
+            rate_bps=mission.rate_bps(track.snr_db[:n_slots]),
+            served=served,
+            downloaded_bit=downloaded,
+            remaining_bit=remaining,
+            hovering=np.zeros(n_slots, bool),
+            home_m=np.zeros(2),
+        )
     )
 
 

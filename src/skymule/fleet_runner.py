@@ -11,6 +11,7 @@ another UAV won it).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -19,25 +20,29 @@ import numpy as np
 import pandas as pd
 
 from skymule.errors import SkymuleError
+from skymule.flights import Flights
 from skymule.io.runs import slots_frame, write_run
 from skymule.metrics import BITS_PER_MBIT, summarize
-from skymule.policies import make_policy
-from skymule.policies.fleet import COORDINATED, Coordinated, FleetPolicy, Independent
+from skymule.policies import batch_policy
+from skymule.policies.base import BatchPolicy, Policy
+from skymule.policies.batched import PerFleet, policy_names
+from skymule.policies.fleet import COORDINATED, Coordinated
 from skymule.scenario import Scenario
-from skymule.sim.context import mission_context
 from skymule.sim.contract import NO_SENSOR
-from skymule.sim.fleet import Fleet, FleetFlight, FleetLog, build_fleet
+from skymule.sim.fleet import Fleet, build_fleet
+from skymule.sim.run import run_missions
 
 FLEET_POLICIES = (COORDINATED,)
 """Policies that decide for the whole fleet (any single-UAV policy runs independently)."""
 
 
-def make_fleet_policy(fleet: Fleet, name: str | None = None) -> FleetPolicy:
-    """``coordinated``, or each UAV's own policy run independently (``name`` overrides all)."""
+def make_fleet_policy(fleet: Fleet, name: str | None = None) -> BatchPolicy:
+    """``coordinated``, or each UAV's own policy run independently (``name`` overrides all):
+    one batched policy over the fleet's K UAV columns."""
     if (name or fleet.policies[0].name) == COORDINATED and (
         name is not None or all(spec.name == COORDINATED for spec in fleet.policies)
     ):
-        return Coordinated()
+        return PerFleet([Coordinated()], fleet.size)
     specs = [
         spec if name is None else spec.model_copy(update={"name": name}) for spec in fleet.policies
     ]
@@ -46,25 +51,22 @@ def make_fleet_policy(fleet: Fleet, name: str | None = None) -> FleetPolicy:
             "policy.name = 'coordinated' decides for the whole fleet: set it in the scenario's "
             "[policy] (or --policy coordinated) with no other policy in any [uavs.policy]"
         )
-    return Independent([make_policy(spec) for spec in specs])
+    return batch_policy(specs)
 
 
-def run_fleet(fleet: Fleet, policy: FleetPolicy) -> FleetLog:
-    """Run a fleet mission under ``policy`` (every UAV decides every slot)."""
-    flight = FleetFlight(fleet)
-    policy.reset([mission_context(m) for m in fleet.missions])
-    names = policy.names()
-    who = [f"{p} ({u})" for p, u in zip(names, fleet.names, strict=True)]
-    while not flight.done:
-        flight.apply(policy.act(flight.observe()), who)
-    return flight.log(names)
+def run_fleet(fleet: Fleet, policy: BatchPolicy | Sequence[Policy]) -> Flights:
+    """Run a fleet mission under ``policy`` (one batched policy over the UAV columns, or one
+    per-mission policy per UAV): every UAV decides every slot, over shared buffers."""
+    return run_missions(list(fleet.missions), policy, fleet=np.zeros(fleet.size, np.int64))
 
 
-def fleet_summary(fleet: Fleet, log: FleetLog, policy: str) -> dict[str, Any]:
+def fleet_summary(fleet: Fleet, log: Flights, policy: str) -> dict[str, Any]:
     """``summary.json`` of a fleet run (module docstring)."""
     mission = fleet.missions[0]
     per_uav = []
-    for name, uav_log, lost in zip(log.names, log.logs, log.lost.T, strict=True):
+    assert log.lost is not None or fleet.size == 1
+    lost_slots = np.zeros(fleet.size, np.int64) if log.lost is None else log.lost.sum(axis=1)
+    for name, uav_log, lost in zip(fleet.names, log.missions(), lost_slots, strict=True):
         part = summarize(uav_log, fleet.scenario.name)
         # a UAV's log holds the shared buffers: its own share per sensor is what it served
         own = np.zeros(mission.n_sensors)
@@ -73,11 +75,11 @@ def fleet_summary(fleet: Fleet, log: FleetLog, policy: str) -> dict[str, Any]:
         part["per_sensor_downloaded_mbit"] = dict(
             zip(mission.sensor_names, (own / BITS_PER_MBIT).tolist(), strict=True)
         )
-        per_uav.append({"uav": name, **part, "lost_slots": int(lost.sum())})
+        per_uav.append({"uav": name, **part, "lost_slots": int(lost)})
     # the fleet's per-sensor total in one pass over all UAVs' slots (not the sum of the shares
     # above: another summation order, so other last bits than the fleet summaries so far)
     by_sensor = np.zeros(mission.n_sensors)
-    for uav_log in log.logs:
+    for uav_log in log.missions():
         served = uav_log.served
         np.add.at(
             by_sensor, served[served != NO_SENSOR], uav_log.downloaded_bit[served != NO_SENSOR]
@@ -89,7 +91,7 @@ def fleet_summary(fleet: Fleet, log: FleetLog, policy: str) -> dict[str, Any]:
         "policy": policy,
         "n_uavs": fleet.size,
         "mission_time_s": mission.n_slots * mission.slot_s,
-        "slots": int(log.logs[0].n_slots),
+        "slots": int(log.n_run[0]),
         "slot_s": mission.slot_s,
         "total_downloaded_mbit": float(downloaded),
         "total_buffer_mbit": total_buffer,
@@ -100,7 +102,7 @@ def fleet_summary(fleet: Fleet, log: FleetLog, policy: str) -> dict[str, Any]:
             zip(mission.sensor_names, (mission.buffers_bit / BITS_PER_MBIT).tolist(), strict=True)
         ),
         "completion": float(downloaded / total_buffer) if total_buffer > 0 else 1.0,
-        "lost_slots": int(log.lost.sum()),
+        "lost_slots": int(lost_slots.sum()),
         "distance_m": float(sum(u["distance_m"] for u in per_uav)),
         "energy_kj": float(sum(u["energy_kj"] for u in per_uav)),
         "landed_within_5m": all(bool(u.get("landed_within_5m", True)) for u in per_uav),
@@ -108,18 +110,19 @@ def fleet_summary(fleet: Fleet, log: FleetLog, policy: str) -> dict[str, Any]:
     }
 
 
-def fleet_slots_frame(fleet: Fleet, log: FleetLog) -> pd.DataFrame:
+def fleet_slots_frame(fleet: Fleet, log: Flights) -> pd.DataFrame:
     """``slots.csv`` of a fleet run: one row per UAV per slot (module docstring)."""
     names = np.array([*fleet.missions[0].sensor_names, ""], dtype=object)
     n_sensors = fleet.missions[0].n_sensors
     frames = []
-    for index, (name, uav_log) in enumerate(zip(log.names, log.logs, strict=True)):
+    for index, (name, uav_log) in enumerate(zip(fleet.names, log.missions(), strict=True)):
         frame = slots_frame(uav_log, fleet.missions[index].frame)
-        chosen = log.chosen[:, index]
+        chosen = uav_log.served if log.chosen is None else log.chosen[index, : uav_log.n_slots]
+        lost = np.zeros(uav_log.n_slots, bool) if log.lost is None else log.lost[index]
         frame.insert(0, "uav", name)
         after_served = list(frame.columns).index("served") + 1
         frame.insert(after_served, "chosen", names[np.where(chosen < 0, n_sensors, chosen)])
-        frame.insert(after_served + 1, "lost", log.lost[:, index].astype(int))
+        frame.insert(after_served + 1, "lost", lost[: uav_log.n_slots].astype(int))
         frames.append(frame)
     return pd.concat(frames, ignore_index=True)
 
@@ -129,7 +132,7 @@ class FleetResult:
     """A finished fleet mission: what was run, what happened, and its summary."""
 
     fleet: Fleet
-    log: FleetLog
+    log: Flights
     summary: dict[str, Any]
 
     def write(self, out_dir: Path) -> None:
@@ -152,4 +155,11 @@ def simulate_fleet(
     fleet = build_fleet(scenario) if fleet is None else fleet
     chosen = make_fleet_policy(fleet, policy)
     log = run_fleet(fleet, chosen)
-    return FleetResult(fleet, log, fleet_summary(fleet, log, chosen.name))
+    return FleetResult(fleet, log, fleet_summary(fleet, log, fleet_policy_name(chosen, fleet)))
+
+
+def fleet_policy_name(policy: BatchPolicy, fleet: Fleet) -> str:
+    """The name a fleet run's summary gives its policy (one name, or 'a+b' for several)."""
+    from skymule.policies.batched import joined_name
+
+    return joined_name(list(policy_names(policy, fleet.size)))

@@ -1,4 +1,6 @@
-"""What happened in B missions, as padded arrays: the input of :mod:`skymule.metrics`.
+"""The run record: what happened in B flights (:class:`Flights`), and one flight of it
+(:class:`MissionLog`, a read-only view). The engines write it; metrics, run folders and
+figures read it.
 
 Positions are given as tracks plus sample indices: mission b is at
 ``track_position_m[track_id[b], sample[b, t]]`` during slot t and ends at sample
@@ -9,11 +11,12 @@ This is what lets the batched engine share one track among many missions.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
+from typing import Any
 
 import numpy as np
 
-from skymule.sim.log import MissionLog
+from skymule.sim.contract import NO_SENSOR
 
 
 @dataclass(frozen=True)
@@ -57,6 +60,10 @@ class Flights:
         fleet: (B,) the fleet mission each flight belongs to (its UAVs share buffers), or
             None: every flight is a mission of its own.
         lost: (B, T) True where a UAV chose a sensor another UAV won, or None (no fleet).
+        faulty: (B,) True where the flight had per-slot fault draws (``[[faults]]``), or None
+            when none had.
+
+    A record is immutable: its arrays are read-only.
     """
 
     n_run: np.ndarray
@@ -86,11 +93,40 @@ class Flights:
     battery_used_j: np.ndarray | None = None
     fleet: np.ndarray | None = None
     lost: np.ndarray | None = None
+    faulty: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        for item in fields(self):
+            value = getattr(self, item.name)
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
+
+    def select(self, rows: np.ndarray | list[int]) -> Flights:
+        """The record of flights ``rows`` only (tracks shared, per-flight arrays indexed)."""
+        rows = np.asarray(rows, np.int64)
+        changes: dict[str, object] = {}
+        for item in fields(self):
+            value = getattr(self, item.name)
+            if item.name in ("track_position_m", "track_samples", "sensor_names"):
+                continue
+            if item.name == "policy":
+                changes["policy"] = tuple(value[r] for r in rows.tolist()) if value else ()
+            elif isinstance(value, np.ndarray):
+                changes[item.name] = value[rows]
+        return replace(self, **changes)  # type: ignore[arg-type]
 
     @property
     def size(self) -> int:
         """B, the number of flights."""
         return int(self.n_run.shape[0])
+
+    def mission(self, b: int) -> MissionLog:
+        """Flight b as a :class:`MissionLog` (views, no copies)."""
+        return MissionLog(self, b)
+
+    def missions(self) -> tuple[MissionLog, ...]:
+        """Every flight as a :class:`MissionLog`."""
+        return tuple(MissionLog(self, b) for b in range(self.size))
 
     def position_m(self, b: int) -> np.ndarray:
         """(T', 3) flight b's position at the start of each slot it ran [m]."""
@@ -99,38 +135,6 @@ class Flights:
     def end_position_m(self, b: int) -> np.ndarray:
         """(3,) flight b's position after its last slot [m]."""
         return self.track_position_m[self.track_id[b], self.end_sample[b]]
-
-
-def flights_from_log(log: MissionLog) -> Flights:
-    """One mission's log as :class:`Flights` (its own track; B = U = 1)."""
-    n_sensors, n_slots = len(log.sensor_names), log.n_slots
-    track = np.vstack([log.position_m.reshape(-1, 3), log.end_position_m[None, :]])
-    home = np.full((1, 2), np.nan) if log.home_m is None else np.reshape(log.home_m, (1, 2))
-    hover = (
-        np.full((1, n_sensors, 2), np.nan)
-        if log.hover_points_m is None
-        else np.reshape(log.hover_points_m, (1, n_sensors, 2))
-    )
-    left = log.remaining_bit[-1] if n_slots else log.buffers_bit
-    return Flights(
-        n_run=np.array([n_slots]),
-        slot_s=np.array([log.slot_s], float),
-        buffers_bit=np.reshape(log.buffers_bit, (1, n_sensors)),
-        left_bit=np.reshape(left, (1, n_sensors)),
-        served=log.served[None, :],
-        downloaded_bit=log.downloaded_bit[None, :],
-        hovering=log.hovering[None, :],
-        track_position_m=track[None],
-        track_samples=np.array([n_slots + 1]),
-        track_id=np.zeros(1, np.int64),
-        sample=np.arange(n_slots)[None, :],
-        end_sample=np.array([n_slots]),
-        home_m=home,
-        hover_points_m=hover,
-        visit_radius_m=np.array([log.visit_radius_m], float),
-        target=None if log.target is None else log.target[None, :],
-        aadm_window_s=np.array([log.aadm_window_s], float),
-    )
 
 
 def unique_rows(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -144,3 +148,216 @@ def unique_rows(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return first, np.zeros(key.shape[0], np.int64)
     rows, group = np.unique(key, axis=0, return_inverse=True)
     return rows, group.reshape(-1)
+
+
+@dataclass(frozen=True)
+class MissionLog:
+    """Flight ``index`` of ``flights`` (T' slots run; a trace may end a mission early).
+
+    Attributes (all read-only, in SI units):
+        policy: policy name.
+        sensor_names: (N,) names.
+        slot_s: slot length [s].
+        buffers_bit: (N,) initial buffers [bit].
+        position_m: (T', 3) UAV position at the start of each slot [m].
+        end_position_m: (3,) UAV position after the last slot [m].
+        snr_db: (T', N) SNR observed at the start of each slot [dB] (NaN: no sample).
+        rate_bps: (T', N) rate to each sensor [bit/s].
+        served: (T',) served sensor index, or NO_SENSOR.
+        downloaded_bit: (T',) bits downloaded in each slot.
+        remaining_bit: (T', N) buffers after each slot's download [bit].
+        hovering: (T',) True where the UAV held its position after the slot by choice.
+        home_m: (2,) home point [m], or None.
+        hover_points_m: (N, 2) point each sensor is served from [m] (NaN: unknown), or None.
+        visit_radius_m: a sensor counts as visited within this distance of its hover point [m].
+        target: autonomous: (T',) sensor the policy was heading for, or NO_SENSOR; else None.
+        aadm_window_s: the AADM download window the score counts downloads in [s].
+        affected: (T',) True where a per-slot fault touched the slot, or None (no faults).
+        chosen: (T',) the sensor the policy chose (``served`` is NO_SENSOR where a fault or
+            another UAV kept it from delivering), or None for a fault-free single UAV.
+        battery_used_j: (T',) propulsion energy the battery has paid after each slot [J], or
+            None without a battery fault.
+    """
+
+    flights: Flights
+    index: int = 0
+
+    @property
+    def n_slots(self) -> int:
+        return int(self.flights.n_run[self.index])
+
+    def _slots(self, values: np.ndarray | None) -> np.ndarray | None:
+        return None if values is None else values[self.index, : self.n_slots]
+
+    def _detail(self, values: np.ndarray | None, name: str) -> np.ndarray:
+        if values is None:
+            raise ValueError(f"{name}: the run kept no per-slot detail (detail=False)")
+        return values[self.index, : self.n_slots]
+
+    @property
+    def policy(self) -> str:
+        return self.flights.policy[self.index] if self.flights.policy else ""
+
+    @property
+    def sensor_names(self) -> tuple[str, ...]:
+        return self.flights.sensor_names
+
+    @property
+    def slot_s(self) -> float:
+        return float(self.flights.slot_s[self.index])
+
+    @property
+    def buffers_bit(self) -> np.ndarray:
+        return self.flights.buffers_bit[self.index]
+
+    @property
+    def left_bit(self) -> np.ndarray:
+        """(N,) buffers after the last slot [bit]."""
+        return self.flights.left_bit[self.index]
+
+    @property
+    def position_m(self) -> np.ndarray:
+        return self.flights.position_m(self.index)
+
+    @property
+    def end_position_m(self) -> np.ndarray:
+        return self.flights.end_position_m(self.index)
+
+    @property
+    def snr_db(self) -> np.ndarray:
+        return self._detail(self.flights.snr_db, "snr_db")
+
+    @property
+    def rate_bps(self) -> np.ndarray:
+        return self._detail(self.flights.rate_bps, "rate_bps")
+
+    @property
+    def remaining_bit(self) -> np.ndarray:
+        return self._detail(self.flights.remaining_bit, "remaining_bit")
+
+    @property
+    def served(self) -> np.ndarray:
+        return self.flights.served[self.index, : self.n_slots]
+
+    @property
+    def downloaded_bit(self) -> np.ndarray:
+        return self.flights.downloaded_bit[self.index, : self.n_slots]
+
+    @property
+    def hovering(self) -> np.ndarray:
+        return self.flights.hovering[self.index, : self.n_slots]
+
+    @property
+    def home_m(self) -> np.ndarray | None:
+        home = self.flights.home_m[self.index]
+        return None if np.isnan(home).all() else home
+
+    @property
+    def hover_points_m(self) -> np.ndarray | None:
+        hover = self.flights.hover_points_m[self.index]
+        return None if np.isnan(hover).all() else hover
+
+    @property
+    def visit_radius_m(self) -> float:
+        return float(self.flights.visit_radius_m[self.index])
+
+    @property
+    def aadm_window_s(self) -> float:
+        window = self.flights.aadm_window_s
+        return 500.0 if window is None else float(window[self.index])
+
+    @property
+    def target(self) -> np.ndarray | None:
+        return self._slots(self.flights.target)
+
+    @property
+    def faulty(self) -> bool:
+        """True where the flight had per-slot fault draws (``[[faults]]``)."""
+        faulty = self.flights.faulty
+        return faulty is not None and bool(faulty[self.index])
+
+    @property
+    def affected(self) -> np.ndarray | None:
+        return self._slots(self.flights.affected) if self.faulty else None
+
+    @property
+    def chosen(self) -> np.ndarray | None:
+        if self.flights.fleet is None and not self.faulty:
+            return None
+        return self._slots(self.flights.chosen)
+
+    @property
+    def battery_used_j(self) -> np.ndarray | None:
+        used = self.flights.battery_used_j
+        if used is None or np.isnan(used[self.index]).all():
+            return None
+        return used[self.index, : self.n_slots]
+
+
+def flight_record(
+    *,
+    policy: str,
+    sensor_names: tuple[str, ...],
+    slot_s: float,
+    buffers_bit: np.ndarray,
+    position_m: np.ndarray,
+    end_position_m: np.ndarray,
+    served: np.ndarray,
+    downloaded_bit: np.ndarray,
+    hovering: np.ndarray,
+    snr_db: np.ndarray | None = None,
+    rate_bps: np.ndarray | None = None,
+    remaining_bit: np.ndarray | None = None,
+    home_m: np.ndarray | None = None,
+    hover_points_m: np.ndarray | None = None,
+    visit_radius_m: float = 50.0,
+    target: np.ndarray | None = None,
+    aadm_window_s: float = 500.0,
+    **extra: Any,
+) -> Flights:
+    """The record of one flight (B = 1) from its per-slot arrays: its path is its own track,
+    sample t in slot t, the end position last."""
+    n_sensors = len(sensor_names)
+    n_slots = int(np.asarray(served).shape[0])
+    buffers = np.asarray(buffers_bit, float).reshape(1, n_sensors)
+    left = buffers[0]
+    if remaining_bit is not None and n_slots:
+        left = np.asarray(remaining_bit, float)[-1]
+
+    def row(values: np.ndarray | None, shape: tuple[int, ...] = ()) -> np.ndarray | None:
+        return None if values is None else np.asarray(values).reshape(1, n_slots, *shape)
+
+    positions = np.asarray(position_m, float).reshape(-1, 3)
+    track = np.vstack([positions, np.reshape(end_position_m, (1, 3))])
+    return Flights(
+        n_run=np.array([n_slots]),
+        slot_s=np.array([slot_s], float),
+        buffers_bit=buffers,
+        left_bit=np.reshape(left, (1, n_sensors)),
+        served=np.asarray(served, np.int64).reshape(1, n_slots),
+        downloaded_bit=np.asarray(downloaded_bit, float).reshape(1, n_slots),
+        hovering=np.asarray(hovering, bool).reshape(1, n_slots),
+        track_position_m=track[None],
+        track_samples=np.array([n_slots + 1]),
+        track_id=np.zeros(1, np.int64),
+        sample=np.arange(n_slots)[None, :],
+        end_sample=np.array([n_slots]),
+        home_m=np.full((1, 2), np.nan) if home_m is None else np.reshape(home_m, (1, 2)),
+        hover_points_m=(
+            np.full((1, n_sensors, 2), np.nan)
+            if hover_points_m is None
+            else np.reshape(hover_points_m, (1, n_sensors, 2))
+        ),
+        visit_radius_m=np.array([visit_radius_m], float),
+        target=None if target is None else np.asarray(target, np.int64).reshape(1, n_slots),
+        aadm_window_s=np.array([aadm_window_s], float),
+        policy=(policy,),
+        sensor_names=tuple(sensor_names),
+        snr_db=row(snr_db, (n_sensors,)),
+        rate_bps=row(rate_bps, (n_sensors,)),
+        remaining_bit=row(remaining_bit, (n_sensors,)),
+        **extra,
+    )
+
+
+__all__ = ["NO_SENSOR", "Flights", "MissionLog", "flight_record", "unique_rows"]

@@ -21,10 +21,9 @@ import numpy as np
 
 from skymule.aadm.score import AADM_WINDOW_S, AadmScore, aadm_scores
 from skymule.energy import propulsion_power_w
+from skymule.flights import NO_SENSOR, MissionLog
 from skymule.flights import Flights as Flights
-from skymule.flights import flights_from_log as flights_from_log
 from skymule.flights import unique_rows as unique_rows
-from skymule.sim.log import NO_SENSOR, MissionLog
 from skymule.visits import first_visit_slots as first_visit_slots
 from skymule.visits import near_samples as near_samples
 from skymule.visits import order_from_first as order_from_first
@@ -331,25 +330,49 @@ def summary_dicts(
     ]
 
 
-def summarize(log: MissionLog, scenario_name: str) -> dict[str, Any]:
-    """The run summary written to ``summary.json``: :func:`summaries` of one mission."""
-    (row,) = summary_dicts(
-        summaries(flights_from_log(log)), [log.sensor_names], [log.policy], [scenario_name]
+def summary_rows(flights: Flights, scenario_names: Sequence[str]) -> list[dict[str, Any]]:
+    """One ``summary.json`` dictionary per flight of ``flights`` (:func:`summaries`)."""
+    rows = summary_dicts(
+        summaries(flights),
+        [flights.sensor_names] * flights.size,
+        list(flights.policy) if flights.policy else [""] * flights.size,
+        scenario_names,
     )
-    if log.battery_used_j is not None:
-        # the battery's own account (power at the airspeed), which energy_kj (from the track,
-        # as if the air were calm) is not under a wind or after a landing
-        used = log.battery_used_j
-        row["battery_used_kj"] = float(used[-1]) / 1e3 if used.size else 0.0
+    return with_battery(flights, rows)
+
+
+def with_battery(flights: Flights, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """``rows`` with ``battery_used_kj`` for the flights that had a battery fault: the
+    battery's own account (power at the airspeed), which energy_kj (from the track, as if
+    the air were calm) is not under a wind or after a landing."""
+    used = flights.battery_used_j
+    if used is None:
+        return rows
+    for b, row in enumerate(rows):
+        kept = used[b, : flights.n_run[b]]
+        if not np.isnan(used[b]).all():
+            row["battery_used_kj"] = float(kept[-1]) / 1e3 if kept.size else 0.0
+    return rows
+
+
+def summarize(log: MissionLog, scenario_name: str) -> dict[str, Any]:
+    """The run summary written to ``summary.json``: :func:`summaries` of one flight."""
+    flights = log.flights if log.flights.size == 1 else log.flights.select([log.index])
+    (row,) = summary_rows(flights, [scenario_name])
     return row
 
 
 # --- per-slot values and single-mission conveniences (slots.csv, tests) ----------------------
 
 
+def _one(log: MissionLog) -> tuple[Flights, int]:
+    return log.flights, log.index
+
+
 def step_lengths_m(log: MissionLog) -> np.ndarray:
     """(T',) distance flown during each slot [m] (from r_t to r_{t+1})."""
-    return slot_steps_and_power(flights_from_log(log))[0][0]
+    flights, b = _one(log)
+    return slot_steps_and_power(flights)[0][b, : log.n_slots]
 
 
 def speed_mps(log: MissionLog) -> np.ndarray:
@@ -359,7 +382,8 @@ def speed_mps(log: MissionLog) -> np.ndarray:
 
 def power_w(log: MissionLog) -> np.ndarray:
     """(T',) rotary-wing propulsion power in each slot [W] (Zeng, Xu & Zhang 2019, eq. 12)."""
-    return slot_steps_and_power(flights_from_log(log))[1][0]
+    flights, b = _one(log)
+    return slot_steps_and_power(flights)[1][b, : log.n_slots]
 
 
 def handovers(served: np.ndarray) -> int:
@@ -369,10 +393,12 @@ def handovers(served: np.ndarray) -> int:
 
 def completion_time_s(log: MissionLog) -> float | None:
     """End of the slot in which the last buffered bit was downloaded [s]; None if never."""
-    done = float(completion_times_s(flights_from_log(log))[0])
+    flights, b = _one(log)
+    done = float(completion_times_s(flights)[b])
     return None if np.isnan(done) else done
 
 
 def aadm_score(log: MissionLog) -> float:
     """The AADM challenge score of one mission (:func:`skymule.aadm.score.aadm_scores`)."""
-    return float(summaries(flights_from_log(log)).aadm.score[0])
+    flights, b = _one(log)
+    return float(summaries(flights).aadm.score[b])

@@ -6,11 +6,11 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from skymule.flights import MissionLog
 from skymule.io.runs import slots_frame, write_run
 from skymule.metrics import summarize
-from skymule.policies import make_policy
+from skymule.policies import batch_policy
 from skymule.scenario import Scenario
-from skymule.sim.log import MissionLog
 from skymule.sim.run import run_mission
 from skymule.world import Mission, build_mission
 
@@ -43,5 +43,5 @@ def simulate(
     if policy is not None:
         scenario = scenario.with_policy(policy)
     mission = build_mission(scenario) if mission is None else replace(mission, scenario=scenario)
-    log = run_mission(mission, make_policy(scenario.policy))
+    log = run_mission(mission, batch_policy([scenario.policy]))
     return RunResult(mission, log, summarize(log, scenario.name))

@@ -8,8 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from skymule.flights import Flights, unique_rows
-from skymule.sim.log import NO_SENSOR
+from skymule.flights import NO_SENSOR, Flights, unique_rows
 
 
 def visit_order(flights: Flights) -> np.ndarray:

@@ -31,16 +31,20 @@ from skymule.aadm.protocol import NOT_HEARD_DB, Reply
 from skymule.aadm.score import UNREADABLE_SNR_DB
 from skymule.aadm.vehicle import Vehicle
 from skymule.errors import SkymuleError
-from skymule.policies.base import MissionContext, Observation, Policy
-from skymule.sim.autonomous import next_position
+from skymule.policies.base import BatchObservation, BatchPolicy, MissionContext, Policy
+from skymule.policies.batched import as_batch_policy, check_serve
 from skymule.sim.context import mission_context
-from skymule.sim.engine import check_serve
 from skymule.world import BITS_PER_MBIT, Mission
 
 log = logging.getLogger("skymule.aadm.agent")
 
 #: The UAV is "at home" within this distance before it lands [m].
 HOME_TOLERANCE_M = 0.5
+
+
+def _frozen(values: np.ndarray) -> np.ndarray:
+    values.flags.writeable = False
+    return values.view()
 
 
 def policy_context(mission: Mission) -> MissionContext:
@@ -60,11 +64,16 @@ class AgentStep:
 class AadmAgent:
     """A skymule policy behind the challenge's once-a-second interface."""
 
-    def __init__(self, mission: Mission, policy: Policy) -> None:
+    def __init__(self, mission: Mission, policy: Policy | BatchPolicy) -> None:
         self.mission = mission
-        self.policy = policy
+        self.policy = as_batch_policy(policy)  # a batch of one
         self.autonomous = mission.mode == "autonomous"
         self.context = policy_context(mission)
+        self._engine = None
+        if self.autonomous:  # the engine's own motion rule, for one UAV
+            from skymule.sim.autonomous_engine import AutonomousEngine
+
+            self._engine = AutonomousEngine([mission], detail=False)
         self.volumes_bit: np.ndarray | None = None
         self.slot = 0
         self._track_sample = 0
@@ -91,7 +100,7 @@ class AadmAgent:
                 f"volumes: {volumes.size} values for the scenario's {self.n_towers} towers"
             )
         self.volumes_bit = volumes * BITS_PER_MBIT
-        self.policy.reset(replace(self.context, buffers_bit=self.volumes_bit.copy()))
+        self.policy.reset([replace(self.context, buffers_bit=self.volumes_bit.copy())])
         self.slot, self._track_sample = 0, 0
 
     def step(
@@ -119,16 +128,19 @@ class AadmAgent:
         )
         position = np.asarray(position_m, float).reshape(3)
         action = self.policy.act(
-            Observation(
-                slot=self.slot,
-                position_m=position,
-                snr_db=seen,
-                rate_bps=self.mission.rate_bps(seen),
-                remaining_bit=remaining,
+            BatchObservation(
+                slot=_frozen(np.array([self.slot], np.int64)),
+                active=_frozen(np.ones(1, bool)),
+                position_m=_frozen(position[None].copy()),
+                snr_db=_frozen(seen[None]),
+                rate_bps=_frozen(self.mission.rate_bps(seen)[None]),
+                remaining_bit=_frozen(remaining[None]),
             )
         )
-        serve = check_serve(action.serve, self.n_towers, self.policy.name)
-        goto = self._goal(action.goto_m, bool(action.hover), position)
+        serve = check_serve(int(np.asarray(action.serve)[0]), self.n_towers, self.policy.name)
+        hover = action.hover is not None and bool(np.asarray(action.hover)[0])
+        goto_m = None if action.goto_m is None else np.asarray(action.goto_m, float)[0]
+        goto = self._goal(goto_m, hover, position)
         self.slot += 1
         tower = serve if serve >= 0 else self._idle_tower(remaining, seen)
         return AgentStep(tower + 1, goto, None if serve < 0 else serve)
@@ -140,7 +152,7 @@ class AadmAgent:
         return int(empty[0]) if empty.size else int(np.argmin(snr))
 
     def _goal(
-        self, goto_m: tuple[float, float] | None, hover: bool, position: np.ndarray
+        self, goto_m: np.ndarray | None, hover: bool, position: np.ndarray
     ) -> tuple[float, float] | None:
         if not self.autonomous:
             track = self.mission.track
@@ -151,8 +163,10 @@ class AadmAgent:
             target = track.position_m[self._track_sample]
             return float(target[0]), float(target[1])
         # the engine's own motion rule (fence, speed cap, return home): one step ahead
-        here = (float(position[0]), float(position[1]))
-        return next_position(self.mission, here, goto_m, self.slot)[0]
+        assert self._engine is not None
+        goal = np.full((1, 2), np.nan) if goto_m is None else goto_m.reshape(1, 2)
+        moved = self._engine.moves_from(position[None, :2], goal, np.array([self.slot]))[0]
+        return float(moved[0]), float(moved[1])
 
 
 # ---------------------------------------------------------------------------

@@ -215,3 +215,43 @@ def share_slot_from_altitude(altitude_m: np.ndarray) -> int:
     """Slot of the first sample above :data:`SHARE_ALTITUDE_M` (len(altitude_m) if never)."""
     above = np.asarray(altitude_m, float) > SHARE_ALTITUDE_M
     return int(np.argmax(above)) if above.any() else int(above.size)
+
+
+def slot_rewards(
+    bits: np.ndarray,
+    slots_run: np.ndarray,
+    live: np.ndarray,
+    slot_s: np.ndarray,
+    total_bit: np.ndarray,
+    window_s: np.ndarray,
+    counted_bit: np.ndarray,
+    completed: np.ndarray,
+) -> np.ndarray:
+    """(B,) the AADM score in force spread over B episodes, one slot each: summed over an
+    episode, the rewards are its :func:`aadm_scores` score.
+
+    A slot inside the download window earns 100 x bits / total; the slot that completes the
+    download also earns max(0, window - t1) (t1 the end of that slot); a mission with nothing
+    to download earns 100 + window in its first slot.
+
+    Args:
+        bits: (B,) bits downloaded this slot.
+        slots_run: (B,) slots each episode has run, this one included.
+        live: (B,) False for episodes that did not step (their reward is 0).
+        slot_s: (B,) slot length [s].
+        total_bit: (B,) total buffered bits.
+        window_s: (B,) download window [s].
+        counted_bit: (B,) bits counted so far; updated in place.
+        completed: (B,) whether the download completed already; updated in place.
+    """
+    counted = live & ((slots_run - 1) * slot_s < window_s - 1e-9)
+    got = np.where(counted, bits, 0.0)
+    counted_bit += got
+    has = total_bit > 0
+    reward = np.where(has, 100.0 * got / np.where(has, total_bit, 1.0), 0.0)
+    first = live & (slots_run == 1) & ~has  # nothing to download: complete at once
+    reward = np.where(first, 100.0 + window_s, reward)
+    emptied = counted & ~completed & has & (counted_bit >= total_bit * (1.0 - COMPLETE_RTOL))
+    completed |= emptied
+    bonus = np.maximum(0.0, window_s - slots_run * slot_s)
+    return reward + np.where(emptied, bonus, 0.0)

@@ -1,10 +1,10 @@
 """``skymule/DataMule-v0``: one data-mule mission as a Gymnasium environment.
 
-The environment drives the one engine core: :class:`~skymule.sim.autonomous.AutonomousFlight`
-(autonomous scenarios) or :class:`~skymule.sim.engine.FixedFlight` (fixed paths and recorded
-traces), through their ``observe`` / ``apply`` interface. Each ``step`` is one slot: the action
-becomes an :class:`~skymule.policies.base.Action`, the engine applies the slot contract, the
-geofence, the speed cap and the return home. Nothing here re-implements a rule.
+The environment is the engine with one mission (the core of
+:class:`~skymule.envs.vector.DataMuleVectorEnv`, B = 1: :class:`~skymule.envs.vector.EnvMissions`).
+Each ``step`` is one slot: the action becomes the engine's action, the engine applies the slot
+contract, the geofence, the speed cap, the return home and the mission's faults. Nothing here
+re-implements a rule.
 
 * observation and action: :mod:`skymule.envs.observation` (shapes and units);
 * reward (``reward="mbit"``, default): Mbit downloaded this slot. ``reward="aadm"``: the AADM
@@ -33,34 +33,22 @@ import numpy as np
 from gymnasium import spaces
 
 import skymule.envs.observation as enc
-from skymule.aadm.score import COMPLETE_RTOL
+from skymule.envs.vector import ENV_POLICY_NAME, REWARDS, EnvMissions, anchors_m
 from skymule.errors import SkymuleError
-from skymule.policies.base import Action, Observation
+from skymule.flights import MissionLog
+from skymule.policies.base import Observation
 from skymule.scenario import Scenario, load_scenario
-from skymule.sim.autonomous import AutonomousFlight
-from skymule.sim.engine import FixedFlight
-from skymule.sim.log import MissionLog
 from skymule.world import Mission, build_mission
 
+__all__ = ["ENV_POLICY_NAME", "REWARDS", "DataMuleEnv", "anchors_m", "observation_vector"]
+
 ScenarioLike = str | Path | Scenario | Mission | Callable[[np.random.Generator], Scenario]
-
-REWARDS = ("mbit", "aadm")
-
-#: Policy name written into the logs of environment episodes.
-ENV_POLICY_NAME = "env"
 
 
 def uses_randomness(scenario: Scenario) -> bool:
     """True when the scenario's seed changes the mission (shadowing or fading)."""
     radio = scenario.radio
     return radio.shadowing_std_db > 0 or radio.fading != "none"
-
-
-def anchors_m(mission: Mission) -> np.ndarray:
-    """(N, 2) where each sensor is served from: hover points (autonomous) or sensor positions."""
-    if mission.mode == "autonomous" and mission.hover_points_m is not None:
-        return np.asarray(mission.hover_points_m, float)
-    return np.asarray(mission.sensor_m, float)[:, :2]
 
 
 def observation_vector(
@@ -141,11 +129,8 @@ class DataMuleEnv(gym.Env[np.ndarray, Any]):
                     "velocity": spaces.Box(-1.0, 1.0, (2,), np.float32),
                 }
             )
-        self._flight: AutonomousFlight | FixedFlight | None = None
-        self._last: Observation | None = None
-        self._remaining = np.zeros(self.n_sensors)
-        self._completed = False
-        self._counted_bit = 0.0
+        self._core: EnvMissions | None = None
+        self._done = False
 
     # --- episode ------------------------------------------------------------------------------
 
@@ -172,13 +157,9 @@ class DataMuleEnv(gym.Env[np.ndarray, Any]):
     ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         self.mission = self._draw_mission()
-        autonomous = self.mission.mode == "autonomous"
-        self._flight = AutonomousFlight(self.mission) if autonomous else FixedFlight(self.mission)
-        self._last = self._flight.observe()
-        self._remaining = np.array(self.mission.buffers_bit, float)
-        self._completed = False
-        self._counted_bit = 0.0
-        return observation_vector(self.mission, self._last) / self._scale, {"slot": 0}
+        self._core = EnvMissions([self.mission], self.reward_mode, detail=True)
+        self._done = False
+        return self._core.encoded()[0] / self._scale, {"slot": 0}
 
     def _decode(self, action: Any) -> tuple[int, np.ndarray]:
         """(served sensor index or NO_SENSOR, (2,) displacement [m]) of a valid action."""
@@ -206,65 +187,40 @@ class DataMuleEnv(gym.Env[np.ndarray, Any]):
         serve, _ = check_choice(np.asarray(action["serve"]).item(), 0, self.n_sensors)
         return enc.serve_index(serve), enc.velocity_step_m(velocity, step_m)
 
-    def _running(self) -> tuple[AutonomousFlight | FixedFlight, Observation]:
-        flight, last = self._flight, self._last
-        if flight is None or last is None or flight.done:
+    def _running(self) -> EnvMissions:
+        if self._core is None or self._done:
             raise SkymuleError("step() called before reset() or after the episode ended")
-        return flight, last
+        return self._core
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        flight, last = self._running()
+        core = self._running()
         sensor, move_m = self._decode(action)
-        serve = None if sensor < 0 else sensor
-        stay = not np.any(move_m)
-        if self.mission.mode == "autonomous":
-            x_m, y_m = float(last.position_m[0]), float(last.position_m[1])
-            goto = None if stay else (x_m + float(move_m[0]), y_m + float(move_m[1]))
-            bits = flight.apply(Action(serve=serve, goto_m=goto), ENV_POLICY_NAME)
-        else:
-            bits = flight.apply(Action(serve=serve, hover=stay), ENV_POLICY_NAME)
-        if sensor >= 0:
-            self._remaining[sensor] -= bits
-        reward = self._reward(bits, flight.slot)
-        done = flight.done
-        if done:
+        bits, reward = core.step(np.array([sensor]), move_m[None], np.ones(1, bool))
+        slot = int(core.slot[0])
+        self._done = core.engine.done
+        if self._done:
             observation = self._terminal_observation()
         else:
-            self._last = flight.observe()
-            observation = observation_vector(self.mission, self._last)
-        info = {"slot": flight.slot, "served": sensor, "downloaded_mbit": bits / enc.BITS_PER_MBIT}
-        return observation / self._scale, reward, done, False, info
-
-    def _reward(self, bits: float, slots_run: int) -> float:
-        if self.reward_mode == "mbit":
-            return bits / enc.BITS_PER_MBIT
-        mission = self.mission
-        total, window = float(mission.buffers_bit.sum()), mission.score_window_s
-        if total <= 0:  # nothing to download: complete at once, S = 100 + window
-            return 100.0 + window if slots_run == 1 else 0.0
-        if (slots_run - 1) * mission.slot_s >= window - 1e-9:
-            return 0.0  # the download window has closed: nothing counts
-        self._counted_bit += bits
-        reward = 100.0 * bits / total
-        if not self._completed and self._counted_bit >= total * (1.0 - COMPLETE_RTOL):
-            self._completed = True
-            reward += max(0.0, window - slots_run * mission.slot_s)
-        return reward
+            observation = core.encoded(core.observe())[0]
+        info = {"slot": slot, "served": sensor, "downloaded_mbit": bits[0] / enc.BITS_PER_MBIT}
+        return observation / self._scale, float(reward[0]), self._done, False, info
 
     def _terminal_observation(self) -> np.ndarray:
         """The observation after the last slot: where the UAV ended, no time left."""
-        assert self._flight is not None and self._last is not None
-        mission, last = self.mission, self._last
-        end = self._flight.log(ENV_POLICY_NAME).end_position_m
-        snr, rate = last.snr_db, last.rate_bps
-        if mission.mode == "autonomous" and mission.source is not None:
-            snr = mission.source.snr_db(end[None])[0]  # no fading: there is no slot T
-            rate = mission.rate_bps(snr)
-        final = Observation(mission.n_slots, end, snr, rate, self._remaining.copy())
+        assert self._core is not None
+        mission, core = self.mission, self._core
+        if mission.mode == "autonomous":
+            return core.encoded(core.observe())[0]
+        # a fixed path: the last slot's signal, where the UAV ended
+        log = core.log()
+        last = core.last.mission(0)
+        final = Observation(
+            mission.n_slots, log.end_position_m, last.snr_db, last.rate_bps, log.left_bit
+        )
         return observation_vector(mission, final)
 
     def log(self) -> MissionLog:
         """The engine's mission log of the current episode (slots run so far)."""
-        if self._flight is None:
+        if self._core is None:
             raise SkymuleError("log() called before reset()")
-        return self._flight.log(ENV_POLICY_NAME)
+        return self._core.log()

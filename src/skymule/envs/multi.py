@@ -33,9 +33,10 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from skymule.errors import SkymuleError
-from skymule.policies.base import Action, Observation
+from skymule.policies.base import BatchAction, Observation
 from skymule.scenario import Scenario, load_scenario
-from skymule.sim.fleet import Fleet, FleetFlight, build_fleet
+from skymule.sim.autonomous_engine import AutonomousEngine
+from skymule.sim.fleet import Fleet, build_fleet
 
 #: SNR sent for "no link" (-inf) [dB]: below every rate table's lowest entry.
 NO_LINK_DB = -100.0
@@ -62,7 +63,7 @@ class DataMuleParallelEnv(ParallelEnv[str, np.ndarray, np.ndarray]):
             )
         self.possible_agents = list(self._fleet.names)
         self.agents: list[str] = []
-        self._flight: FleetFlight | None = None
+        self._flight: AutonomousEngine | None = None
         self._seen: tuple[Observation, ...] = ()
         n = self._fleet.missions[0].n_sensors
         self._n_sensors = n
@@ -95,15 +96,17 @@ class DataMuleParallelEnv(ParallelEnv[str, np.ndarray, np.ndarray]):
     ) -> tuple[dict[str, np.ndarray], dict[str, dict[str, Any]]]:
         if seed is not None and seed != self._fleet.scenario.seed:
             self._fleet = build_fleet(self.scenario.model_copy(update={"seed": int(seed)}))
-        self._flight = FleetFlight(self._fleet)
+        fleet = np.zeros(self._fleet.size, np.int64)
+        self._flight = AutonomousEngine(list(self._fleet.missions), fleet, detail=False)
         self.agents = list(self.possible_agents)
-        self._seen = self._flight.observe()
+        self._seen = self._flight.observe().missions()
         observations = {
             a: self._encode(o, self._fleet) for a, o in zip(self.agents, self._seen, strict=True)
         }
         return observations, {a: {} for a in self.agents}
 
-    def _action(self, agent: str, index: int, value: Any) -> Action:
+    def _action(self, agent: str, index: int, value: Any) -> tuple[int, np.ndarray]:
+        """(sensor or -1, goal (2,) [m] or NaN to stay) of one UAV's action."""
         chosen = np.asarray(value)
         if chosen.shape != (2,) or not self._action_space.contains(chosen.astype(np.int64)):
             raise SkymuleError(
@@ -111,14 +114,14 @@ class DataMuleParallelEnv(ParallelEnv[str, np.ndarray, np.ndarray]):
                 f"({self._n_sensors} = none), heading 0..{self.headings} ({self.headings} = stay)]"
             )
         sensor, heading = int(chosen[0]), int(chosen[1])
-        serve = None if sensor == self._n_sensors else sensor
+        serve = -1 if sensor == self._n_sensors else sensor
         if heading == self.headings:
-            return Action(serve=serve)
+            return serve, np.full(2, np.nan)
         here = self._seen[index].position_m
         angle = 2 * math.pi * heading / self.headings
         step = self._fleet.missions[index].max_step_m
         goal = (float(here[0]) + step * math.cos(angle), float(here[1]) + step * math.sin(angle))
-        return Action(serve=serve, goto_m=goal)
+        return serve, np.array(goal)
 
     def step(
         self, actions: dict[str, np.ndarray]
@@ -139,14 +142,16 @@ class DataMuleParallelEnv(ParallelEnv[str, np.ndarray, np.ndarray]):
         chosen = [
             self._action(a, k, actions.get(a, stay)) for k, a in enumerate(self.possible_agents)
         ]
-        bits = flight.apply(chosen, [f"agent {a}" for a in self.possible_agents])
+        serve = np.array([c[0] for c in chosen], np.int64)
+        goto = np.array([c[1] for c in chosen], float)
+        bits = flight.step(BatchAction(serve=serve, goto_m=goto), "agents")
         lost = flight.last_lost
         agents = list(self.agents)
         rewards = {a: float(b) / 1e6 for a, b in zip(agents, bits, strict=True)}
         infos = {a: {"lost": bool(lost[k])} for k, a in enumerate(agents)}
         done = flight.done
         if not done:
-            self._seen = flight.observe()
+            self._seen = flight.observe().missions()
         observations = {
             a: self._encode(o, self._fleet) for a, o in zip(agents, self._seen, strict=True)
         }

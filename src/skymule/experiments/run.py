@@ -6,12 +6,10 @@ builds each geometry once per chunk (missions that differ only in buffers, polic
 without shadowing, seed share one built track and batch together), and on this machine
 writes its own part. Chunks are at most ``chunk_size`` missions and within a memory budget.
 
-Fixed-trajectory Greedy/HGAD missions (per-slot fading included) run through the batched
-engine (:mod:`skymule.sim.batch`), whose summaries come straight from the batch arrays
-(``summarize_fixed_batch``: no per-mission log is built); fault-free autonomous Greedy/HGAD
-missions likewise through the batched autonomous engine (:mod:`skymule.sim.batch_autonomous`,
-batched per geofence); every other mission (other policies, faults on autonomous flights) runs
-through the reference engine, one at a time, in the worker. Either way the row is
+Every mission runs through the engine of its trajectory mode, batched with the missions it can
+share a batch with (:func:`skymule.sim.run.summarize_missions`: mode, sensor count, geofence),
+under any policy: the built-in ones batched (Greedy and HGAD on fixed paths inside the
+compiled loop, no per-slot log), per-mission ones one instance per mission. The row is
 ``metrics.summarize`` of the mission's log, value for value, as ``skymule run`` gives.
 """
 
@@ -46,14 +44,14 @@ from skymule.radio.channel import mission_fading_db
 from skymule.world import BITS_PER_MBIT, Mission, mission_faults
 
 if TYPE_CHECKING:
-    from skymule.scenario import PolicySpec, Scenario
+    from skymule.scenario import Scenario
 
 WORKER_MODULES = (
     "skymule.experiments.run",
     "skymule.scenario",
     "skymule.world",
-    "skymule.sim.batch",
     "skymule.sim.run",
+    "skymule.sim.fixed_engine",
     "skymule.policies",
     "pyarrow.parquet",
 )
@@ -186,19 +184,14 @@ LOCAL_EXECUTORS = ("inprocess", "process")
 
 
 def _run_items(items: Sequence[_Item]) -> pd.DataFrame:
-    """Build each geometry once, batch what the batched engine can run, summarise every row."""
-    from skymule.metrics import summarize
-    from skymule.policies import make_policy
-    from skymule.sim import batch_autonomous
-    from skymule.sim.batch import batchable, summarize_fixed_batch
-    from skymule.sim.run import run_mission
+    """Build each geometry once, run every mission through the engine in batches, summarise
+    every row."""
+    from skymule.sim.run import summarize_missions
     from skymule.world import build_mission
 
     built: dict[Hashable, Mission] = {}
-    summaries: list[dict[str, Any] | None] = [None] * len(items)
-    batched: list[tuple[int, Mission, PolicySpec, Hashable]] = []
-    autonomous: list[tuple[int, Mission, PolicySpec]] = []
-    for position, item in enumerate(items):
+    missions: list[Mission] = []
+    for item in items:
         shared = built.get(item.key)
         if shared is None:
             shared = build_mission(item.scenario)
@@ -207,30 +200,12 @@ def _run_items(items: Sequence[_Item]) -> pd.DataFrame:
                 shared = replace(shared, source=None)
             if shared.track is not None or not _needs_seed(item.scenario):
                 built[item.key] = shared
-        mission = _per_mission(shared, item.scenario)
-        if batchable(mission, item.scenario.policy):
-            batched.append((position, mission, item.scenario.policy, item.key))
-        elif batch_autonomous.batchable(mission, item.scenario.policy):
-            autonomous.append((position, mission, item.scenario.policy))
-        else:
-            log = run_mission(mission, make_policy(item.scenario.policy))
-            summaries[position] = summarize(log, item.scenario.name)
-    if batched:
-        rows_batched = summarize_fixed_batch(
-            [m for _, m, _, _ in batched],
-            [s for _, _, s, _ in batched],
-            [m.scenario.name for _, m, _, _ in batched],
-        )
-        for (position, _, _, _), batch_summary in zip(batched, rows_batched, strict=True):
-            summaries[position] = batch_summary
-    if autonomous:
-        rows_autonomous = batch_autonomous.summarize_autonomous_batch(
-            [m for _, m, _ in autonomous],
-            [s for _, _, s in autonomous],
-            [m.scenario.name for _, m, _ in autonomous],
-        )
-        for (position, _, _), row in zip(autonomous, rows_autonomous, strict=True):
-            summaries[position] = row
+        missions.append(_per_mission(shared, item.scenario))
+    summaries = summarize_missions(
+        missions,
+        [item.scenario.policy for item in items],
+        [item.scenario.name for item in items],
+    )
     rows = []
     for item, summary in zip(items, summaries, strict=True):
         assert summary is not None

@@ -269,10 +269,6 @@ class Navigator:
         p = np.asarray(points_xy, float).reshape(-1, 2)
         return np.asarray(shapely.intersects_xy(self._goal_cover, p[:, 0], p[:, 1]), bool)
 
-    def _check_inside(self, xy: XY, name: str) -> None:
-        if not shapely.intersects_xy(self._cover, xy[0], xy[1]):
-            raise ValueError(f"{name} {xy} is outside the fence")
-
     def entry_point(self, xy: XY) -> XY:
         """``xy`` itself when inside the fence (within 1e-6 m), else the nearest fence point.
 
@@ -285,31 +281,9 @@ class Navigator:
             return point
         return _as_xy(nearest_points(self.fence, Point(point))[0].coords[0])
 
-    def _visible_from(self, xy: XY) -> tuple[np.ndarray, np.ndarray]:
-        """(visible mask (k,), distances (k,) in m) from ``xy`` to every graph vertex."""
-        p = np.asarray(xy, dtype=float)
-        verts = self._vertices
-        d = np.hypot(verts[:, 0] - p[0], verts[:, 1] - p[1])
-        segs = np.empty((len(verts), 2, 2))
-        segs[:, 0] = p
-        segs[:, 1] = verts
-        vis = np.asarray(shapely.covers(self._cover, shapely.linestrings(segs)), dtype=bool)
-        return vis | (d == 0.0), d
-
-    def _segment_visible(self, a: XY, b: XY) -> bool:
-        if a == b:
-            return True
-        return bool(self._cover.covers(shapely.linestrings([a, b])))
-
-    def _vertex_route(self, i: int, j: int) -> list[XY]:
-        """Vertex polyline from graph node ``i`` to ``j`` (inclusive)."""
-        nodes = [j]
-        while nodes[-1] != i:
-            nodes.append(int(self._pred[i, nodes[-1]]))
-        return [_as_xy(self._vertices[k]) for k in reversed(nodes)]
-
     def shortest_path(self, start_xy: XY, goal_xy: XY) -> list[XY]:
-        """Shortest in-fence polyline ``[start, ..., goal]`` (metres).
+        """Shortest in-fence polyline ``[start, ..., goal]`` (metres): one row of
+        :meth:`shortest_paths`.
 
         A start outside the fence is accepted: the path first runs straight to the nearest
         fence point (:meth:`entry_point`), so it reads ``[start, entry, ..., goal]``.
@@ -317,25 +291,8 @@ class Navigator:
         Raises:
             ValueError: if the goal is outside the fence or no path exists.
         """
-        start, goal = _as_xy(start_xy), _as_xy(goal_xy)
-        entry = self.entry_point(start)
-        if entry != start:
-            return [start, *self.shortest_path(entry, goal)]
-        self._check_inside(goal, "goal")
-        if self._segment_visible(start, goal):
-            return [start, goal]
-        n = len(self._vertices)
-        if n == 0:
-            raise ValueError("no in-fence path between start and goal")
-        vis_s, d_s = self._visible_from(start)
-        vis_g, d_g = self._visible_from(goal)
-        total = np.where(vis_s, d_s, np.inf)[:, None] + self._dist
-        total = total + np.where(vis_g, d_g, np.inf)[None, :]
-        flat = int(np.argmin(total))
-        if not np.isfinite(total.flat[flat]):
-            raise ValueError("no in-fence path between start and goal")
-        i, j = divmod(flat, n)
-        return [start, *self._vertex_route(i, j), goal]
+        points, count = self.shortest_paths(np.array([start_xy], float), np.array([goal_xy], float))
+        return [_as_xy(point) for point in points[0, : int(count[0])]]
 
     def vertex_distances(self, xy: XY) -> np.ndarray:
         """(k,) shortest in-fence travel distance (m) from ``xy`` to each graph vertex.
@@ -350,8 +307,8 @@ class Navigator:
             return math.dist(point, entry) + self.vertex_distances(entry)
         if not len(self._vertices):
             return np.empty(0)
-        vis, d = self._visible_from(point)
-        return np.asarray(np.min(np.where(vis, d, np.inf)[:, None] + self._dist, axis=0))
+        vis, d = self.sights(np.array([point], float))
+        return np.asarray(np.min(np.where(vis[0], d[0], np.inf)[:, None] + self._dist, axis=0))
 
     # --- the same queries for many (start, goal) pairs at once (the batched autonomous
     # engine); each equals the scalar method row by row, float for float -----------------
@@ -411,7 +368,12 @@ class Navigator:
         starts = np.asarray(starts_xy, float).reshape(-1, 2)
         goals = np.asarray(goals_xy, float).reshape(-1, 2)
         if checked:
-            self.check_inside(starts, goals)
+            outside = ~self.in_cover(goals)
+            if outside.any():
+                raise ValueError(f"goal {_as_xy(goals[np.argmax(outside)])} is outside the fence")
+            outside = np.flatnonzero(~self.in_cover(starts))
+            if outside.size:
+                return self._paths_in(starts, goals, outside, goal_sight)
         direct = self.segments_visible(starts, goals)
         rest = np.flatnonzero(~direct)
         if not rest.size:
@@ -455,6 +417,25 @@ class Navigator:
         rows, cols = np.nonzero(inner)
         points[rest[rows], cols + 1] = verts[hops[rows, cols]]
         return points, count
+
+    def _paths_in(
+        self,
+        starts: np.ndarray,
+        goals: np.ndarray,
+        outside: np.ndarray,
+        goal_sight: tuple[np.ndarray, np.ndarray] | None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`shortest_paths` where starts ``outside`` lie outside the fence: those first
+        fly straight to the nearest fence point (:meth:`entry_point`), then on inside."""
+        inner = starts.copy()
+        lines = shapely.shortest_line(self.fence, shapely.points(starts[outside]))
+        inner[outside] = shapely.get_coordinates(shapely.get_point(lines, 0))
+        points, count = self.shortest_paths(inner, goals, goal_sight, checked=False)
+        out = np.concatenate([points, goals[:, None, :]], axis=1)  # one more point of padding
+        out[outside, 1:] = points[outside]
+        out[outside, 0] = starts[outside]
+        count[outside] += 1
+        return out, count
 
     def travel_distances(
         self,
@@ -506,20 +487,16 @@ class Navigator:
 
     def travel_distance(self, a_xy: XY, b_xy: XY) -> float:
         """Length (m) of the shortest in-fence path from ``a_xy`` to ``b_xy`` (from outside
-        the fence: the straight way in to :meth:`entry_point` plus the path on from there)."""
-        return path_length(self.shortest_path(a_xy, b_xy))
+        the fence: the straight way in to :meth:`entry_point` plus the path on from there):
+        one row of :meth:`travel_distances`."""
+        return float(self.travel_distances(np.array([a_xy], float), np.array([b_xy], float))[0])
 
     def step(self, position_xy: XY, goal_xy: XY, max_step_m: float) -> XY:
-        """New position after flying at most ``max_step_m`` metres toward ``goal_xy``.
-
-        Follows the shortest in-fence path (from a position outside the fence, first the
-        straight way in: :meth:`shortest_path`); returns exactly ``goal_xy`` when it is within
-        ``max_step_m`` of path distance.
-        """
-        if max_step_m < 0:
-            raise ValueError(f"max_step_m must be >= 0, got {max_step_m}")
-        pos, _ = advance_along(self.shortest_path(position_xy, goal_xy), max_step_m)
-        return pos
+        """New position after flying at most ``max_step_m`` metres toward ``goal_xy`` along
+        the shortest in-fence path (from outside the fence, first the straight way in):
+        one row of :meth:`steps`. Exactly ``goal_xy`` when it is within ``max_step_m``."""
+        moved = self.steps(np.array([position_xy], float), np.array([goal_xy], float), max_step_m)
+        return _as_xy(moved[0])
 
 
 def goal_sights(

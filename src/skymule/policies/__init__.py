@@ -1,8 +1,10 @@
 """Policies, resolved by name through :data:`POLICIES`, or your own by import path.
 
 ``policy.name`` (and ``--policy``/``--policies``) accepts a registry name or
-``"package.module:Class"``. A policy is an object with ``name``, ``reset(context)`` and
-``act(observation)``. Its parameters come from the scenario's ``[policy.params]`` table:
+``"package.module:Class"``. A policy is an object with ``name``, ``reset`` and ``act``, in one
+of two forms (:mod:`skymule.policies.base`): per mission, or batched (``batched = True``:
+B missions at once, as Greedy, HGAD and hgad-robust are). Its parameters come from the
+scenario's ``[policy.params]`` table:
 
 * a registered policy declares a pydantic parameter model at registration
   (``POLICIES.register("hgad", factory, params=HGADParams)``); ``factory(params)`` makes it;
@@ -18,7 +20,7 @@ from __future__ import annotations
 import importlib
 import inspect
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Protocol
@@ -26,9 +28,17 @@ from typing import Annotated, Any, Protocol
 from pydantic import BaseModel, ConfigDict, Field
 
 from skymule.errors import SkymuleError
-from skymule.policies.base import Action, MissionContext, Observation, Policy
-from skymule.policies.greedy import Greedy
-from skymule.policies.hgad import HGAD, RobustHGAD
+from skymule.policies.base import (
+    Action,
+    BatchAction,
+    BatchObservation,
+    BatchPolicy,
+    MissionContext,
+    Observation,
+    Policy,
+)
+from skymule.policies.batched import Columns, PerMission, is_batched
+from skymule.policies.builtin import HGAD, Greedy, RobustHGAD
 from skymule.registry import Registry
 
 
@@ -77,8 +87,11 @@ class RobustPlannerParams(NoParams):
     """A reported position this close to a hover point counts as there [m]."""
 
 
-PolicyFactory = Callable[[Any], Policy]
+PolicyFactory = Callable[[Any], Policy | BatchPolicy]
 """Makes a fresh policy from its validated parameters."""
+
+BatchFactory = Callable[[list[Any]], BatchPolicy]
+"""Makes one batched policy for B missions from each mission's validated parameters."""
 
 
 def _by_path(path: str) -> PolicyFactory:
@@ -89,7 +102,7 @@ def _by_path(path: str) -> PolicyFactory:
     do not need; registering them by import path, like plug-ins, keeps those light.
     """
 
-    def factory(params: BaseModel) -> Policy:
+    def factory(params: BaseModel) -> Policy | BatchPolicy:
         module, _, attribute = path.partition(":")
         made: Policy = getattr(importlib.import_module(module), attribute)()
         return made
@@ -102,9 +115,36 @@ POLICIES: Registry[PolicyFactory] = Registry(
 )
 """Policy registry: name -> factory(params), with ``params`` = its parameter model."""
 
-POLICIES.register("greedy", lambda p: Greedy(), params=NoParams)
-POLICIES.register("hgad", lambda p: HGAD(p.hover_threshold, p.max_hover_s), params=HGADParams)
-POLICIES.register("hgad-robust", lambda p: RobustHGAD(**p.model_dump()), params=RobustParams)
+
+def _robust_batch(params: list[Any]) -> BatchPolicy:
+    """hgad-robust for B missions: one policy per moving-average window, the rest per mission."""
+    by_window: dict[int, list[int]] = {}
+    for index, p in enumerate(params):
+        by_window.setdefault(p.window_slots, []).append(index)
+    parts: list[tuple[BatchPolicy, Any]] = []
+    for window, cols in by_window.items():
+        chosen = [params[i] for i in cols]
+        policy = RobustHGAD(
+            [p.hover_threshold for p in chosen],
+            [p.max_hover_s for p in chosen],
+            [p.fail_slots for p in chosen],
+            window,
+            [p.arrive_m for p in chosen],
+        )
+        parts.append((policy, cols))
+    return parts[0][0] if len(parts) == 1 else Columns(parts)
+
+
+POLICIES.register("greedy", lambda p: Greedy(), params=NoParams, batch=lambda ps: Greedy())
+POLICIES.register(
+    "hgad",
+    lambda p: HGAD(p.hover_threshold, p.max_hover_s),
+    params=HGADParams,
+    batch=lambda ps: HGAD([p.hover_threshold for p in ps], [p.max_hover_s for p in ps]),
+)
+POLICIES.register(
+    "hgad-robust", lambda p: RobustHGAD(**p.model_dump()), params=RobustParams, batch=_robust_batch
+)
 POLICIES.register("planner", _by_path("skymule.policies.planner:Planner"), params=NoParams)
 POLICIES.register(
     "planner-robust",
@@ -200,8 +240,9 @@ def _takes_argument(target: Any) -> bool:
         return False
 
 
-def make_policy(spec: PolicySpec) -> Policy:
-    """A fresh policy instance for one mission, with its parameters from ``spec``."""
+def make_policy(spec: PolicySpec) -> Policy | BatchPolicy:
+    """A fresh policy for one mission, with its parameters from ``spec``: per-mission, or a
+    batched one (run it as a batch of one)."""
     if spec.name.startswith(LEARNED_PREFIX):  # a trained model (skymule.policies.rl, extra rl)
         learned: Policy = importlib.import_module("skymule.policies.rl").RLPolicy(spec)
         return learned
@@ -215,11 +256,49 @@ def make_policy(spec: PolicySpec) -> Policy:
     return checked.check(target(spec) if _takes_argument(target) else target())
 
 
+def batch_policy(specs: Sequence[PolicySpec]) -> BatchPolicy:
+    """One batched policy for B missions, mission b under ``specs[b]``.
+
+    Missions under one registered batched policy share one instance (its parameters per
+    mission); a batched plug-in gets one instance per distinct ``[policy]``; a per-mission
+    policy one instance per mission (:class:`PerMission`). Several of these side by side are
+    :class:`Columns`.
+    """
+    groups: dict[Any, list[int]] = {}
+    params: list[Any] = []
+    cache: dict[int, Any] = {}  # sweeps repeat a few spec objects many times
+    for index, spec in enumerate(specs):
+        if id(spec) not in cache:
+            learned = spec.name.startswith(LEARNED_PREFIX)
+            cache[id(spec)] = None if learned else spec.policy_params()
+        params.append(cache[id(spec)])
+        batched = ":" not in spec.name and POLICIES.meta(spec.name, "batch", None) is not None
+        own = repr(params[-1]) if params[-1] is not None else id(spec)
+        key: Any = spec.name if batched else (spec.name, own)
+        groups.setdefault(key, []).append(index)
+    parts: list[tuple[BatchPolicy, Any]] = []
+    for key, cols in groups.items():
+        first = specs[cols[0]]
+        if isinstance(key, str):
+            factory: BatchFactory = POLICIES.meta(first.name, "batch")
+            parts.append((factory([params[i] for i in cols]), cols))
+            continue
+        made = make_policy(first)
+        if is_batched(made):
+            parts.append((made, cols))  # type: ignore[arg-type]
+        else:
+            rest = [made, *(make_policy(specs[i]) for i in cols[1:])]
+            parts.append((PerMission(rest), cols))  # type: ignore[arg-type]
+    if len(parts) == 1:
+        return parts[0][0]
+    return Columns(parts)
+
+
 def resolve_policy(name: str) -> PolicyFactory:
     """A factory ``spec -> policy`` for a registry name or ``"module:Attr"`` (checked now)."""
     policy_params_model(name)  # raises the one-line error for unknown / unimportable names
 
-    def factory(spec: PolicySpec) -> Policy:
+    def factory(spec: PolicySpec) -> Policy | BatchPolicy:
         return make_policy(spec if spec.name == name else spec.model_copy(update={"name": name}))
 
     return factory
@@ -252,12 +331,17 @@ __all__ = [
     "HGAD",
     "POLICIES",
     "Action",
+    "BatchAction",
+    "BatchObservation",
+    "BatchPolicy",
     "Greedy",
     "HGADParams",
     "MissionContext",
     "NoParams",
     "Observation",
     "Policy",
+    "RobustHGAD",
+    "batch_policy",
     "check_policies",
     "make_policy",
     "policy_params_model",

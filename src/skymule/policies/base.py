@@ -206,6 +206,10 @@ class BatchObservation:
         """B, the number of missions."""
         return int(self.slot.shape[0])
 
+    def missions(self) -> tuple[Observation, ...]:
+        """Every row as a per-mission :class:`Observation`."""
+        return tuple(self.mission(b) for b in range(self.size))
+
     def mission(self, b: int) -> Observation:
         """Row b as a per-mission :class:`Observation` (read-only views, no copies)."""
         return Observation.of_rows(

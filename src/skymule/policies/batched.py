@@ -223,3 +223,55 @@ def as_batch_policy(policies: Policy | BatchPolicy | Sequence[Policy]) -> BatchP
         return batched
     single: Policy = policies  # type: ignore[assignment]
     return PerMission([single])
+
+
+class PerFleet:
+    """Fleet policies (one decision for all K UAVs of a fleet mission, e.g. ``coordinated``)
+    as one batched policy over fleet columns: column c is UAV c % K of fleet mission c // K.
+
+    Args:
+        policies: one fresh fleet policy per fleet mission.
+        uavs: K, the UAVs of each fleet mission.
+    """
+
+    batched = True
+
+    def __init__(self, policies: Sequence[Any], uavs: int) -> None:
+        self.policies = tuple(policies)
+        self.uavs = uavs
+        self.name = joined_name([p.name for p in self.policies])
+        self._n_sensors = 0
+
+    def names(self) -> tuple[str, ...]:
+        """(B,) each column's policy name."""
+        return tuple(name for policy in self.policies for name in policy.names())
+
+    def reset(self, contexts: Sequence[MissionContext]) -> None:
+        k = self.uavs
+        if len(contexts) != k * len(self.policies):
+            raise ValueError(f"{len(contexts)} contexts for {len(self.policies)} fleets of {k}")
+        for m, policy in enumerate(self.policies):
+            policy.reset(list(contexts[m * k : (m + 1) * k]))
+        self._n_sensors = len(contexts[0].sensor_names) if contexts else 0
+
+    def act(self, observation: BatchObservation) -> BatchAction:
+        size, k = observation.size, self.uavs
+        serve = np.full(size, NO_SENSOR, np.int64)
+        hover = np.zeros(size, bool)
+        goto = np.full((size, 2), np.nan)
+        target = np.full(size, NO_SENSOR, np.int64)
+        for m, policy in enumerate(self.policies):
+            columns = range(m * k, (m + 1) * k)
+            if not observation.active[m * k]:
+                continue
+            actions = policy.act(tuple(observation.mission(c) for c in columns))
+            names = policy.names()
+            for c, action, name in zip(columns, actions, names, strict=True):
+                who = f"{name} (UAV {c - m * k})"
+                serve[c] = check_serve(action.serve, self._n_sensors, who)
+                hover[c] = bool(action.hover)
+                if action.goto_m is not None:
+                    goto[c] = check_goto(action.goto_m, who)
+                if action.target is not None:
+                    target[c] = action.target
+        return BatchAction(serve=serve, hover=hover, goto_m=goto, target=target)

@@ -45,14 +45,17 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from skymule.flight.navigation import Navigator, math_hypot
 from skymule.policies.base import MissionContext
 from skymule.sim import contract
-from skymule.sim.batch_paths import Paths, Sight, path_queries
 from skymule.sim.contract import NO_SENSOR
+
+if TYPE_CHECKING:  # the geometry is imported when a tour starts, not with the registry
+    from skymule.flight.navigation import Navigator
+    from skymule.sim.batch_paths import Paths, Sight
 
 STAY = -1
 """Goal code: hold the current position (``goto_m`` NaN)."""
@@ -82,6 +85,8 @@ class TourGeometry:
     @classmethod
     def of(cls, contexts: Sequence[MissionContext]) -> TourGeometry:
         """The geometry of B missions' contexts (one fence, one sensor count)."""
+        from skymule.sim.batch_paths import path_queries
+
         navigator = contexts[0].navigator
         if navigator is None or any(c.hover_points_m is None or c.home_m is None for c in contexts):
             raise ValueError("autonomous tours need hover points, home and a navigator")
@@ -276,6 +281,8 @@ class HGADTours:
         here = position[todo]
         away = (here[:, 0] != point[:, 0]) | (here[:, 1] != point[:, 1])
         if self._robust:
+            from skymule.flight.navigation import math_hypot
+
             dx, dy = here[:, 0] - point[:, 0], here[:, 1] - point[:, 1]
             away &= math_hypot(dx, dy).astype(float) > self._arrive_m[todo]
         return away

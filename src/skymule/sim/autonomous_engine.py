@@ -115,6 +115,13 @@ class HomeRule:
         self._exact[which] = np.nan
         self._last[which] = False
 
+    def unknown(self, rows: np.ndarray) -> None:
+        """Flights ``rows`` are somewhere the rule was not told (a real vehicle's position):
+        no bound, no exact distance; the next test computes what it needs."""
+        self._bound[rows] = np.inf
+        self._exact[rows] = np.nan
+        self._last[rows] = False
+
     def forget(self, rows: np.ndarray) -> None:
         """Flights ``rows`` did not end where the rule was told (another rule moved them
         home-ward): their exact distance is unknown, their bound still holds."""
@@ -298,7 +305,7 @@ class AutonomousEngine:
         needs_chosen = self.faults.any or self.uavs > 1
         self._chosen = np.full(shape, NO_SENSOR, np.int64) if needs_chosen else None
         self._lost = np.zeros(shape, bool) if self.uavs > 1 else None
-        self._used_log = np.zeros(shape) if self._battery else None
+        self._used_log = np.full(shape, np.nan) if self._battery else None  # NaN: no battery
         keep = (t_max, n_sensors, n_flights) if self.detail else (0, n_sensors, n_flights)
         self._snr_log, self._rate_log = np.zeros(keep), np.zeros(keep)
         self._remaining_log = np.zeros(keep)
@@ -307,6 +314,7 @@ class AutonomousEngine:
         self._deliver = self._rate
         self._ok: np.ndarray | None = None
         self._observed = False
+        self.last_lost = np.zeros(n_flights, bool)  # the last slot's UAVs that lost a sensor
 
     # --- what policies know ----------------------------------------------------------------
 
@@ -328,10 +336,13 @@ class AutonomousEngine:
         """True once every flight is over."""
         return not bool((self.slot < self.n_slots).any())
 
-    def observe(self) -> BatchObservation:
-        """What every UAV sees at the start of its current slot."""
+    def observe(self, every: bool = False) -> BatchObservation:
+        """What every UAV sees at the start of its current slot.
+
+        ``every``: also the flights that are over (where they ended, no fading, no faults:
+        an environment's observation after the last slot)."""
         active = self.active
-        snr = self.signal.snr_db(self.position, self.slot, active)
+        snr = self.signal.snr_db(self.position, self.slot, None if every else active)
         rate = self.signal.rate_bps(snr)
         self._snr, self._rate = snr, rate
         seen = np.where(np.isnan(snr), -np.inf, snr)  # no link: -inf
@@ -339,7 +350,10 @@ class AutonomousEngine:
         position = np.column_stack([self.position, self.altitude_m])
         self._ok = None
         if self.faults.any:  # the policy sees the faulty SNR; `deliver` is what serving yields
+            true_seen = seen
             seen_rate, seen, deliver, self._ok = apply_faults(self.faults, self.slot, rate, seen)
+            if every and not active.all():  # after the last slot there is no fault draw
+                seen_rate[:, ~active], seen[:, ~active] = rate[:, ~active], true_seen[:, ~active]
             for b in self.faults.index.tolist():
                 draws = self.missions[b].faults
                 assert draws is not None
@@ -386,10 +400,12 @@ class AutonomousEngine:
             self._target[t, rows] = np.asarray(action.target, np.int64)[rows]
         if self._chosen is not None:
             self._chosen[t, rows] = chosen[rows]
-        if self._lost is not None and lost is not None:
-            self._lost[t, rows] = lost[rows]
+        self.last_lost = np.zeros(n_flights, bool) if lost is None else lost & active
+        if self._lost is not None:
+            self._lost[t, rows] = self.last_lost[rows]
         if self._used_log is not None:
-            self._used_log[t, rows] = self.used_j[rows]
+            kept = [b for b in rows.tolist() if b in self._battery]
+            self._used_log[slot[kept], kept] = self.used_j[kept]
         if self.detail:
             buffers = self.remaining if self.uavs == 1 else self.remaining[:, self.group]
             self._snr_log[t, :, rows] = self._snr[:, rows].T
@@ -500,6 +516,18 @@ class AutonomousEngine:
                     self.home_rule.forget(np.array([b]))
             moved[b] = end
             overridden[b] = forced
+
+    def moves_from(
+        self, position_m: np.ndarray, goto_m: np.ndarray, slot: np.ndarray
+    ) -> np.ndarray:
+        """(B, 2) where UAVs at ``position_m`` (B, 2) in slots ``slot`` (B,) would end the slot
+        flying toward ``goto_m`` (B, 2; NaN: stay), by the engine's rules (fence, speed cap,
+        return home, wind and battery); for positions the engine did not fly itself (a live
+        vehicle's). The engine's own flights are not moved."""
+        self.slot = np.asarray(slot, np.int64).copy()
+        self.home_rule.unknown(self._columns)
+        here = np.asarray(position_m, float).reshape(-1, 2)
+        return self._move(here, self._goals(goto_m, len(self.missions), "policy"), self.active)[0]
 
     def restart(self, which: np.ndarray) -> None:
         """Flights ``which`` (mask) start again at home with full buffers (environments that

@@ -12,13 +12,15 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from skymule.faults.draws import FaultDraws
 from skymule.radio.rates import RateTable, StepTable, rate_bps
-from skymule.world import Mission
+
+if TYPE_CHECKING:
+    from skymule.world import Mission
 
 
 @dataclass(frozen=True)

@@ -1,10 +1,10 @@
-"""The batched fixed-trajectory slot loop compiled with numba (the optional ``fast`` extra).
+"""The fixed-trajectory engine's compiled fast path (numba, the optional ``fast`` extra).
 
-``run_batch(batch, engine="compiled")`` (:mod:`skymule.sim.batch`) runs :func:`slot_loop`
-compiled, and gives the same result as the numpy loop (``engine="numpy"``), value for value,
-padding included. The numpy loop steps all B missions one slot at a time and pays numpy's per-call
-overhead in every slot; here one mission runs all its slots in registers before the next,
-which is what the per-slot overhead was hiding (``docs/speed-notes.md``).
+For a policy with a compiled twin (Greedy and HGAD, ``slot_rule``), the fixed-trajectory
+engine (:mod:`skymule.sim.fixed_engine`) runs :func:`slot_loop` compiled instead of its numpy
+slot loop, and gives the same record, value for value. The numpy loop steps all B missions
+one slot at a time and pays numpy's per-call overhead in every slot; here one mission runs
+all its slots in registers before the next (``docs/speed-notes.md``).
 
 The rules are not re-stated here: the loop calls the one-mission kernels of
 :mod:`skymule.sim.kernels` and :func:`skymule.sim.contract.served_bits`, registered with
@@ -12,14 +12,14 @@ numba so the same Python functions run compiled. Fault draws (outages, burst los
 errors, missed polls) are applied per mission and slot as the numpy loop applies them
 (:func:`skymule.sim.kernels.fault_view`). Missions with per-slot fading, and SNR errors on a
 rate table other than a step table (a rate computed per slot), stay on the numpy loop
-(:func:`can_run`).
+(:func:`skymule.sim.fixed_engine.compiled_reason`).
 
 With summaries asked for (:mod:`skymule.sim.compiled_summaries`) the loop writes no per-slot
 log: it reduces each mission's slots as the mission ends
 (:func:`skymule.sim.summary_kernels.mission_totals`).
 
 Install: ``pip install skymule[fast]``. Without numba, :func:`available` is False and the
-batched engine runs its numpy loop (the reference).
+engine runs its numpy loop (the reference).
 """
 
 from __future__ import annotations
@@ -30,31 +30,20 @@ import inspect
 import types
 from collections.abc import Callable
 from functools import cache
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from skymule.sim import contract, kernels, summary_kernels
-from skymule.sim.batch_faults import KernelFaults, kernel_faults
-from skymule.sim.batch_stack import Batch
 from skymule.sim.contract import NO_SENSOR
+
+if TYPE_CHECKING:
+    from skymule.sim.batch_faults import KernelFaults
 
 
 def available() -> bool:
     """True if numba is installed (``pip install skymule[fast]``)."""
     return importlib.util.find_spec("numba") is not None
-
-
-def loop_inputs(batch: Batch) -> tuple[Any, ...]:
-    """The arguments of :func:`slot_loop` that describe ``batch`` (before the flags and outputs)."""
-    n_samples = batch.n_samples[batch.track_id]
-    limit = np.where(batch.hold_at_end[batch.track_id], n_samples - 1, n_samples)
-    return (
-        batch.rate_bps, batch.snr_seen_db, batch.track_id, n_samples, limit, n_samples - 1,
-        batch.n_slots, batch.window_slots, batch.slot_s,
-        np.ascontiguousarray(batch.buffers_bit, float), batch.hgad,
-        batch.threshold_bps, batch.peak_rate_bps[batch.track_id], batch.max_hover_s,
-    )  # fmt: skip
 
 
 def no_logs() -> tuple[np.ndarray, ...]:
@@ -66,32 +55,6 @@ def no_logs() -> tuple[np.ndarray, ...]:
         np.zeros((0, 0), np.int64),
         np.zeros((0, 0, 0)),
     )
-
-
-def loop_faults(
-    batch: Batch, chosen_log: bool = True
-) -> tuple[KernelFaults | None, np.ndarray | None]:
-    """The batch's fault draws for :func:`slot_loop` and its (B, T) ``chosen`` log to fill
-    (``chosen_log``); None for both when no mission has faults. The caller checked
-    :func:`can_run`."""
-    if not batch.faults.any:
-        return None, None
-    n_missions = batch.size
-    faults = kernel_faults(batch.faults, n_missions)
-    assert faults is not None, "compiled.can_run(batch) first"
-    t_max = int(batch.n_slots.max())
-    return faults, np.full((n_missions, t_max), NO_SENSOR, np.int64) if chosen_log else None
-
-
-def can_run(batch: Batch) -> str | None:
-    """Why the compiled loop cannot run ``batch`` (None: it can)."""
-    if not available():
-        return "numba is not installed"
-    if batch.fading_index.size > 0:
-        return "missions with per-slot fading"
-    if batch.faults.any and kernel_faults(batch.faults, batch.size) is None:
-        return "an SNR error on a rate table other than a step table"
-    return None
 
 
 def no_totals(n_sensors: int) -> tuple[summary_kernels.SummaryTables, summary_kernels.SlotTotals]:
@@ -151,8 +114,9 @@ def slot_loop(
     ``faults=None`` (no mission has faults) compiles a loop without any of that: numba prunes
     the ``is not None`` branches, and the fault-free loop keeps its speed.
 
-    Arrays are those of :class:`~skymule.sim.batch.Batch` (rate and snr seen per track sample,
-    per-mission parameters with thresholds and peaks as (B, N)); ``remaining_log`` is (B, T, N)
+    Arrays are those of :class:`~skymule.sim.fixed_engine.TrackTables` (rate and snr seen per
+    track sample, per-mission parameters with thresholds and peaks as (B, N));
+    ``remaining_log`` is (B, T, N)
     when ``keep_remaining``, else unused; without ``keep_logs`` the four (B, T) logs are unused
     (each mission's slots go to scratch rows, reduced by
     :func:`~skymule.sim.summary_kernels.mission_totals` while still in cache).

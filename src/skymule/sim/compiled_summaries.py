@@ -11,15 +11,17 @@ per-mission arithmetic, shared with the reference through
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from skymule import metrics
 from skymule.aadm.score import AADM_WINDOW_S, COMPLETE_RTOL, aadm_from_progress
 from skymule.sim import compiled, summary_kernels
-from skymule.sim.batch_stack import Batch, mission_geometry
-from skymule.world import Mission
+from skymule.sim.fixed_engine import mission_geometry
+
+if TYPE_CHECKING:
+    from skymule.sim.fixed_engine import FixedEngine
 
 
 def summary_tables(
@@ -153,30 +155,36 @@ def summaries_from_slot_totals(
     )
 
 
-def compiled_summaries(batch: Batch, missions: Sequence[Mission]) -> metrics.Summaries:
-    """``metrics.summaries`` of every mission of ``batch`` (one :func:`compiled.can_run`),
-    from the compiled loop's per-mission reductions."""
-    n_missions, n_sensors = batch.buffers_bit.shape
+def compiled_summaries(engine: FixedEngine, rule: Any) -> metrics.Summaries:
+    """``metrics.summaries`` of a fresh fixed ``engine``'s flights under a policy's compiled
+    rule (``fixed_engine.compiled_reason`` None), from the compiled loop's per-mission
+    reductions: no per-slot log is written."""
+    from skymule.sim.fixed_engine import compiled_faults, compiled_inputs
+
+    missions = engine.missions
+    tables_in = engine.tables
+    n_missions, n_sensors = len(missions), engine.n_sensors
     home, hover, radius, window = mission_geometry(missions, n_sensors)
+    buffers = np.array([m.buffers_bit for m in missions], float).reshape(-1, n_sensors)
     tables = summary_tables(
-        batch.position_m, batch.n_samples, batch.track_id, batch.slot_s, hover, radius,
-        batch.buffers_bit, window, int(batch.n_slots.max()),
+        tables_in.position_m, tables_in.n_samples, tables_in.track_id, engine.slot_s, hover,
+        radius, buffers, window, int(engine.n_slots.max()),
     )  # fmt: skip
     totals = summary_kernels.new_totals(n_missions, n_sensors)
     n_run = np.zeros(n_missions, np.int64)
     end_sample = np.zeros(n_missions, np.int64)
     left = np.zeros((n_missions, n_sensors))
     compiled.compiled_loop()(
-        *compiled.loop_inputs(batch), False, False, *compiled.no_logs(),
-        n_run, end_sample, left, True, tables, totals, *compiled.loop_faults(batch, False),
+        *compiled_inputs(engine, rule), False, False, *compiled.no_logs(),
+        n_run, end_sample, left, True, tables, totals, compiled_faults(engine), None,
     )  # fmt: skip
     return summaries_from_slot_totals(
         totals,
         n_run=n_run,
-        slot_s=batch.slot_s,
-        buffers_bit=batch.buffers_bit,
+        slot_s=engine.slot_s,
+        buffers_bit=buffers,
         left_bit=left,
-        end_m=batch.position_m[batch.track_id, end_sample],
+        end_m=tables_in.position_m[tables_in.track_id, end_sample],
         home_m=home,
         window_s=window,
     )

@@ -410,6 +410,13 @@ class FixedEngine:
             remaining = self._remaining_log[:width].transpose(2, 0, 1)
             snr, rate = self._detail_signal(sample, width)
         faulty = [m.faults for m in self.missions]
+        track_position = tables.position_m
+        track_samples, track_id = tables.n_samples, tables.track_id
+        end_sample = np.minimum(self.sample, self._track_samples - 1)
+        if self._wind_rows:
+            track_position, track_samples, track_id, sample, end_sample = self._own_tracks(
+                sample, end_sample, width
+            )
         return flights_record(
             self.missions,
             policies,
@@ -420,11 +427,11 @@ class FixedEngine:
             served=np.ascontiguousarray(self._served[:width].T),
             downloaded_bit=np.ascontiguousarray(self._downloaded[:width].T),
             hovering=np.ascontiguousarray(self._hovering[:width].T),
-            track_position_m=tables.position_m,
-            track_samples=tables.n_samples,
-            track_id=tables.track_id,
+            track_position_m=track_position,
+            track_samples=track_samples,
+            track_id=track_id,
             sample=sample,
-            end_sample=np.minimum(self.sample, self._track_samples - 1),
+            end_sample=end_sample,
             snr_db=snr,
             rate_bps=rate,
             remaining_bit=remaining,
@@ -433,6 +440,31 @@ class FixedEngine:
             fleet=None if self.uavs == 1 else self.group.copy(),
             lost=None if self._lost is None else np.ascontiguousarray(self._lost[:width].T),
         )
+
+    def _own_tracks(
+        self, sample: np.ndarray, end_sample: np.ndarray, width: int
+    ) -> tuple[np.ndarray, ...]:
+        """Track arrays where each flight under a wind flies a track of its own (its position
+        in each slot, then its end): a wind may hold it at a sample without hovering, which
+        one step per moving slot along the shared track would not show."""
+        tables = self.tables
+        rows = np.asarray(self._wind_rows, np.int64)
+        k = max(tables.position_m.shape[1], width + 1)
+        shared = tables.position_m.shape[0]
+        position = np.zeros((shared + rows.size, k, 3))
+        position[:shared, : tables.position_m.shape[1]] = tables.position_m
+        track_id = tables.track_id.copy()
+        samples = np.concatenate([tables.n_samples, self.n_run[rows] + 1])
+        sample = sample.copy()
+        end_sample = end_sample.copy()
+        for w, b in enumerate(rows.tolist()):
+            n, u = int(self.n_run[b]), int(tables.track_id[b])
+            position[shared + w, :n] = tables.position_m[u, sample[b, :n]]
+            position[shared + w, n] = tables.position_m[u, end_sample[b]]
+            track_id[b] = shared + w
+            sample[b] = np.minimum(np.arange(sample.shape[1]), n)
+            end_sample[b] = n
+        return position, samples, track_id, sample, end_sample
 
     def _detail_signal(self, sample: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray]:
         """(B, T, N) SNR and rates observed in each slot run (true values, fading added)."""
@@ -463,11 +495,11 @@ def _affected(faults: Sequence[Any], width: int) -> np.ndarray | None:
 def flights_record(missions: Sequence[Mission], policies: Sequence[str], **arrays: Any) -> Flights:
     """A :class:`Flights` record of ``missions`` (one per column) from the engine's arrays,
     with each mission's home, hover points, visit radius and AADM window."""
-    from skymule.sim.batch_stack import mission_geometry
-
     n_sensors = missions[0].n_sensors
     home, hover, radius, window = mission_geometry(missions, n_sensors)
+    faulty = np.array([m.faults is not None for m in missions], bool)
     return Flights(
+        faulty=faulty if faulty.any() else None,
         slot_s=np.array([m.slot_s for m in missions], float),
         buffers_bit=np.array([m.buffers_bit for m in missions], float).reshape(-1, n_sensors),
         home_m=home,
@@ -478,6 +510,31 @@ def flights_record(missions: Sequence[Mission], policies: Sequence[str], **array
         sensor_names=missions[0].sensor_names,
         **arrays,
     )
+
+
+def mission_geometry(
+    missions: Sequence[Mission], n_sensors: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """What the summaries need of each mission besides its slots: home (B, 2) [m] (NaN: none),
+    hover points (B, N, 2) [m] (NaN: unknown), visit radius (B,) [m], AADM window (B,) [s]."""
+    home = _rows_by_object([m.home_m for m in missions], (2,))
+    hover = _rows_by_object([m.hover_points_m for m in missions], (n_sensors, 2))
+    radius = np.array([m.visit_radius_m for m in missions], float)
+    window = np.array([m.score_window_s for m in missions], float)
+    return home, hover, radius, window
+
+
+def _rows_by_object(values: Sequence[np.ndarray | None], shape: tuple[int, ...]) -> np.ndarray:
+    """(B, *shape) array of ``values`` (None: NaN), each distinct array object copied once:
+    missions built from one geometry share these arrays."""
+    first: dict[int, int] = {}
+    which = np.array([first.setdefault(id(v), len(first)) for v in values], np.int64)
+    distinct = np.full((len(first), *shape), np.nan)
+    for row in np.unique(which, return_index=True)[1]:
+        value = values[row]
+        if value is not None:
+            distinct[which[row]] = value
+    return distinct[which]
 
 
 def rate_tables_of(missions: Sequence[Mission]) -> list[tuple[RateTable, float]]:

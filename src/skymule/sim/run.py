@@ -1,21 +1,142 @@
-"""Run one mission: dispatch to the engine for its trajectory mode (above the engines)."""
+"""Run missions: the engine of their trajectory mode, any policy, one record.
+
+* :func:`run_missions` -- B missions (or the UAV columns of fleet missions) under one
+  policy, batched or per-mission (:func:`~skymule.policies.batched.as_batch_policy`);
+* :func:`run_mission` -- one mission, a batch of one, as its :class:`MissionLog`;
+* :func:`summarize_missions` -- ``summary.json`` rows of many missions, each under its own
+  ``[policy]``, batched by what can share a batch (mode, sensor count, geofence) and, for
+  policies with a compiled twin, summarised inside the compiled loop without a per-slot log.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Sequence
+from typing import Any
+
+import numpy as np
+
 from skymule.errors import SkymuleError
-from skymule.policies.base import Policy
-from skymule.sim.autonomous import run_autonomous
-from skymule.sim.engine import run_fixed
-from skymule.sim.log import MissionLog
+from skymule.flights import Flights, MissionLog
+from skymule.metrics import summary_dicts, summary_rows, with_battery
+from skymule.policies.base import BatchPolicy, Policy
+from skymule.policies.batched import as_batch_policy, policy_names
+from skymule.scenario import PolicySpec
 from skymule.world import Mission
 
+ENGINES = ("auto", "numpy", "compiled")
+"""``engine``: ``numpy`` (the slot loop in numpy, the reference), ``compiled`` (the compiled
+twins: the policy's rule for Greedy/HGAD on fixed paths, the path queries on autonomous ones;
+a one-line error where they cannot run) or ``auto`` (compiled where it can, else numpy)."""
 
-def run_mission(mission: Mission, policy: Policy) -> MissionLog:
-    """Run one mission under ``policy`` (fixed or autonomous trajectory)."""
-    if mission.mode == "fixed":
-        return run_fixed(mission, policy)
-    if mission.mode == "autonomous":
-        return run_autonomous(mission, policy)
-    raise SkymuleError(
-        f"trajectory.mode = {mission.mode!r} is not supported; allowed: fixed, autonomous"
-    )
+
+def check_engine(engine: str) -> str:
+    if engine not in ENGINES:
+        raise SkymuleError(f"engine = {engine!r}; allowed: {', '.join(ENGINES)}")
+    return engine
+
+
+def run_missions(
+    missions: Sequence[Mission],
+    policy: BatchPolicy | Policy | Sequence[Policy],
+    *,
+    fleet: np.ndarray | None = None,
+    detail: bool = True,
+    engine: str = "auto",
+) -> Flights:
+    """Run B missions (one trajectory mode, one sensor count) under ``policy``; the record.
+
+    ``policy``: a batched policy, one per-mission policy (for B = 1) or one per mission.
+    ``fleet``: (B,) the fleet mission of each column (its UAVs share buffers); ``detail``:
+    keep per-slot SNR, rates and buffers (run folders); ``engine``: :data:`ENGINES`.
+    """
+    from skymule.sim.autonomous_engine import run_autonomous
+    from skymule.sim.fixed_engine import run_fixed
+
+    check_engine(engine)
+    batch = as_batch_policy(policy)
+    modes = {m.mode for m in missions}
+    if len(modes) != 1:
+        raise SkymuleError(f"one batch runs one trajectory mode, got {sorted(modes)}")
+    mode = modes.pop()
+    if mode == "fixed":
+        return run_fixed(missions, batch, fleet=fleet, detail=detail, engine_choice=engine)
+    if mode == "autonomous":
+        return run_autonomous(missions, batch, fleet=fleet, detail=detail, engine=engine)
+    raise SkymuleError(f"trajectory.mode = {mode!r} is not supported; allowed: fixed, autonomous")
+
+
+def run_mission(mission: Mission, policy: BatchPolicy | Policy, engine: str = "auto") -> MissionLog:
+    """One mission under ``policy`` (a batch of one): its log."""
+    return MissionLog(run_missions([mission], policy, engine=engine))
+
+
+def batch_groups(missions: Sequence[Mission], batch_size: int) -> Iterator[list[int]]:
+    """Indices of missions that can share a batch (mode, sensor count, autonomous: geofence),
+    at most ``batch_size`` each, in input order within a group."""
+    groups: dict[tuple[Any, ...], list[int]] = {}
+    for index, mission in enumerate(missions):
+        fence = mission.navigator.fence_key if mission.navigator is not None else b""
+        groups.setdefault((mission.mode, mission.n_sensors, fence), []).append(index)
+    for indices in groups.values():
+        for start in range(0, len(indices), batch_size):
+            yield indices[start : start + batch_size]
+
+
+def summarize_missions(
+    missions: Sequence[Mission],
+    specs: Sequence[PolicySpec],
+    scenario_names: Sequence[str],
+    *,
+    batch_size: int = 1000,
+    engine: str = "auto",
+) -> list[dict[str, Any]]:
+    """``summary.json`` rows of ``missions``, each under its own ``[policy]``, in input order.
+
+    Equal to ``summarize(run_mission(m, make_policy(s)), name)`` for each, value for value:
+    the summaries come from the batch record (numpy, or the compiled pass over it when
+    numba is installed) or, for a fixed batch whose policy has a compiled twin, from the
+    compiled loop's per-mission reductions (no per-slot log at all).
+    """
+    from skymule.policies import batch_policy
+    from skymule.sim import compiled
+    from skymule.sim.compiled_summaries import compiled_summaries, flights_summaries
+    from skymule.sim.fixed_engine import FixedEngine, compiled_reason
+
+    check_engine(engine)
+    rows: list[dict[str, Any] | None] = [None] * len(missions)
+    for part in batch_groups(missions, batch_size):
+        chosen = [missions[i] for i in part]
+        policy = batch_policy([specs[i] for i in part])
+        names = [scenario_names[i] for i in part]
+        dicts: list[dict[str, Any]]
+        if chosen[0].mode == "fixed" and engine != "numpy":
+            fixed = FixedEngine(chosen, detail=False)
+            policy.reset(fixed.contexts())
+            rule = getattr(policy, "slot_rule", lambda: None)()
+            if compiled_reason(fixed, rule) is None:
+                dicts = summary_dicts(
+                    compiled_summaries(fixed, rule),
+                    [m.sensor_names for m in chosen],
+                    list(policy_names(policy, len(chosen))),
+                    names,
+                )
+                for i, row in zip(part, dicts, strict=True):
+                    rows[i] = row
+                continue
+            policy = batch_policy([specs[i] for i in part])  # a fresh one for the slot loop
+        flights = run_missions(chosen, policy, detail=False, engine=engine)
+        if engine != "numpy" and compiled.available():
+            dicts = with_battery(
+                flights,
+                summary_dicts(
+                    flights_summaries(flights),
+                    [flights.sensor_names] * flights.size,
+                    list(flights.policy),
+                    names,
+                ),
+            )
+        else:
+            dicts = summary_rows(flights, names)
+        for i, row in zip(part, dicts, strict=True):
+            rows[i] = row
+    return [row for row in rows if row is not None]

@@ -13,7 +13,7 @@ from conftest import run_cli
 from skymule.metrics import summarize
 from skymule.policies import make_policy
 from skymule.policies.base import Action, MissionContext, Observation
-from skymule.policies.hgad import HGAD
+from skymule.policies import HGAD
 from skymule.scenario import PolicySpec, load_scenario
 from skymule.flights import NO_SENSOR
 from skymule.sim.run import run_mission

@@ -17,8 +17,8 @@ from skymule.bounds.autonomous import (
 )
 from skymule.errors import SkymuleError
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
-from skymule.policies.greedy import Greedy
-from skymule.policies.hgad import HGAD
+from skymule.policies import Greedy
+from skymule.policies import HGAD
 from skymule.policies.planner import Planner
 from skymule.scenario import load_scenario
 from skymule.sim.run import run_mission

@@ -24,7 +24,7 @@ from skymule.io.traces import write_dt_export
 from skymule.policies import HGAD, Greedy, Policy
 from skymule.policies.optimal_fixed import OptimalFixed
 from skymule.scenario import Scenario
-from skymule.sim.engine import run_fixed
+from skymule.sim.run import run_mission
 from skymule.world import Mission, build_mission
 
 N_MISSIONS = 30  # per signal source
@@ -60,7 +60,7 @@ def check_no_policy_beats_the_bound(mission: Mission) -> bool:
     bound = mission_bound(mission).upper_bound_bit
     totals = {}
     for policy in policies():
-        got = float(run_fixed(mission, policy).downloaded_bit.sum())
+        got = float(run_mission(mission, policy).downloaded_bit.sum())
         assert got <= bound * (1 + REL_TOL) + 1e-6, (policy.name, got, bound)
         totals[policy.name] = got
     loss = mission_track_rates(mission)[: mission.n_slots].max(axis=0).sum() * mission.slot_s

@@ -1,4 +1,10 @@
-"""The compiled core equals the numpy core: kernels vs contract, compiled batch vs numpy batch."""
+"""The compiled twin equals the numpy rules: kernels vs contract, the compiled slot loop vs
+the numpy slot loop of the fixed-trajectory engine.
+
+Every check runs without numba too: the kernels and the loop are plain Python that numba
+compiles, so where it is absent they run as they are (slowly, on small cases), and where it
+is installed the compiled loop is checked as well.
+"""
 
 from __future__ import annotations
 
@@ -12,11 +18,13 @@ from hypothesis import strategies as st
 from skymule.errors import SkymuleError
 from skymule.radio.rates import BUILTIN_RATE_TABLES, StepTable, rate_bps
 from skymule.scenario import PolicySpec, load_scenario
+from engine_cases import assert_logs_equal, random_mission, random_spec
+from skymule.policies import batch_policy
 from skymule.sim import compiled, contract, kernels
-from skymule.sim.batch import BatchResult, run_batch, stack_missions, summarize_fixed_batch
 from skymule.sim.batch_faults import BatchFaults, apply_faults, kernel_faults
+from skymule.sim.fixed import FixedEngine, compiled_reason, run_compiled
+from skymule.sim.run import run_missions, summarize_missions
 from skymule.world import build_mission
-from test_batch import random_mission, random_spec
 
 needs_numba = pytest.mark.skipif(not compiled.available(), reason="numba not installed")
 
@@ -123,29 +131,39 @@ def test_fault_kernels_equal_apply_faults(seed, n, uses_error):
         np.testing.assert_array_equal(ours, theirs[:, 0], strict=True)
 
 
-def assert_results_equal(got: BatchResult, want: BatchResult) -> None:
-    for field in fields(BatchResult):
-        np.testing.assert_array_equal(
-            getattr(got, field.name), getattr(want, field.name), err_msg=field.name, strict=True
-        )
-
-
 @pytest.fixture(scope="module")
 def base_mission():
     return build_mission(load_scenario("paper-sim-fixed"))
 
 
-@needs_numba
+def loops() -> list[object]:
+    """The loops to check against numpy: the plain-Python loop always, the compiled one
+    where numba is installed."""
+    return [compiled.slot_loop, *([compiled.compiled_loop()] if compiled.available() else [])]
+
+
+def assert_loops_equal_numpy(missions, specs) -> None:
+    """Record for record (per-slot detail included), the numpy slot loop and each loop."""
+    want = run_missions(missions, batch_policy(specs), engine="numpy")
+    for loop in loops():
+        engine = FixedEngine(missions)
+        policy = batch_policy(specs)
+        policy.reset(engine.contexts())
+        rule = policy.slot_rule()  # type: ignore[attr-defined]
+        got = run_compiled(engine, rule, [s.name for s in specs], loop=loop)
+        for b in range(len(missions)):
+            assert_logs_equal(got.mission(b), want.mission(b))
+
+
 @settings(
     max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(seed=st.integers(0, 2**32 - 1), n_missions=st.integers(1, 12), n_sensors=st.integers(1, 5))
-def test_compiled_batch_equals_numpy_batch(base_mission, seed, n_missions, n_sensors):
-    """Array for array, padding included, on random tracks, buffers and HGAD parameters."""
+def test_compiled_loop_equals_numpy_loop(base_mission, seed, n_missions, n_sensors):
+    """Random tracks, buffers, windows and HGAD parameters; Greedy and HGAD in one batch."""
     rng = np.random.default_rng(seed)
     missions = [random_mission(base_mission, rng, n_sensors) for _ in range(n_missions)]
-    batch = stack_missions(missions, [random_spec(rng) for _ in range(n_missions)])
-    assert_results_equal(run_batch(batch, "compiled"), run_batch(batch, "numpy"))
+    assert_loops_equal_numpy(missions, [random_spec(rng) for _ in range(n_missions)])
 
 
 @needs_numba
@@ -154,29 +172,37 @@ def test_compiled_summaries_equal_numpy_on_paper_preset(base_mission):
     missions = [replace(base_mission, buffers_bit=rng.uniform(0, 1500e6, 4)) for _ in range(20)]
     specs = [PolicySpec(name="greedy"), PolicySpec(name="hgad", max_hover_s=20.0)] * 10
     names = ["paper"] * 20
-    numpy_rows = summarize_fixed_batch(missions, specs, names, engine="numpy")
-    assert summarize_fixed_batch(missions, specs, names, engine="compiled") == numpy_rows
+    numpy_rows = summarize_missions(missions, specs, names, engine="numpy")
+    assert summarize_missions(missions, specs, names, engine="compiled") == numpy_rows
     assert any(row["hover_time_s"] > 0 for row in numpy_rows)
 
 
-@needs_numba
-def test_compiled_refuses_fading(base_mission):
+def test_compiled_refuses_what_it_cannot_run(base_mission):
+    """Fading, and a policy without a compiled twin: one line; ``auto`` runs numpy."""
     faded = replace(base_mission, fading_db=np.zeros((base_mission.n_slots, 4)))
-    batch = stack_missions([faded], [PolicySpec(name="greedy")])
-    with pytest.raises(SkymuleError, match="per-slot fading"):
-        run_batch(batch, "compiled")
-    assert run_batch(batch).n_run[0] == base_mission.n_slots  # auto: the numpy loop
+    engine = FixedEngine([faded])
+    policy = batch_policy([PolicySpec(name="greedy")])
+    policy.reset(engine.contexts())
+    reason = compiled_reason(engine, policy.slot_rule())  # type: ignore[attr-defined]
+    assert reason is not None and ("per-slot fading" in reason or "numba" in reason)
+    with pytest.raises(SkymuleError, match="cannot run this batch"):
+        run_missions([faded], batch_policy([PolicySpec(name="greedy")]), engine="compiled")
+    flights = run_missions([faded], batch_policy([PolicySpec(name="greedy")]))  # auto
+    assert flights.n_run[0] == base_mission.n_slots
+    robust = batch_policy([PolicySpec(name="hgad-robust")])
+    with pytest.raises(SkymuleError, match="no compiled twin"):
+        run_missions([base_mission], robust, engine="compiled")
 
 
 def test_auto_without_numba_runs_numpy(base_mission, monkeypatch):
-    batch = stack_missions([base_mission], [PolicySpec(name="hgad")])
+    hgad = [PolicySpec(name="hgad")]
+    want = run_missions([base_mission], batch_policy(hgad), engine="numpy")
     monkeypatch.setattr(compiled, "available", lambda: False)
-    assert_results_equal(run_batch(batch), run_batch(batch, "numpy"))
+    assert_logs_equal(run_missions([base_mission], batch_policy(hgad)).mission(0), want.mission(0))
     with pytest.raises(SkymuleError, match="numba is not installed"):
-        run_batch(batch, "compiled")
+        run_missions([base_mission], batch_policy(hgad), engine="compiled")
 
 
 def test_unknown_engine_is_one_line(base_mission):
-    batch = stack_missions([base_mission], [PolicySpec(name="greedy")])
     with pytest.raises(SkymuleError, match="engine = 'fast'; allowed: auto, numpy, compiled"):
-        run_batch(batch, "fast")  # type: ignore[arg-type]
+        run_missions([base_mission], batch_policy([PolicySpec(name="greedy")]), engine="fast")

@@ -1,10 +1,10 @@
 """The compiled summaries equal ``metrics.summaries`` value for value.
 
 The reductions of :mod:`skymule.sim.summary_kernels` run as plain Python here (and compiled
-where numba is installed) on the numpy loop's logs of random, fading and faulty missions and on
-batched autonomous runs (first visits by target); the compiled loop's own summaries (no
-per-slot log) are checked against the numpy path's, and so are the batched autonomous
-engine's summary rows.
+where numba is installed) on the numpy slot loop's records of random, fading and faulty
+missions and on autonomous runs (first visits by target); the compiled loop's own summaries
+(no per-slot log) are checked against the numpy path's, as plain Python too where numba is
+absent, and so are the autonomous engine's summary rows.
 """
 
 from __future__ import annotations
@@ -20,24 +20,20 @@ from skymule import metrics
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
 from skymule.metrics import Flights, Summaries, summaries
 from skymule.scenario import PolicySpec, load_scenario
-from skymule.sim import compiled, summary_kernels
-from skymule.sim.batch import batch_flights, run_numpy, stack_missions
-from skymule.sim.batch_autonomous import (
-    TourParams,
-    run_tours,
-    summarize_autonomous_batch,
-    tour_flights,
-)
-from skymule.sim.compiled_summaries import compiled_summaries, flights_summaries
-from skymule.sim.contract import NO_SENSOR
-from skymule.world import build_mission
-from test_batch import (
+from engine_cases import (
     random_geometry,
     random_mission,
     random_spec,
     with_geometry,
     with_random_fading,
 )
+from skymule.policies import batch_policy
+from skymule.sim import compiled, summary_kernels
+from skymule.sim.compiled_summaries import compiled_summaries, flights_summaries
+from skymule.sim.contract import NO_SENSOR
+from skymule.sim.fixed import FixedEngine
+from skymule.sim.run import run_missions, summarize_missions
+from skymule.world import build_mission
 from test_fault_engines import MIXED_FAULTS, _with_faults
 
 needs_numba = pytest.mark.skipif(not compiled.available(), reason="numba not installed")
@@ -64,9 +60,22 @@ def assert_summaries_equal(got: Summaries, want: Summaries) -> None:
             np.testing.assert_array_equal(ours, theirs, field.name, strict=True)
 
 
-def numpy_flights(missions, specs):
-    batch = stack_missions(missions, specs)
-    return batch, batch_flights(batch, run_numpy(batch), missions)
+def numpy_flights(missions, specs) -> Flights:
+    """The numpy slot loop's record (no per-slot detail: what summaries read)."""
+    return run_missions(missions, batch_policy(specs), detail=False, engine="numpy")
+
+
+def loop_summaries(missions, specs) -> list[Summaries]:
+    """The compiled loop's own summaries: compiled where numba is installed, and the same
+    loop as plain Python always."""
+    out = []
+    loops = [compiled.slot_loop, *([compiled.compiled_loop()] if compiled.available() else [])]
+    for loop in loops:
+        engine = FixedEngine(missions, detail=False)
+        policy = batch_policy(specs)
+        policy.reset(engine.contexts())
+        out.append(compiled_summaries(engine, policy.slot_rule(), loop))  # type: ignore[attr-defined]
+    return out
 
 
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(0, 3000), spread=st.floats(-3, 9))
@@ -108,7 +117,7 @@ def test_kernels_equal_metrics_on_random_missions(base_mission, seed, n_missions
         for _ in range(n_missions)
     ]
     missions = with_geometry(missions, [random_geometry(rng, n_sensors) for _ in missions])
-    _, flights = numpy_flights(missions, [random_spec(rng) for _ in missions])
+    flights = numpy_flights(missions, [random_spec(rng) for _ in missions])
     assert_summaries_equal(flights_summaries(flights, use_numba=False), summaries(flights))
 
 
@@ -118,25 +127,25 @@ def test_kernels_equal_metrics_on_fault_missions(policy):
     missions = [
         build_mission(_with_faults("paper-sim-fixed", MIXED_FAULTS, seed=seed)) for seed in (1, 2)
     ]
-    _, flights = numpy_flights(missions, [PolicySpec(name=policy)] * 2)
+    flights = numpy_flights(missions, [PolicySpec(name=policy)] * 2)
     want = summaries(flights)
     assert_summaries_equal(flights_summaries(flights, use_numba=False), want)
     if compiled.available():
         assert_summaries_equal(flights_summaries(flights), want)
 
 
-@needs_numba
 @SETTINGS
 @given(seed=st.integers(0, 2**32 - 1), n_missions=st.integers(1, 12), n_sensors=st.integers(1, 5))
 def test_compiled_loop_summaries_equal_numpy_summaries(base_mission, seed, n_missions, n_sensors):
     rng = np.random.default_rng(seed)
     missions = [random_mission(base_mission, rng, n_sensors) for _ in range(n_missions)]
     missions = with_geometry(missions, [random_geometry(rng, n_sensors) for _ in missions])
-    batch, flights = numpy_flights(missions, [random_spec(rng) for _ in missions])
-    assert_summaries_equal(compiled_summaries(batch, missions), summaries(flights))
+    specs = [random_spec(rng) for _ in missions]
+    want = summaries(numpy_flights(missions, specs))
+    for got in loop_summaries(missions, specs):
+        assert_summaries_equal(got, want)
 
 
-@needs_numba
 @pytest.mark.parametrize("threshold", [1.0, 0.8, 0.5])
 def test_compiled_loop_summaries_on_paper_preset(base_mission, threshold):
     """Random buffers (some emptied: the AADM bonus), HGAD thresholds, a 300-s window."""
@@ -145,28 +154,29 @@ def test_compiled_loop_summaries_on_paper_preset(base_mission, threshold):
     missions[0] = replace(missions[0], buffers_bit=np.array([1e6, 2e6, 0.0, 3e6]))
     missions[1] = replace(missions[1], aadm_window_s=300.0)
     specs = [PolicySpec(name="greedy"), PolicySpec(name="hgad", hover_threshold=threshold)] * 6
-    batch, flights = numpy_flights(missions, specs)
+    flights = numpy_flights(missions, specs)
     want = summaries(flights)
-    assert_summaries_equal(compiled_summaries(batch, missions), want)
+    for got in loop_summaries(missions, specs):
+        assert_summaries_equal(got, want)
     assert want.aadm.complete[0] and (want.hover_time_s[1::2] > 0).all()
-    assert_summaries_equal(flights_summaries(flights), want)
+    assert_summaries_equal(flights_summaries(flights, use_numba=compiled.available()), want)
 
 
-@needs_numba
 def test_straight_walks_of_other_lengths_on_one_track(base_mission):
     """Greedy missions sharing a track but not their length: each sums its own steps."""
     missions = [replace(base_mission, n_slots=n) for n in (500, 120, 120, 7, 500, 0, 31)]
     specs = [PolicySpec(name="greedy")] * len(missions)
-    batch, flights = numpy_flights(missions, specs)
+    flights = numpy_flights(missions, specs)
     want = summaries(flights)
     assert len(set(want.distance_m.tolist())) == 5
-    assert_summaries_equal(compiled_summaries(batch, missions), want)
+    for got in loop_summaries(missions, specs):
+        assert_summaries_equal(got, want)
     assert_summaries_equal(flights_summaries(flights, use_numba=False), want)
 
 
 @pytest.fixture(scope="module")
 def autonomous_flights() -> list[Flights]:
-    """Batched autonomous runs as the sweep path summarises them, Greedy and HGAD: the preset,
+    """Autonomous runs as the sweep path summarises them, Greedy and HGAD: the preset,
     random layouts (return home or not; the preset's sensor count, so one batch), a mission
     too short to reach any hover point and one that runs no slot."""
     preset = load_scenario("paper-sim-autonomous")
@@ -176,11 +186,10 @@ def autonomous_flights() -> list[Flights]:
     missions = [build_mission(preset), *missions]
     missions += [replace(missions[1], n_slots=3), replace(missions[2], n_slots=0)]
     assert {m.return_home for m in missions} == {True, False}
-    flights = []
-    for hgad in (False, True):
-        result = run_tours(missions, [TourParams(hgad=hgad)] * len(missions), False, "auto")
-        flights.append(tour_flights(result, result.row, missions))
-    return flights
+    return [
+        run_missions(missions, batch_policy([PolicySpec(name=name)] * len(missions)), detail=False)
+        for name in ("greedy", "hgad")
+    ]
 
 
 def assert_kernels_equal_metrics(flights: Flights) -> Summaries:
@@ -241,7 +250,7 @@ def test_kernels_equal_metrics_with_radii_on_the_boundary(autonomous_flights):
 
 @needs_numba
 def test_compiled_autonomous_summaries_equal_numpy_summaries(autonomous_flights):
-    """The sweep path: ``summarize_autonomous_batch`` with the compiled engine (compiled path
+    """The sweep path: ``summarize_missions`` with the compiled engine (compiled path
     queries and reductions) gives the numpy engine's rows, Greedy and HGAD."""
     preset = load_scenario("paper-sim-autonomous")
     mission = build_mission(preset)
@@ -249,6 +258,6 @@ def test_compiled_autonomous_summaries_equal_numpy_summaries(autonomous_flights)
     for policy in ("greedy", "hgad"):
         specs = [PolicySpec(name=policy)] * len(missions)
         names = [f"m{k}" for k in range(len(missions))]
-        want = summarize_autonomous_batch(missions, specs, names, engine="numpy")
-        assert summarize_autonomous_batch(missions, specs, names, engine="compiled") == want
+        want = summarize_missions(missions, specs, names, engine="numpy")
+        assert summarize_missions(missions, specs, names, engine="compiled") == want
         assert want[1]["visit_order"] == [] and want[0]["visit_order"]

@@ -14,12 +14,10 @@ from gymnasium.utils.env_checker import check_env  # noqa: E402
 
 import skymule.envs  # noqa: E402  (registers skymule/DataMule-v0)
 from skymule.envs.datamule import DataMuleEnv  # noqa: E402
-from skymule.envs.vector import DataMuleVectorEnv  # noqa: E402
 from skymule.errors import SkymuleError  # noqa: E402
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario  # noqa: E402
 from skymule.metrics import aadm_score  # noqa: E402
 from skymule.scenario import Scenario, load_scenario  # noqa: E402
-from skymule.world import Mission, build_mission, with_fence  # noqa: E402
 
 SHORT = LayoutRanges(n_sensors=(4, 4), duration_s=(30, 70))
 
@@ -135,45 +133,3 @@ def test_bad_velocity_and_bad_keywords_are_clear_errors() -> None:
         DataMuleEnv("paper-sim-autonomous", move="teleport")
     with pytest.raises(SkymuleError, match="before reset"):
         DataMuleEnv("paper-sim-autonomous").step(np.array([0, 0]))
-
-
-def convex_missions(count: int, seed: int) -> list[Mission]:
-    """Random 4-sensor Lake Wheeler layouts flown inside the fence's convex hull."""
-    base = load_scenario("paper-sim-autonomous")
-    fence = build_mission(base).fence
-    assert fence is not None
-    rng = np.random.default_rng(seed)
-    return [
-        with_fence(build_mission(random_autonomous_scenario(rng, base, SHORT)), fence.convex_hull)
-        for _ in range(count)
-    ]
-
-
-@pytest.mark.parametrize("reward", ["mbit", "aadm"])
-def test_vector_env_equals_single_envs_in_a_convex_fence(reward: str) -> None:
-    """(A fence without reflex vertices: every path straight; tests/test_vector_env.py has
-    the concave fence, every signal and the return home.)"""
-    missions = convex_missions(5, seed=2)
-    vector = DataMuleVectorEnv(missions, reward=reward)
-    singles = [DataMuleEnv(m, reward=reward) for m in missions]
-    observations, _ = vector.reset(seed=0)
-    assert np.array_equal(observations, np.array([env.reset(seed=0)[0] for env in singles]))
-    rng = np.random.default_rng(1)
-    ended = np.zeros(len(missions), int)
-    for _ in range(160):  # past the longest mission (70 slots): autoreset included
-        actions = np.column_stack([rng.integers(0, 5, 5), rng.integers(0, 9, 5)])
-        observations, rewards, terminated, truncated, _ = vector.step(actions)
-        assert not truncated.any()
-        for index, env in enumerate(singles):
-            flight = env._flight
-            assert flight is not None
-            if flight.done:  # gymnasium's next-step autoreset: a reset, reward 0
-                expected, _ = env.reset()
-                reward_expected, done = 0.0, False
-            else:
-                expected, reward_expected, done, _, _ = env.step(actions[index])
-            np.testing.assert_array_equal(observations[index], expected)
-            assert rewards[index] == pytest.approx(reward_expected, rel=1e-12, abs=1e-12)
-            assert terminated[index] == done
-        ended += terminated
-    assert (ended >= 2).all()

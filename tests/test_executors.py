@@ -75,10 +75,10 @@ def loaded(name):
     return name in sys.modules
 
 if __name__ == "__main__":
-    with open_executor("process", 1, warm=("skymule.sim.batch",)) as pool:
-        print(pool.submit(loaded, "skymule.sim.batch").result(), flush=True)
+    with open_executor("process", 1, warm=("skymule.sim.fixed",)) as pool:
+        print(pool.submit(loaded, "skymule.sim.fixed").result(), flush=True)
     with open_executor("process", 1) as pool:
-        print(pool.submit(loaded, "skymule.sim.batch").result(), flush=True)
+        print(pool.submit(loaded, "skymule.sim.fixed").result(), flush=True)
 """
 
 

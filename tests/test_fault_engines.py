@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import fields, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -15,24 +15,15 @@ from skymule.faults import no_faults
 from skymule.fleet_runner import make_fleet_policy, run_fleet
 from skymule.io.runs import slots_frame
 from skymule.metrics import summarize
-from skymule.policies import make_policy
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
-from skymule.sim import compiled
-from skymule.sim.autonomous import AutonomousFlight
-from skymule.sim.batch import (
-    BatchResult,
-    batchable,
-    run_batch,
-    run_fixed_batch,
-    stack_missions,
-    summarize_fixed_batch,
-)
-from skymule.sim.context import mission_context
-from skymule.sim.contract import NO_SENSOR
-from skymule.sim.engine import FixedFlight
-from skymule.sim.fleet import build_fleet
 from skymule.flights import MissionLog
-from skymule.sim.run import run_mission
+from skymule.policies import batch_policy
+from skymule.sim import compiled
+from skymule.sim.autonomous import AutonomousEngine
+from skymule.sim.contract import NO_SENSOR
+from skymule.sim.fixed import FixedEngine
+from skymule.sim.fleet import build_fleet
+from skymule.sim.run import run_mission, run_missions, summarize_missions
 from skymule.world import Mission, build_mission
 
 PRESETS = ("paper-sim-fixed", "paper-sim-autonomous")
@@ -46,14 +37,27 @@ def _with_faults(preset: str, faults: list[dict[str, Any]], **update: Any) -> Sc
     return scenario_from_dict(data, preset, Path(base.base_dir))
 
 
-def _run(mission: Mission, policy: str | None = None) -> MissionLog:
+def _run(mission: Mission, policy: str | None = None, engine: str = "auto") -> MissionLog:
     spec = mission.scenario.policy if policy is None else PolicySpec(name=policy)
-    return run_mission(mission, make_policy(spec))
+    return run_mission(mission, batch_policy([spec]), engine)
+
+
+def _batch(missions: list[Mission], policy: str, engine: str = "auto") -> tuple[MissionLog, ...]:
+    return run_missions(missions, batch_policy([PolicySpec(name=policy)] * len(missions)),
+                        engine=engine).missions()  # fmt: skip
 
 
 def _same_log(a: MissionLog, b: MissionLog) -> None:
     for name in ("served", "downloaded_bit", "remaining_bit", "position_m", "hovering"):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
+
+
+def _same_faults(a: MissionLog, b: MissionLog) -> None:
+    for name in ("affected", "chosen"):
+        ours, theirs = getattr(a, name), getattr(b, name)
+        assert (ours is None) == (theirs is None), name
+        if ours is not None:
+            assert np.array_equal(ours, theirs), name
 
 
 @pytest.mark.parametrize("preset", PRESETS)
@@ -69,13 +73,6 @@ def test_fault_free_mission_takes_the_fault_free_path(preset: str) -> None:
     assert summarize(log, preset) == summarize(faulty_path, preset)
     assert not faulty_path.affected.any()  # type: ignore[union-attr]
     assert np.array_equal(faulty_path.chosen, log.served)  # type: ignore[arg-type]
-
-
-def test_fault_free_reference_equals_the_batched_engine_on_the_fixed_preset() -> None:
-    mission = build_mission(load_scenario("paper-sim-fixed"))
-    for name in ("greedy", "hgad"):
-        spec = PolicySpec(name=name)
-        _same_log(_run(mission, name), run_fixed_batch([mission], [spec], engine="numpy")[0])
 
 
 @pytest.mark.parametrize("preset", PRESETS)
@@ -139,8 +136,7 @@ def test_missed_polls_serve_nothing_and_the_position_error_is_only_seen() -> Non
 def test_gps_error_moves_what_the_policy_sees_not_the_uav() -> None:
     gps = {"kind": "gps-error", "params": {"bias_m": [30.0, -40.0]}}
     mission = build_mission(_with_faults("paper-sim-fixed", [gps]))
-    flight = FixedFlight(mission)
-    seen = flight.observe().position_m
+    seen = FixedEngine([mission]).observe().position_m[0]
     assert mission.track is not None
     assert np.allclose(seen - mission.track.position_m[0], [30.0, -40.0, 0.0])
 
@@ -165,18 +161,18 @@ def test_battery_limit_sends_the_uav_home_before_it_is_spent() -> None:
     battery = [{"kind": "battery", "params": {"capacity_wh": 15.0, "reserve_fraction": 0.2}}]
     mission = build_mission(_with_faults("paper-sim-autonomous", battery))
     assert mission.faults is not None and mission.faults.battery is not None
-    flight = AutonomousFlight(mission)
-    policy = make_policy(mission.scenario.policy)
-    policy.reset(mission_context(mission))
+    flight = AutonomousEngine([mission])
+    policy = batch_policy([mission.scenario.policy])
+    policy.reset(flight.contexts())
     while not flight.done:
-        flight.apply(policy.act(flight.observe()))
-    log = flight.log("hgad")
+        flight.step(policy.act(flight.observe()))
+    log = flight.record(["hgad"]).mission(0)
     assert mission.home_m is not None
     clean = _run(build_mission(load_scenario("paper-sim-autonomous")))
     # a 15 Wh pack (12 Wh usable) cannot fly the whole mission: it comes home early
     battery_ = mission.faults.battery
     one_slot = float(battery_.slot_energy_j(mission.max_speed_mps, mission.slot_s))
-    assert flight.landed and flight.used_j <= battery_.usable_j + one_slot
+    assert flight.landed[0] and flight.used_j[0] <= battery_.usable_j + one_slot
     assert np.hypot(*(log.end_position_m[:2] - mission.home_m)) < 1.0
     assert log.downloaded_bit.sum() < clean.downloaded_bit.sum()
 
@@ -190,103 +186,80 @@ MIXED_FAULTS = [
 
 
 @pytest.mark.parametrize("engine", ["numpy", "compiled"])
-def test_the_batched_engine_applies_faults_as_the_reference_engine(engine: str) -> None:
+def test_fault_missions_in_a_batch_equal_each_alone(engine: str) -> None:
+    """Three seeds' draws and a fault-free mission in one batch, three mission lengths (draws
+    padded to the longest): each column is its mission run alone, choices included."""
     if engine == "compiled" and not compiled.available():
         pytest.skip("numba not installed")
-    faulty = [
-        build_mission(_with_faults("paper-sim-fixed", MIXED_FAULTS, seed=seed))
-        for seed in (1, 2, 3)
-    ]
-    clean = build_mission(load_scenario("paper-sim-fixed"))  # mixed with a fault-free one
-    missions = [*faulty, clean]
-    for name in ("greedy", "hgad"):
-        specs = [PolicySpec(name=name)] * len(missions)
-        assert all(batchable(m, s) for m, s in zip(missions, specs, strict=True))
-        batched = run_fixed_batch(missions, specs, engine=engine)  # type: ignore[arg-type]
-        for mission, log in zip(missions, batched, strict=True):
-            reference = _run(mission, name)
-            _same_log(reference, log)
-            for field in ("affected", "chosen"):
-                ours, theirs = getattr(log, field), getattr(reference, field)
-                assert (ours is None) == (theirs is None), field
-                if ours is not None:
-                    assert np.array_equal(ours, theirs), field
-        assert not np.array_equal(batched[0].served, batched[3].served)
-
-
-def test_fault_missions_of_other_lengths_batch_like_the_reference() -> None:
-    """One batch, three mission lengths (draws padded to the longest), both engines."""
     mission_spec = load_scenario("paper-sim-fixed").to_toml_dict()["mission"]
-    missions = [
+    faulty = [
         build_mission(
             _with_faults(
                 "paper-sim-fixed",
                 MIXED_FAULTS,
                 seed=seed,
-                mission={**mission_spec, "duration_s": s},
+                mission={**mission_spec, "duration_s": duration},
             )
-        )
-        for seed, s in ((1, 500.0), (2, 120.0), (3, 37.0))
+        )  # fmt: skip
+        for seed, duration in ((1, 500.0), (2, 120.0), (3, 37.0))
     ]
-    assert sorted(m.n_slots for m in missions) == [37, 120, 500]
-    engines = ["numpy", "compiled"] if compiled.available() else ["numpy"]
+    missions = [*faulty, build_mission(load_scenario("paper-sim-fixed"))]
     for name in ("greedy", "hgad"):
-        reference = [_run(mission, name) for mission in missions]
-        for engine in engines:
-            logs = run_fixed_batch(missions, [PolicySpec(name=name)] * 3, engine=engine)  # type: ignore[arg-type]
-            for ours, theirs in zip(logs, reference, strict=True):
-                _same_log(ours, theirs)
-                assert np.array_equal(ours.chosen, theirs.chosen)  # type: ignore[arg-type]
+        batched = _batch(missions, name, engine)
+        for mission, log in zip(missions, batched, strict=True):
+            alone = _run(mission, name, "numpy")
+            _same_log(log, alone)
+            _same_faults(log, alone)
+        assert not np.array_equal(batched[0].served, batched[3].served)
 
 
-@pytest.mark.skipif(not compiled.available(), reason="numba not installed")
 @pytest.mark.parametrize("fault", MIXED_FAULTS, ids=lambda fault: fault["kind"])
-def test_compiled_batch_equals_numpy_batch_under_each_fault(fault: dict[str, Any]) -> None:
-    """Array for array (the policy's choices too) and summary for summary, Greedy and HGAD."""
+def test_compiled_loop_equals_numpy_loop_under_each_fault(fault: dict[str, Any]) -> None:
+    """Record for record (the policy's choices too) and summary for summary, Greedy and HGAD
+    (the plain-Python loop always, the compiled one where numba is installed)."""
+    from test_compiled import assert_loops_equal_numpy
+
     missions = [build_mission(_with_faults("paper-sim-fixed", [fault], seed=s)) for s in (4, 5)]
     missions.append(build_mission(load_scenario("paper-sim-fixed")))
     specs = [PolicySpec(name="greedy"), PolicySpec(name="hgad"), PolicySpec(name="hgad")]
-    batch = stack_missions(missions, specs)
-    ours, theirs = run_batch(batch, "compiled"), run_batch(batch, "numpy")
-    for field in fields(BatchResult):
-        np.testing.assert_array_equal(getattr(ours, field.name), getattr(theirs, field.name))
+    assert_loops_equal_numpy(missions, specs)
+    logs = run_missions(missions, batch_policy(specs), engine="numpy").missions()
     # the fault acts: HGAD with it downloads otherwise than HGAD without (the last mission)
-    assert not np.array_equal(ours.downloaded_bit[1], ours.downloaded_bit[2])
-    names = ["x"] * len(missions)
-    summary = summarize_fixed_batch(missions, specs, names, engine="compiled")
-    assert summary == summarize_fixed_batch(missions, specs, names, engine="numpy")
+    assert not np.array_equal(logs[1].downloaded_bit, logs[2].downloaded_bit)
+    if compiled.available():
+        names = ["x"] * len(missions)
+        summary = summarize_missions(missions, specs, names, engine="compiled")
+        assert summary == summarize_missions(missions, specs, names, engine="numpy")
 
 
-@pytest.mark.skipif(not compiled.available(), reason="numba not installed")
-def test_gps_error_and_battery_leave_a_fixed_batch_as_the_reference_does() -> None:
-    """Neither acts on a fixed path (docs/faults.md): both engines give the reference's log."""
+def test_gps_error_and_battery_do_not_act_on_a_fixed_path() -> None:
+    """Neither acts on a fixed path (docs/faults.md): Greedy and HGAD fly as without them."""
     faults = [
         {"kind": "gps-error", "params": {"std_m": 20.0}},
         {"kind": "battery", "params": {"capacity_wh": 15.0, "reserve_fraction": 0.2}},
     ]
     mission = build_mission(_with_faults("paper-sim-fixed", faults))
+    clean = build_mission(load_scenario("paper-sim-fixed"))
     assert mission.faults is not None and mission.faults.battery is not None
     for name in ("greedy", "hgad"):
-        reference = _run(mission, name)
-        for engine in ("numpy", "compiled"):
-            (log,) = run_fixed_batch([mission], [PolicySpec(name=name)], engine=engine)  # type: ignore[arg-type]
-            _same_log(log, reference)
-            assert np.array_equal(log.chosen, reference.chosen)  # type: ignore[arg-type]
+        log, plain = _run(mission, name), _run(clean, name)
+        for field in ("served", "downloaded_bit", "hovering", "position_m"):
+            assert np.array_equal(getattr(log, field), getattr(plain, field)), field
+        assert log.affected is not None and log.affected.all()  # the GPS error, every slot
 
 
-def test_compiled_refuses_an_snr_error_on_a_shannon_table_and_a_wind_is_not_batched() -> None:
+def test_compiled_refuses_an_snr_error_on_a_shannon_table_and_a_wind() -> None:
     noise = [{"kind": "snr-error", "params": {"std_db": 3.0}}]
     radio = {**load_scenario("paper-sim-fixed").to_toml_dict()["radio"], "rate_table": "shannon"}
     shannon = build_mission(_with_faults("paper-sim-fixed", noise, radio=radio))
-    spec = PolicySpec(name="hgad")
-    with pytest.raises(SkymuleError, match="SNR error on a rate table other than a step table"):
-        run_fixed_batch([shannon], [spec], engine="compiled")
-    assert run_fixed_batch([shannon], [spec])[0].chosen is not None  # auto: numpy
     wind = [{"kind": "wind", "params": {"speed_mps": 4.0}}]
     windy = build_mission(_with_faults("paper-sim-fixed", wind))
-    assert not batchable(windy, spec)
-    with pytest.raises(SkymuleError, match="wind"):
-        run_fixed_batch([windy], [spec], engine="numpy")
+    why = ("SNR error on a rate table other than a step table", "a wind fault")
+    for mission, reason in zip((shannon, windy), why, strict=True):
+        if compiled.available():
+            with pytest.raises(SkymuleError, match=reason):
+                _run(mission, "hgad", "compiled")
+        assert _run(mission, "hgad").chosen is not None  # auto: the numpy loop runs it
 
 
 def test_slots_csv_marks_the_faulty_slots() -> None:
@@ -304,10 +277,10 @@ def test_fleet_applies_faults_through_its_flights() -> None:
     fleet = build_fleet(scenario)
     assert all(m.faults is not None for m in fleet.missions)
     log = run_fleet(fleet, make_fleet_policy(fleet))
-    for uav in log.logs:
+    for uav in log.missions():
         assert not (uav.served == 1).any()
         assert uav.affected is not None and uav.affected.all()
-    assert log.logs[0].remaining_bit[-1, 1] == fleet.missions[0].buffers_bit[1]
+    assert log.mission(0).remaining_bit[-1, 1] == fleet.missions[0].buffers_bit[1]
 
 
 def test_a_sweep_draws_each_missions_faults_from_its_seed(tmp_path: Path) -> None:

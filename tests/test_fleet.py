@@ -14,7 +14,7 @@ from skymule.errors import ScenarioError, SkymuleError
 from skymule.fleet_runner import make_fleet_policy, run_fleet, simulate_fleet
 from skymule.flight.paths import Track
 from skymule.policies.base import Action, MissionContext, Observation
-from skymule.policies.fleet import Independent, partition
+from skymule.policies.fleet import partition
 from skymule.runner import simulate
 from skymule.scenario import Scenario, UavSpec, load_scenario
 from skymule.sim import contract
@@ -39,12 +39,24 @@ def test_fleet_served_conflict_tie_and_no_choice() -> None:
     assert served[:, 2].tolist() == [NO_SENSOR, 2, NO_SENSOR]
 
 
-def test_take_bits_shares_one_buffer() -> None:
-    remaining = np.array([2.0, 10.0, 4.0])
-    rate = np.array([[5.0, 1.0, 1.0], [1.0, 3.0, 1.0]])
-    bits = contract.take_bits(remaining, np.array([0, 1]), rate, 1.0)
-    assert bits.tolist() == [2.0, 3.0]  # min(R dt, Q): UAV 0 empties sensor 0
-    assert remaining.tolist() == [0.0, 7.0, 4.0]
+def test_serve_slot_shares_one_buffer_by_hand() -> None:
+    """Two fleet missions of two UAVs each (columns 0-1 and 2-3), buffers (N, G) shared per
+    mission: conflicts first, then faults, then min(R dt, Q) taken from the shared buffer."""
+    remaining = np.array([[2.0, 6.0], [10.0, 6.0], [4.0, 6.0]])  # 3 sensors x 2 missions
+    # deliver rates (N, B): column b is UAV b's rate to each sensor
+    rate = np.array([[5.0, 1.0, 2.0, 2.0], [1.0, 3.0, 1.0, 1.0], [1.0, 1.0, 9.0, 1.0]])
+    ok = np.ones((3, 4), bool)
+    ok[2, 2] = False  # UAV 0 of mission 1 finds sensor 2 blocked this slot
+    sensor = np.array([0, 1, 2, 2])
+    served, bits, lost = contract.serve_slot(
+        sensor, rate, ok, remaining, np.array([0, 0, 1, 1]), 2, np.ones(4)
+    )
+    # mission 0: no conflict; UAV 0 empties sensor 0 (min(5, 2)), UAV 1 gets min(3, 10)
+    # mission 1: both chose sensor 2; UAV 0's rate (9) wins, but a fault blocks it: nobody
+    assert served.tolist() == [0, 1, -1, -1]
+    assert bits.tolist() == [2.0, 3.0, 0.0, 0.0]
+    assert lost is not None and lost.tolist() == [False, False, False, True]
+    assert remaining.tolist() == [[0.0, 6.0], [7.0, 6.0], [4.0, 6.0]]
 
 
 class Script:
@@ -82,27 +94,27 @@ def test_two_uav_contract_by_hand() -> None:
     fleet = _two_uav_fleet([15, 23], [23, 23], [2.0, 100.0])
     a = Script("a", [0, 1, 0])
     b = Script("b", [0, 1, 1])
-    log = run_fleet(fleet, Independent([a, b]))
-    got_a, got_b = (np.round(x.downloaded_bit / MBIT, 6).tolist() for x in log.logs)
+    log = run_fleet(fleet, [a, b])
+    got_a, got_b = (np.round(x.downloaded_bit / MBIT, 6).tolist() for x in log.missions())
     # slot 0: both want S1; B's rate (5.55) beats A's (3.32): B empties its 2 Mbit, A gets 0
     # slot 1: both want S2 at 5.55: a tie, A (index 0) wins
     # slot 2: A asks for the emptied S1 (served, 0 bits, not lost), B takes S2 alone
     assert got_a == [0.0, 5.55, 0.0]
     assert got_b == [2.0, 0.0, 5.55]
-    assert log.lost.tolist() == [[True, False], [False, True], [False, False]]
-    assert log.logs[0].served.tolist() == [NO_SENSOR, 1, 0]
-    assert log.logs[1].served.tolist() == [0, NO_SENSOR, 1]
+    assert log.lost.T.tolist() == [[True, False], [False, True], [False, False]]
+    assert log.mission(0).served.tolist() == [NO_SENSOR, 1, 0]
+    assert log.mission(1).served.tolist() == [0, NO_SENSOR, 1]
     # shared buffers: both UAVs observe (and log) the same buffers
     assert a.seen[1].tolist() == b.seen[1].tolist() == [0.0, 100 * MBIT]
     final = [0.0, (100 - 2 * 5.55) * MBIT]
-    assert np.allclose(log.logs[0].remaining_bit[-1], final)
-    assert np.allclose(log.logs[1].remaining_bit[-1], final)
+    assert np.allclose(log.mission(0).remaining_bit[-1], final)
+    assert np.allclose(log.mission(1).remaining_bit[-1], final)
 
 
 def test_policy_choosing_a_missing_sensor_is_one_clear_error() -> None:
     fleet = _two_uav_fleet([15, 23], [23, 23], [2.0, 100.0])
     with pytest.raises(SkymuleError, match=r"'b \(B\)' chose sensor 7; allowed: 0..1"):
-        run_fleet(fleet, Independent([Script("a", [0, 0, 0]), Script("b", [7, 0, 0])]))
+        run_fleet(fleet, [Script("a", [0, 0, 0]), Script("b", [7, 0, 0])])
 
 
 def _one_uav(scenario: Scenario) -> Scenario:
@@ -130,7 +142,7 @@ def test_one_uav_fleet_equals_todays_engine(preset: str, policy: str) -> None:
     single = simulate(scenario, policy)
     for variant in (scenario, _one_uav(scenario)):
         result = simulate_fleet(variant, policy)
-        _same_log(single.log, result.log.logs[0])
+        _same_log(single.log, result.log.mission(0))
         assert result.summary["total_downloaded_mbit"] == single.summary["total_downloaded_mbit"]
         assert result.summary["uavs"][0]["energy_kj"] == single.summary["energy_kj"]
 
@@ -179,7 +191,7 @@ def test_fixed_fleet_runs_each_path(tmp_path: Path) -> None:
     assert (
         result.summary["total_downloaded_mbit"] * MBIT <= fleet_bound(result.fleet).upper_bound_bit
     )
-    start_b = result.log.logs[1].position_m[0]
+    start_b = result.log.mission(1).position_m[0]
     assert np.allclose(start_b, path[-1])
     result.write(tmp_path)
     summary = json.loads((tmp_path / "summary.json").read_text())

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from skymule.energy import propulsion_power_w
 from skymule.metrics import summarize
-from skymule.flights import NO_SENSOR, MissionLog
+from skymule.flights import NO_SENSOR, MissionLog, flight_record
 
 
 def random_log(rng: np.random.Generator, autonomous: bool) -> MissionLog:
@@ -41,22 +41,24 @@ def random_log(rng: np.random.Generator, autonomous: bool) -> MissionLog:
     hover_points = rng.normal(0, 20, (n_sensors, 2))
     hover_points[rng.random(n_sensors) < 0.2] = np.nan
     return MissionLog(
-        policy="p",
-        sensor_names=tuple(f"S{i}" for i in range(n_sensors)),
-        slot_s=slot_s,
-        buffers_bit=buffers,
-        position_m=positions[:-1],
-        end_position_m=positions[-1],
-        snr_db=np.zeros((n_slots, n_sensors)),
-        rate_bps=rate,
-        served=served,
-        downloaded_bit=downloaded,
-        remaining_bit=remaining,
-        hovering=hovering,
-        home_m=None if rng.random() < 0.2 else positions[-1, :2] + rng.normal(0, 3, 2),
-        hover_points_m=None if rng.random() < 0.1 else hover_points,
-        visit_radius_m=float(rng.choice([5.0, 20.0])),
-        target=rng.integers(-1, n_sensors, n_slots) if autonomous else None,
+        flight_record(
+            policy="p",
+            sensor_names=tuple(f"S{i}" for i in range(n_sensors)),
+            slot_s=slot_s,
+            buffers_bit=buffers,
+            position_m=positions[:-1],
+            end_position_m=positions[-1],
+            snr_db=np.zeros((n_slots, n_sensors)),
+            rate_bps=rate,
+            served=served,
+            downloaded_bit=downloaded,
+            remaining_bit=remaining,
+            hovering=hovering,
+            home_m=None if rng.random() < 0.2 else positions[-1, :2] + rng.normal(0, 3, 2),
+            hover_points_m=None if rng.random() < 0.1 else hover_points,
+            visit_radius_m=float(rng.choice([5.0, 20.0])),
+            target=rng.integers(-1, n_sensors, n_slots) if autonomous else None,
+        )
     )
 
 

@@ -19,14 +19,14 @@ from skymule.policies import HGAD, POLICIES, Greedy
 from skymule.policies.optimal_fixed import OptimalFixed, plan_schedule, slot_counts
 from skymule.runner import simulate
 from skymule.scenario import Scenario, load_scenario
-from skymule.sim.engine import run_fixed
+from skymule.sim.run import run_mission
 from skymule.world import Mission, build_mission, mission_from_track
 
 REL = 1e-9
 
 
 def downloaded_bit(mission: Mission, policy: object) -> float:
-    return float(run_fixed(mission, policy).downloaded_bit.sum())  # type: ignore[arg-type]
+    return float(run_mission(mission, policy).downloaded_bit.sum())  # type: ignore[arg-type]
 
 
 def slotting_loss_bit(mission: Mission) -> float:
@@ -66,7 +66,7 @@ def test_waiting_at_the_first_sensor() -> None:
     optimum = 100 * 7.77e6  # T R dt: every slot at sample 0
     assert mission_bound(mission).upper_bound_bit == pytest.approx(optimum, rel=REL)
     policy = OptimalFixed()
-    log = run_fixed(mission, policy)
+    log = run_mission(mission, policy)
     assert log.downloaded_bit.sum() == pytest.approx(optimum, rel=REL)
     assert log.hovering.all() and (log.served == 0).all()
     # HGAD stops after max_hover_s = 60 s and greedy leaves at once
@@ -104,7 +104,7 @@ def test_two_sensors_on_a_straight_path(
 def test_schedule_obeys_the_slot_contract() -> None:
     mission = build_mission(straight_path_scenario((300.0, 500.0), 150.0))
     policy = OptimalFixed()
-    log = run_fixed(mission, policy)
+    log = run_mission(mission, policy)
     schedule = policy.schedule
     assert schedule is not None and mission.track is not None
     # the engine walks exactly the planned samples: one per moving slot, none per hover slot
@@ -190,5 +190,5 @@ def test_registered_and_refuses_autonomous() -> None:
 
 def test_summary_counts_hover_time() -> None:
     mission = build_mission(straight_path_scenario((300.0, 500.0), 150.0))
-    summary = summarize(run_fixed(mission, OptimalFixed()), "straight")
+    summary = summarize(run_mission(mission, OptimalFixed()), "straight")
     assert summary["hover_time_s"] > 0

@@ -2,19 +2,17 @@
 
 from __future__ import annotations
 
-from dataclasses import fields
-
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from engine_cases import assert_logs_equal
 from skymule.experiments.layouts import random_autonomous_scenario
 from skymule.policies import planner as planner_module
 from skymule.policies.planner import Planner
 from skymule.scenario import load_scenario
 from skymule.sim import compiled, plans
-from skymule.flights import MissionLog
 from skymule.sim.run import run_mission
 from skymule.world import build_mission
 
@@ -109,10 +107,4 @@ def test_planner_runs_the_same_with_and_without_the_compiler(monkeypatch):
     fast = [run_mission(m, Planner()) for m in missions]
     monkeypatch.setattr(planner_module, "plans_kernel", lambda: plans.simulate_plans)
     for mission, log in zip(missions, fast, strict=True):
-        plain = run_mission(mission, Planner())
-        for field in fields(MissionLog):
-            want, got = getattr(plain, field.name), getattr(log, field.name)
-            if isinstance(want, np.ndarray):
-                np.testing.assert_array_equal(got, want, err_msg=field.name, strict=True)
-            else:
-                assert got == want, field.name
+        assert_logs_equal(log, run_mission(mission, Planner()))

@@ -9,7 +9,7 @@ from skymule.policies import make_policy
 from skymule.radio.fading import rician_power_db
 from skymule.radio.shadowing import shadowing_field
 from skymule.scenario import Scenario, load_scenario
-from skymule.sim.engine import run_fixed
+from skymule.sim.run import run_mission
 from skymule.world import build_mission
 
 SIGMA_DB = 6.0
@@ -99,7 +99,7 @@ def test_fading_varies_while_hovering_and_policies_share_the_draws() -> None:
     assert mission.fading_db is not None and mission.fading_db.shape == (60, 4)
     assert mission.track is not None
     logs = {
-        name: run_fixed(
+        name: run_mission(
             mission, make_policy(mission.scenario.policy.model_copy(update={"name": name}))
         )
         for name in ("greedy", "hgad")

@@ -13,7 +13,7 @@ from skymule.flight.paths import Track
 from skymule.policies import HGAD, Greedy, make_policy
 from skymule.runner import simulate
 from skymule.scenario import load_scenario
-from skymule.sim.engine import run_fixed
+from skymule.sim.run import run_mission
 from skymule.flights import NO_SENSOR
 from skymule.world import mission_from_track
 
@@ -116,7 +116,7 @@ def test_trace_ends_when_used_up_unless_hovering(tmp_path: Path) -> None:
 def test_planned_path_holds_at_end() -> None:
     track = Track(np.array([[0.0, 0, 30], [10, 0, 30]]), np.array([[23.0], [23.0]]), True)
     mission = mission_from_track(track, [1000.0], n_slots=5, policy="greedy")
-    log = run_fixed(mission, Greedy())
+    log = run_mission(mission, Greedy())
     assert log.n_slots == 5
     np.testing.assert_allclose(log.position_m[:, 0], [0, 10, 10, 10, 10])
 
@@ -166,7 +166,7 @@ def test_invariants_on_random_missions(case: tuple, policy_name: str) -> None:
         hover_threshold=threshold,
         max_hover_s=max_hover,
     )
-    log = run_fixed(mission, make_policy(mission.scenario.policy))
+    log = run_mission(mission, make_policy(mission.scenario.policy))
     start = np.vstack([mission.buffers_bit, log.remaining_bit[:-1]]) if log.n_slots else None
     assert log.n_slots <= n_slots
     assert (log.remaining_bit >= 0).all()
@@ -201,8 +201,8 @@ def test_policies_keep_no_state_between_missions() -> None:
     track = Track(np.zeros((3, 3)), np.array([[23.0, 6], [23, 6], [6, 23]]), True)
     mission = mission_from_track(track, [20.0, 20.0], n_slots=8)
     policy = HGAD()
-    first = run_fixed(mission, policy)
-    second = run_fixed(mission, policy)
+    first = run_mission(mission, policy)
+    second = run_mission(mission, policy)
     np.testing.assert_array_equal(first.served, second.served)
     np.testing.assert_array_equal(first.downloaded_bit, second.downloaded_bit)
 
@@ -232,21 +232,3 @@ def test_first_true_is_the_first_sensor_down_each_column() -> None:
         want = [int(np.flatnonzero(col)[0]) if col.any() else 0 for col in mask.T]
         assert first_true(mask).tolist() == want
     assert first_true(np.zeros((0, 3), bool)).tolist() == [0, 0, 0]
-
-
-def test_take_one_is_take_bits_for_one_uav() -> None:
-    """The reference engines' one-UAV download equals the fleet form, float for float."""
-    from skymule.sim.contract import NO_SENSOR, take_bits, take_one
-
-    rng = np.random.default_rng(4)
-    for _ in range(300):
-        remaining = rng.uniform(0.0, 3e7, 4) * (rng.random(4) < 0.8)
-        rates = rng.uniform(0.0, 2e7, 4)
-        sensor = int(rng.integers(-1, 4))
-        slot_s = float(rng.choice([0.5, 1.0, 2.0]))
-        want_left = remaining.copy()
-        want = take_bits(want_left, np.array([sensor]), rates[None], slot_s)
-        left = remaining.copy()
-        rate = float(rates[sensor]) if sensor != NO_SENSOR else 0.0
-        assert take_one(left, sensor, rate, slot_s) == float(want[0])
-        np.testing.assert_array_equal(left, want_left)

@@ -19,7 +19,9 @@ from skymule.fleet_runner import simulate_fleet
 from skymule.flight.navigation import Navigator
 from skymule.policies.base import Action, MissionContext, Observation
 from skymule.scenario import load_scenario, scenario_from_dict
-from skymule.sim.autonomous import AutonomousFlight, next_position
+from skymule.policies.batched import as_batch_policy
+from skymule.sim.autonomous import AutonomousEngine
+from skymule.sim.faulted_motion import FaultedUav
 from skymule.sim.fleet import build_fleet
 from skymule.sim.run import run_mission
 from skymule.world import Mission, build_mission
@@ -63,10 +65,10 @@ def test_a_tailwind_out_is_a_headwind_back_and_the_engine_plans_for_it() -> None
     mission = _square_mission(wind)
     # the old rule: return home when d_home(next) > (T - t - 1) x 10 m, wind applied after.
     # Out 10 slots to x = -100 m, then 10 slots back at 5 m/s: it ends 50 m short of home.
-    calm = replace(mission, faults=None)
+    calm = AutonomousEngine([replace(mission, faults=None)])
     old = (0.0, 0.0)
     for slot in range(mission.n_slots):
-        moved, _ = next_position(calm, old, (-900.0, 0.0), slot)
+        moved = calm.moves_from(np.array([old]), np.array([[-900.0, 0.0]]), np.array([slot]))[0]
         step = wind.achieved_step_m(np.subtract(moved, old), 1.0, 10.0)
         old = (old[0] + float(step[0]), old[1] + float(step[1]))
     assert old == pytest.approx((-50.0, 0.0))
@@ -114,7 +116,7 @@ def test_a_bent_way_home_is_timed_leg_by_leg() -> None:
 def test_a_wind_the_uav_cannot_fly_against_is_refused_in_one_line() -> None:
     mission = _square_mission(Wind(12.0, 0.0))
     with pytest.raises(ScenarioError, match=r"speed_mps = 12 is not below .* = 10: home"):
-        AutonomousFlight(mission)
+        AutonomousEngine([mission])
     # a fleet UAV slower than the scenario's speed meets the same check, naming the UAV
     base = load_scenario("paper-sim-autonomous")
     data = base.to_toml_dict()
@@ -169,24 +171,40 @@ def test_power_under_wind_is_taken_at_the_airspeed() -> None:
     assert battery.path_energy_j(east, np.array([4.0])) == pytest.approx(10 * P_4)
 
 
-class _Trace(AutonomousFlight):
-    """AutonomousFlight that checks the battery invariant after every slot."""
+class _Trace:
+    """One mission on the engine, checking the battery invariant after every slot."""
 
-    def apply(self, action: Action) -> None:
-        super().apply(action)
-        battery = self.mission.faults.battery if self.mission.faults is not None else None
-        assert battery is not None
-        home = self._home  # the way home from here fits what is left, the reserve untouched
-        left = battery.usable_j - self.used_j
-        assert left >= (0.0 if self.landed else self._home_price_j(battery, self.position))
-        assert not self.landed or self.position == home  # lands at home, nowhere else
+    def __init__(self, mission: Mission) -> None:
+        self.engine = AutonomousEngine([mission])
+        self.uav = FaultedUav(mission)
+        self.battery = mission.faults.battery if mission.faults is not None else None
+
+    @property
+    def landed(self) -> bool:
+        return bool(self.engine.landed[0])
+
+    @property
+    def used_j(self) -> float:
+        return float(self.engine.used_j[0])
+
+    def fly(self, policy: Any) -> Any:
+        batch = as_batch_policy(policy)
+        batch.reset(self.engine.contexts())
+        assert self.battery is not None
+        while not self.engine.done:
+            self.engine.step(batch.act(self.engine.observe()))
+            position = (float(self.engine.position[0, 0]), float(self.engine.position[0, 1]))
+            # the way home from here fits what is left, the reserve untouched
+            left = self.battery.usable_j - self.used_j
+            price = 0.0 if self.landed else self.uav.home_price_j(self.battery, position)
+            assert left >= price
+            assert not self.landed or position == self.uav.home  # lands at home only
+        return self.engine.record([policy.name]).mission(0)
 
 
 def _fly(mission: Mission, policy: Any) -> tuple[_Trace, Any]:
     flight = _Trace(mission)
-    while not flight.done:
-        flight.apply(policy.act(flight.observe()))
-    return flight, flight.log(policy.name)
+    return flight, flight.fly(policy)
 
 
 def test_a_calm_battery_mission_never_flies_on_the_reserve() -> None:
@@ -321,7 +339,7 @@ def test_a_one_uav_fleet_with_faults_is_the_single_uav_engine(policy: str) -> No
 
     single = simulate(_fleet_scenario(None), policy)
     fleet = simulate_fleet(_fleet_scenario([{"name": "only"}]), policy)
-    log = fleet.log.logs[0]
+    log = fleet.log.mission(0)
     for field in ("served", "chosen", "downloaded_bit", "remaining_bit", "position_m"):
         assert np.array_equal(getattr(single.log, field), getattr(log, field)), field
 
@@ -336,8 +354,7 @@ def test_policies_see_a_gps_reading_outside_the_fence_as_reported(policy: str) -
     data["faults"] = [{"kind": "gps-error", "params": {"bias_m": [150.0, 0.0], "std_m": 20.0}}]
     mission = build_mission(scenario_from_dict(data, "gps", Path(base.base_dir)))
     assert mission.faults is not None and mission.home_m is not None and mission.fence
-    flight = AutonomousFlight(mission)
-    seen = flight.observe().position_m
+    seen = AutonomousEngine([mission]).observe().position_m[0]
     error = mission.faults.gps_error_m[0]
     assert seen[:2] == pytest.approx(mission.home_m + error)  # not moved into the fence
     assert not mission.fence.buffer(1.0).contains(Point(*seen[:2]))

@@ -25,7 +25,7 @@ from skymule.io.runs import slots_frame, write_run
 from skymule.metrics import BITS_PER_MBIT, summarize
 from skymule.policies import batch_policy
 from skymule.policies.base import BatchPolicy, Policy
-from skymule.policies.batched import PerFleet, policy_names
+from skymule.policies.batched import PerFleet, PerMission, policy_names
 from skymule.policies.fleet import COORDINATED, Coordinated
 from skymule.scenario import Scenario
 from skymule.sim.contract import NO_SENSOR
@@ -57,6 +57,9 @@ def make_fleet_policy(fleet: Fleet, name: str | None = None) -> BatchPolicy:
 def run_fleet(fleet: Fleet, policy: BatchPolicy | Sequence[Policy]) -> Flights:
     """Run a fleet mission under ``policy`` (one batched policy over the UAV columns, or one
     per-mission policy per UAV): every UAV decides every slot, over shared buffers."""
+    if isinstance(policy, Sequence):
+        labels = [f"{p.name} ({uav})" for p, uav in zip(policy, fleet.names, strict=True)]
+        policy = PerMission(policy, labels)
     return run_missions(list(fleet.missions), policy, fleet=np.zeros(fleet.size, np.int64))
 
 

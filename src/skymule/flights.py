@@ -19,7 +19,7 @@ import numpy as np
 from skymule.sim.contract import NO_SENSOR
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Flights:
     """What happened in B missions, as padded arrays (T slots at most, N sensors).
 
@@ -46,7 +46,7 @@ class Flights:
             None when no mission has targets.
         aadm_window_s: (B,) the AADM download window the score counts downloads in [s].
         policy: (B,) policy name of each flight (empty when unknown).
-        sensor_names: (N,) sensor names.
+        sensor_names: (B,) each flight's (N,) sensor names.
         snr_db: (B, T, N) SNR observed at the start of each slot [dB] (NaN: no sample), or
             None when the run kept no per-slot detail.
         rate_bps: (B, T, N) rate to each sensor [bit/s], or None (no detail).
@@ -84,7 +84,7 @@ class Flights:
     target: np.ndarray | None = None
     aadm_window_s: np.ndarray | None = None
     policy: tuple[str, ...] = ()
-    sensor_names: tuple[str, ...] = ()
+    sensor_names: tuple[tuple[str, ...], ...] = ()
     snr_db: np.ndarray | None = None
     rate_bps: np.ndarray | None = None
     remaining_bit: np.ndarray | None = None
@@ -107,10 +107,10 @@ class Flights:
         changes: dict[str, object] = {}
         for item in fields(self):
             value = getattr(self, item.name)
-            if item.name in ("track_position_m", "track_samples", "sensor_names"):
+            if item.name in ("track_position_m", "track_samples"):
                 continue
-            if item.name == "policy":
-                changes["policy"] = tuple(value[r] for r in rows.tolist()) if value else ()
+            if item.name in ("policy", "sensor_names"):
+                changes[item.name] = tuple(value[r] for r in rows.tolist()) if value else ()
             elif isinstance(value, np.ndarray):
                 changes[item.name] = value[rows]
         return replace(self, **changes)  # type: ignore[arg-type]
@@ -150,7 +150,7 @@ def unique_rows(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return rows, group.reshape(-1)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class MissionLog:
     """Flight ``index`` of ``flights`` (T' slots run; a trace may end a mission early).
 
@@ -200,7 +200,7 @@ class MissionLog:
 
     @property
     def sensor_names(self) -> tuple[str, ...]:
-        return self.flights.sensor_names
+        return self.flights.sensor_names[self.index]
 
     @property
     def slot_s(self) -> float:
@@ -352,7 +352,7 @@ def flight_record(
         target=None if target is None else np.asarray(target, np.int64).reshape(1, n_slots),
         aadm_window_s=np.array([aadm_window_s], float),
         policy=(policy,),
-        sensor_names=tuple(sensor_names),
+        sensor_names=(tuple(sensor_names),),
         snr_db=row(snr_db, (n_sensors,)),
         rate_bps=row(rate_bps, (n_sensors,)),
         remaining_bit=row(remaining_bit, (n_sensors,)),

@@ -334,7 +334,7 @@ def summary_rows(flights: Flights, scenario_names: Sequence[str]) -> list[dict[s
     """One ``summary.json`` dictionary per flight of ``flights`` (:func:`summaries`)."""
     rows = summary_dicts(
         summaries(flights),
-        [flights.sensor_names] * flights.size,
+        list(flights.sensor_names),
         list(flights.policy) if flights.policy else [""] * flights.size,
         scenario_names,
     )

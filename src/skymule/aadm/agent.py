@@ -32,7 +32,8 @@ from skymule.aadm.score import UNREADABLE_SNR_DB
 from skymule.aadm.vehicle import Vehicle
 from skymule.errors import SkymuleError
 from skymule.policies.base import BatchObservation, BatchPolicy, MissionContext, Policy
-from skymule.policies.batched import as_batch_policy, check_serve
+from skymule.policies.batched import as_batch_policy
+from skymule.sim.columns import check_actions
 from skymule.sim.context import mission_context
 from skymule.world import BITS_PER_MBIT, Mission
 
@@ -71,7 +72,7 @@ class AadmAgent:
         self.context = policy_context(mission)
         self._engine = None
         if self.autonomous:  # the engine's own motion rule, for one UAV
-            from skymule.sim.autonomous_engine import AutonomousEngine
+            from skymule.sim.autonomous import AutonomousEngine
 
             self._engine = AutonomousEngine([mission], detail=False)
         self.volumes_bit: np.ndarray | None = None
@@ -137,7 +138,7 @@ class AadmAgent:
                 remaining_bit=_frozen(remaining[None]),
             )
         )
-        serve = check_serve(int(np.asarray(action.serve)[0]), self.n_towers, self.policy.name)
+        serve = int(check_actions(action, 1, self.n_towers, self.policy.name)[0])
         hover = action.hover is not None and bool(np.asarray(action.hover)[0])
         goto_m = None if action.goto_m is None else np.asarray(action.goto_m, float)[0]
         goto = self._goal(goto_m, hover, position)

@@ -35,7 +35,7 @@ from pettingzoo import ParallelEnv
 from skymule.errors import SkymuleError
 from skymule.policies.base import BatchAction, Observation
 from skymule.scenario import Scenario, load_scenario
-from skymule.sim.autonomous_engine import AutonomousEngine
+from skymule.sim.autonomous import AutonomousEngine
 from skymule.sim.fleet import Fleet, build_fleet
 
 #: SNR sent for "no link" (-inf) [dB]: below every rate table's lowest entry.

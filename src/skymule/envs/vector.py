@@ -1,7 +1,7 @@
 """Many autonomous missions stepped at once: a Gymnasium ``VectorEnv`` that is the engine.
 
 Each of the B sub-environments is one mission, a column of the autonomous engine
-(:class:`~skymule.sim.autonomous_engine.AutonomousEngine`); a step is one slot of every
+(:class:`~skymule.sim.autonomous.AutonomousEngine`); a step is one slot of every
 mission: the served sensor delivers min(R dt, Q) bits, the UAV flies toward the heading's
 point inside the fence, home in time, under the mission's faults, all by the engine's rules.
 Nothing here restates them: :class:`EnvMissions` only turns actions into the engine's
@@ -69,8 +69,8 @@ class EnvMissions:
     def __init__(
         self, missions: Sequence[Mission], reward: str, engine: str = "auto", detail: bool = False
     ) -> None:
-        from skymule.sim.autonomous_engine import AutonomousEngine
-        from skymule.sim.fixed_engine import FixedEngine
+        from skymule.sim.autonomous import AutonomousEngine
+        from skymule.sim.fixed import FixedEngine
 
         if reward not in REWARDS:
             raise SkymuleError(f"reward = {reward!r} is not allowed; allowed: {', '.join(REWARDS)}")
@@ -140,7 +140,7 @@ class EnvMissions:
 
     def restart(self, which: np.ndarray) -> None:
         """The missions ``which`` (mask) start again (autonomous)."""
-        from skymule.sim.autonomous_engine import AutonomousEngine
+        from skymule.sim.autonomous import AutonomousEngine
 
         assert isinstance(self.engine, AutonomousEngine)
         self.engine.restart(which)

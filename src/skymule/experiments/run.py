@@ -51,7 +51,7 @@ WORKER_MODULES = (
     "skymule.scenario",
     "skymule.world",
     "skymule.sim.run",
-    "skymule.sim.fixed_engine",
+    "skymule.sim.fixed",
     "skymule.policies",
     "pyarrow.parquet",
 )

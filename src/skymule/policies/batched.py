@@ -72,13 +72,15 @@ class PerMission:
 
     Args:
         policies: one fresh per-mission policy per column.
+        labels: how errors name each column's policy (default: its name).
     """
 
     batched = True
 
-    def __init__(self, policies: Sequence[Policy]) -> None:
+    def __init__(self, policies: Sequence[Policy], labels: Sequence[str] | None = None) -> None:
         self.policies = tuple(policies)
         self.name = joined_name([p.name for p in self.policies])
+        self._labels = tuple(p.name for p in self.policies) if labels is None else tuple(labels)
         self._n_sensors = 0
 
     def names(self) -> tuple[str, ...]:
@@ -107,11 +109,11 @@ class PerMission:
             action: Action = policy.act(
                 Observation.of_rows(int(slot[b]), position[b], snr[b], rate[b], remaining[b])
             )
-            serve[b] = check_serve(action.serve, self._n_sensors, policy.name)
+            serve[b] = check_serve(action.serve, self._n_sensors, self._labels[b])
             if action.hover:
                 hover[b] = True
             if action.goto_m is not None:
-                goto[b] = check_goto(action.goto_m, policy.name)
+                goto[b] = check_goto(action.goto_m, self._labels[b])
             if action.target is not None:
                 target[b] = action.target
         return BatchAction(serve=serve, hover=hover, goto_m=goto, target=target)
@@ -167,8 +169,9 @@ class Columns:
         """The parts' compiled rules merged column by column, or None if some part has none."""
         from skymule.policies.builtin import SlotRule
 
-        rules = [getattr(policy, "slot_rule", lambda: None)() for policy, _ in self.parts]
-        if any(rule is None for rule in rules):
+        found = [getattr(policy, "slot_rule", lambda: None)() for policy, _ in self.parts]
+        rules: list[SlotRule] = [rule for rule in found if rule is not None]
+        if len(rules) < len(found):
             return None
         n_sensors = max(rule.threshold_bps.shape[1] for rule in rules)
         merged = SlotRule(

@@ -1,7 +1,8 @@
 """Fleet policies: one decision per UAV per slot, from every UAV's observation.
 
-* :class:`Independent` -- the baseline: each UAV runs its own single-UAV policy (Greedy, HGAD,
-  the planner, ...) as if alone; the slot contract settles the sensors they both choose.
+* independent UAVs -- the baseline: each UAV runs its own single-UAV policy (Greedy, HGAD,
+  the planner, ...) as if alone, one column of the engine each; the slot contract settles the
+  sensors they both choose (:func:`skymule.fleet_runner.make_fleet_policy`);
 * :class:`Coordinated` -- ``coordinated``: assigns every sensor to one UAV before take-off (the
   partition that minimises the longest UAV's tour time, travel plus the hover time to empty
   its sensors, :func:`partition`), then each UAV runs the tour planner
@@ -20,7 +21,7 @@ from typing import Protocol
 import numpy as np
 
 from skymule.errors import SkymuleError
-from skymule.policies.base import Action, MissionContext, Observation, Policy
+from skymule.policies.base import Action, MissionContext, Observation
 from skymule.policies.planner import Planner
 from skymule.policies.touring import held_karp, leg_slots
 
@@ -45,25 +46,6 @@ class FleetPolicy(Protocol):
     def names(self) -> tuple[str, ...]:
         """(K,) the policy name logged for each UAV."""
         ...
-
-
-class Independent:
-    """Each UAV runs its own single-UAV policy; conflicts are left to the slot contract."""
-
-    def __init__(self, policies: Sequence[Policy]) -> None:
-        self.policies = tuple(policies)
-        distinct = sorted({p.name for p in self.policies})
-        self.name = distinct[0] if len(distinct) == 1 else "+".join(distinct)
-
-    def names(self) -> tuple[str, ...]:
-        return tuple(p.name for p in self.policies)
-
-    def reset(self, contexts: Sequence[MissionContext]) -> None:
-        for policy, context in zip(self.policies, contexts, strict=True):
-            policy.reset(context)
-
-    def act(self, observations: Sequence[Observation]) -> tuple[Action, ...]:
-        return tuple(p.act(o) for p, o in zip(self.policies, observations, strict=True))
 
 
 def tour_cost_slots(context: MissionContext, sensors: np.ndarray) -> np.ndarray:

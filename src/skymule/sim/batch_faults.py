@@ -12,12 +12,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from skymule.faults.draws import FaultDraws
 from skymule.radio.rates import RateTable, StepTable, rate_bps
+from skymule.sim.kernels import KernelFaults
 
 if TYPE_CHECKING:
     from skymule.world import Mission
@@ -108,31 +109,6 @@ def apply_faults(
     ok = np.ones(rate.shape, bool)
     ok[:, cols] = ok_g
     return seen_rate, seen_snr, deliver, ok
-
-
-class KernelFaults(NamedTuple):
-    """The fault draws of a batch as the compiled loop reads them, mission by mission.
-
-    Attributes:
-        fault_of: (B,) each mission's row g in the arrays below, -1 without faults.
-        deliverable: (G, T_max, N) ``BatchFaults.deliverable``.
-        snr_error_db: (G, T_max, N) ``BatchFaults.snr_error_db``.
-        uses_error: (G,) True where some error is non-zero: the seen rate is then looked up
-            in the mission's rate table; elsewhere it is the true rate (or 0 where blocked).
-        model: (G,) each mission's rate model (a row of the tables below).
-        thresholds_db: (M, L) the step tables' thresholds, padded with +inf.
-        efficiency: (M, L + 1) efficiency of 0, 1, ... L thresholds reached [bit/s/Hz].
-        bandwidth_hz: (M,) bandwidth of each model [Hz].
-    """
-
-    fault_of: np.ndarray
-    deliverable: np.ndarray
-    snr_error_db: np.ndarray
-    uses_error: np.ndarray
-    model: np.ndarray
-    thresholds_db: np.ndarray
-    efficiency: np.ndarray
-    bandwidth_hz: np.ndarray
 
 
 def kernel_faults(faults: BatchFaults, n_missions: int) -> KernelFaults | None:

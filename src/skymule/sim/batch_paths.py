@@ -70,6 +70,24 @@ def supports(navigator: Navigator) -> bool:
     return len(navigator.vertices) <= MAX_ROUTE
 
 
+KERNELS = (
+    pk.rank_vertices,
+    pk.pick_routes,
+    pk.advance_rows,
+    pk.path_lengths,
+    vk.classify_segments,
+    vk.first_seen,
+)
+"""The compiled entry points of :mod:`~skymule.sim.path_kernels` and
+:mod:`~skymule.sim.visibility_kernels` (plain Python functions numba compiles)."""
+
+
+def _plain_kernels() -> dict[str, Callable[..., Any]]:
+    """The kernels as plain Python (``CompiledPaths(..., plain=True)``: the tests run the
+    compiled twin's code without numba)."""
+    return {function.__name__: function for function in KERNELS}
+
+
 @cache
 def _kernels() -> dict[str, Callable[..., Any]]:
     """The kernels of :mod:`~skymule.sim.path_kernels` compiled, once per process.
@@ -104,15 +122,7 @@ def _kernels() -> dict[str, Callable[..., Any]]:
     source = inspect.getsource(pk) + inspect.getsource(vk)
     digest = hashlib.sha256(source.encode()).hexdigest()[:12]
     out: dict[str, Callable[..., Any]] = {}
-    kernels = (
-        pk.rank_vertices,
-        pk.pick_routes,
-        pk.advance_rows,
-        pk.path_lengths,
-        vk.classify_segments,
-        vk.first_seen,
-    )
-    for function in kernels:
+    for function in KERNELS:
         name = f"{function.__name__}_{digest}"
         copy = types.FunctionType(function.__code__, function.__globals__, name)
         copy.__qualname__ = name
@@ -123,8 +133,11 @@ def _kernels() -> dict[str, Callable[..., Any]]:
 def path_queries(navigator: Navigator, engine: str, context: str = "") -> Paths:
     """The navigator's batched path queries for an engine choice: :class:`CompiledPaths` (the
     same floats) for ``"compiled"``, or ``"auto"`` when numba is installed and the fence is
-    small enough (:func:`supports`); the navigator itself for ``"numpy"``. A bad or impossible
-    choice is a one-line SkymuleError (prefixed with ``context``)."""
+    small enough (:func:`supports`); the navigator itself for ``"numpy"``; ``"plain"`` (for
+    tests): the compiled twin's kernels run as plain Python. A bad or impossible choice is a
+    one-line SkymuleError (prefixed with ``context``)."""
+    if engine == "plain":
+        return CompiledPaths(navigator, plain=True)
     if engine not in ("auto", "numpy", "compiled"):
         raise SkymuleError(f"{context}engine = {engine!r}; allowed: auto, numpy, compiled")
     usable = compiled.available() and supports(navigator)
@@ -138,9 +151,10 @@ def path_queries(navigator: Navigator, engine: str, context: str = "") -> Paths:
 
 class CompiledPaths:
     """:meth:`Navigator.steps` and :meth:`Navigator.travel_distances` of one navigator, with
-    the arithmetic in compiled loops (needs numba; :func:`supports` the navigator)."""
+    the arithmetic in compiled loops (needs numba; :func:`supports` the navigator).
+    ``plain=True`` runs the same loops as plain Python (slow; the tests' check without numba)."""
 
-    def __init__(self, navigator: Navigator) -> None:
+    def __init__(self, navigator: Navigator, plain: bool = False) -> None:
         self._nav = navigator
         self._vertices = navigator.vertices
         # the navigator's graph tables (read only): all-pairs distances and vertex routes
@@ -149,7 +163,7 @@ class CompiledPaths:
         self._nodes, self._count = np.ascontiguousarray(nodes), np.ascontiguousarray(count)
         self._edges = vk.fence_edges(navigator.fence)
         self._certify = len(self._edges) <= vk.MAX_EDGES
-        self._k = _kernels()
+        self._k = _plain_kernels() if plain else _kernels()
 
     def segments_visible(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """(P,) :meth:`Navigator.segments_visible`: segments clear of the fence's edges

@@ -1,7 +1,7 @@
 """The fixed-trajectory engine's compiled fast path (numba, the optional ``fast`` extra).
 
 For a policy with a compiled twin (Greedy and HGAD, ``slot_rule``), the fixed-trajectory
-engine (:mod:`skymule.sim.fixed_engine`) runs :func:`slot_loop` compiled instead of its numpy
+engine (:mod:`skymule.sim.fixed`) runs :func:`slot_loop` compiled instead of its numpy
 slot loop, and gives the same record, value for value. The numpy loop steps all B missions
 one slot at a time and pays numpy's per-call overhead in every slot; here one mission runs
 all its slots in registers before the next (``docs/speed-notes.md``).
@@ -12,7 +12,7 @@ numba so the same Python functions run compiled. Fault draws (outages, burst los
 errors, missed polls) are applied per mission and slot as the numpy loop applies them
 (:func:`skymule.sim.kernels.fault_view`). Missions with per-slot fading, and SNR errors on a
 rate table other than a step table (a rate computed per slot), stay on the numpy loop
-(:func:`skymule.sim.fixed_engine.compiled_reason`).
+(:func:`skymule.sim.fixed.compiled_reason`).
 
 With summaries asked for (:mod:`skymule.sim.compiled_summaries`) the loop writes no per-slot
 log: it reduces each mission's slots as the mission ends
@@ -30,15 +30,13 @@ import inspect
 import types
 from collections.abc import Callable
 from functools import cache
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from skymule.sim import contract, kernels, summary_kernels
 from skymule.sim.contract import NO_SENSOR
-
-if TYPE_CHECKING:
-    from skymule.sim.batch_faults import KernelFaults
+from skymule.sim.kernels import KernelFaults
 
 
 def available() -> bool:
@@ -114,7 +112,7 @@ def slot_loop(
     ``faults=None`` (no mission has faults) compiles a loop without any of that: numba prunes
     the ``is not None`` branches, and the fault-free loop keeps its speed.
 
-    Arrays are those of :class:`~skymule.sim.fixed_engine.TrackTables` (rate and snr seen per
+    Arrays are those of :class:`~skymule.sim.fixed.TrackTables` (rate and snr seen per
     track sample, per-mission parameters with thresholds and peaks as (B, N));
     ``remaining_log`` is (B, T, N)
     when ``keep_remaining``, else unused; without ``keep_logs`` the four (B, T) logs are unused

@@ -18,10 +18,10 @@ import numpy as np
 from skymule import metrics
 from skymule.aadm.score import AADM_WINDOW_S, COMPLETE_RTOL, aadm_from_progress
 from skymule.sim import compiled, summary_kernels
-from skymule.sim.fixed_engine import mission_geometry
+from skymule.sim.columns import mission_geometry
 
 if TYPE_CHECKING:
-    from skymule.sim.fixed_engine import FixedEngine
+    from skymule.sim.fixed import FixedEngine
 
 
 def summary_tables(
@@ -155,11 +155,11 @@ def summaries_from_slot_totals(
     )
 
 
-def compiled_summaries(engine: FixedEngine, rule: Any) -> metrics.Summaries:
+def compiled_summaries(engine: FixedEngine, rule: Any, loop: Any = None) -> metrics.Summaries:
     """``metrics.summaries`` of a fresh fixed ``engine``'s flights under a policy's compiled
-    rule (``fixed_engine.compiled_reason`` None), from the compiled loop's per-mission
-    reductions: no per-slot log is written."""
-    from skymule.sim.fixed_engine import compiled_faults, compiled_inputs
+    rule (``fixed.compiled_reason`` None), from the compiled loop's per-mission
+    reductions: no per-slot log is written. ``loop`` as in ``fixed.run_compiled``."""
+    from skymule.sim.fixed import compiled_faults, compiled_inputs
 
     missions = engine.missions
     tables_in = engine.tables
@@ -174,7 +174,7 @@ def compiled_summaries(engine: FixedEngine, rule: Any) -> metrics.Summaries:
     n_run = np.zeros(n_missions, np.int64)
     end_sample = np.zeros(n_missions, np.int64)
     left = np.zeros((n_missions, n_sensors))
-    compiled.compiled_loop()(
+    (compiled.compiled_loop() if loop is None else loop)(
         *compiled_inputs(engine, rule), False, False, *compiled.no_logs(),
         n_run, end_sample, left, True, tables, totals, compiled_faults(engine), None,
     )  # fmt: skip

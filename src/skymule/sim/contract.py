@@ -1,11 +1,11 @@
 """The slot contract, executable: the one implementation every engine and policy calls.
 
-The rules are stated in ``docs/contract.md``; this module is their only code. Functions are
+The rules are stated in ``docs/contract.md``; this module is their numpy code. Functions are
 vectorised over missions with sensor-major arrays, shape (N, B) for N sensors and B missions
 (reductions over the short sensor axis then run as N elementwise steps over missions); one
-mission is a batch of one (B = 1). The reference engine, the autonomous engine, the batched
-engine, the Greedy and HGAD policies and the planner's look-ahead all call these functions, so
-a rule cannot drift between them.
+mission is a batch of one (B = 1). The engines (``sim/fixed.py``, ``sim/autonomous.py``), the
+built-in policies and the planner's look-ahead call these functions; the compiled fast path
+calls their one-mission twins in :mod:`skymule.sim.kernels`, tested equal to them.
 
 * :func:`served_bits` -- what a served sensor delivers in a slot, y = min(R dt, Q);
 * :func:`greedy_choice` -- argmax SNR among sensors with data (ties: lowest index);
@@ -14,8 +14,8 @@ a rule cannot drift between them.
   machine on fixed trajectories (cooldown, trigger, budget);
 * :func:`fleet_served` -- several UAVs: each sensor serves at most one UAV per slot (the
   higher rate wins a conflict, ties to the lower UAV index);
-* :func:`take_bits` -- the one place a slot's downloads leave the buffers (several UAVs;
-  :func:`take_one` is its one-UAV row, without arrays, for the reference engines).
+* :func:`serve_slot` -- the one place a slot's downloads leave the buffers: the window, fleet
+  conflicts and faults settled, then y = min(R dt, Q) for every flight of a batch.
 """
 
 from __future__ import annotations
@@ -62,27 +62,6 @@ def fleet_served(choice: np.ndarray, chosen_rate_bps: np.ndarray) -> np.ndarray:
     beats = (rate_j > rate_k) | ((rate_j == rate_k) & (uav.transpose(1, 0, 2) < uav))
     lost = (same & beats).any(axis=1)
     return np.where(lost, NO_SENSOR, choice)
-
-
-def take_bits(
-    remaining_bit: np.ndarray, served: np.ndarray, rate_bps: np.ndarray, slot_s: float
-) -> np.ndarray:
-    """Download one slot from shared buffers; (K,) bits each UAV got (buffers updated in place).
-
-    Args:
-        remaining_bit: (N,) buffers at the start of the slot [bit]; updated in place.
-        served: (K,) sensor each UAV serves (:func:`fleet_served`: no sensor twice), or
-            NO_SENSOR.
-        rate_bps: (K, N) each UAV's rate to each sensor this slot [bit/s].
-        slot_s: slot length dt [s].
-    """
-    serving = served >= 0
-    bits = np.zeros(served.shape[0])
-    sensors = served[serving]
-    rows = rate_bps[serving, sensors] if sensors.size else np.zeros(0)
-    bits[serving] = served_bits(rows, remaining_bit[sensors], slot_s)
-    remaining_bit[sensors] -= bits[serving]
-    return bits
 
 
 def serve_slot(
@@ -141,24 +120,6 @@ def serve_slot(
     serving = np.flatnonzero(sensor >= 0)
     flat[cell[serving]] = left[serving] - bits[serving]
     return sensor, bits, lost
-
-
-def take_one(remaining_bit: np.ndarray, sensor: int, rate_bps: float, slot_s: float) -> float:
-    """:func:`take_bits` for one UAV: the bits ``sensor`` delivers this slot (0 for
-    NO_SENSOR), taken from ``remaining_bit`` (N,) in place; the same floats.
-
-    Args:
-        remaining_bit: (N,) buffers at the start of the slot [bit]; updated in place.
-        sensor: the sensor served, or NO_SENSOR.
-        rate_bps: the UAV's rate to ``sensor`` this slot [bit/s].
-        slot_s: slot length dt [s].
-    """
-    if sensor == NO_SENSOR:
-        return 0.0
-    remaining = remaining_bit[sensor]
-    bits = float(served_bits(rate_bps, remaining, slot_s))
-    remaining_bit[sensor] = remaining - bits
-    return bits
 
 
 def servable(rate_bps: np.ndarray, remaining_bit: np.ndarray) -> np.ndarray:

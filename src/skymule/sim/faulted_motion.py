@@ -1,7 +1,7 @@
 """Autonomous motion under a wind or a battery limit, for one mission's UAV (``docs/faults.md``,
 steps 5-6).
 
-The autonomous engine (:mod:`skymule.sim.autonomous_engine`) moves calm missions all at once;
+The autonomous engine (:mod:`skymule.sim.autonomous`) moves calm missions all at once;
 a UAV under a wind flies each leg of its in-fence path at the ground speed the wind allows and
 keeps its return home in time instead of distance, and a battery allows a move only if the way
 home still fits the usable energy. Those rules are per mission and path by path, so they are

@@ -17,6 +17,8 @@ repeated: the compiled core compiles :func:`skymule.sim.contract.served_bits` it
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from skymule.sim.contract import HOVER_EPS_S, NO_SENSOR
@@ -181,3 +183,28 @@ def fault_view(
             seen_snr_db[i] = -np.inf
             seen_rate_bps[i] = 0.0
             deliver_bps[i] = 0.0
+
+
+class KernelFaults(NamedTuple):
+    """The fault draws of a batch as the compiled loop reads them, mission by mission.
+
+    Attributes:
+        fault_of: (B,) each mission's row g in the arrays below, -1 without faults.
+        deliverable: (G, T_max, N) ``BatchFaults.deliverable``.
+        snr_error_db: (G, T_max, N) ``BatchFaults.snr_error_db``.
+        uses_error: (G,) True where some error is non-zero: the seen rate is then looked up
+            in the mission's rate table; elsewhere it is the true rate (or 0 where blocked).
+        model: (G,) each mission's rate model (a row of the tables below).
+        thresholds_db: (M, L) the step tables' thresholds, padded with +inf.
+        efficiency: (M, L + 1) efficiency of 0, 1, ... L thresholds reached [bit/s/Hz].
+        bandwidth_hz: (M,) bandwidth of each model [Hz].
+    """
+
+    fault_of: np.ndarray
+    deliverable: np.ndarray
+    snr_error_db: np.ndarray
+    uses_error: np.ndarray
+    model: np.ndarray
+    thresholds_db: np.ndarray
+    efficiency: np.ndarray
+    bandwidth_hz: np.ndarray

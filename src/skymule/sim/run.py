@@ -49,8 +49,8 @@ def run_missions(
     ``fleet``: (B,) the fleet mission of each column (its UAVs share buffers); ``detail``:
     keep per-slot SNR, rates and buffers (run folders); ``engine``: :data:`ENGINES`.
     """
-    from skymule.sim.autonomous_engine import run_autonomous
-    from skymule.sim.fixed_engine import run_fixed
+    from skymule.sim.autonomous import run_autonomous
+    from skymule.sim.fixed import run_fixed
 
     check_engine(engine)
     batch = as_batch_policy(policy)
@@ -100,7 +100,7 @@ def summarize_missions(
     from skymule.policies import batch_policy
     from skymule.sim import compiled
     from skymule.sim.compiled_summaries import compiled_summaries, flights_summaries
-    from skymule.sim.fixed_engine import FixedEngine, compiled_reason
+    from skymule.sim.fixed import FixedEngine, compiled_reason
 
     check_engine(engine)
     rows: list[dict[str, Any] | None] = [None] * len(missions)
@@ -130,7 +130,7 @@ def summarize_missions(
                 flights,
                 summary_dicts(
                     flights_summaries(flights),
-                    [flights.sensor_names] * flights.size,
+                    list(flights.sensor_names),
                     list(flights.policy),
                     names,
                 ),

@@ -41,16 +41,16 @@ from skymule.sim import contract
 from skymule.sim.batch_faults import BatchFaults, apply_faults, stack_faults
 from skymule.sim.batch_paths import Paths, Sight, path_queries
 from skymule.sim.batch_signal import BatchSignal
-from skymule.sim.contract import NO_SENSOR
-from skymule.sim.faulted_motion import FEASIBILITY_SLACK_M, FaultedUav, check_wind
-from skymule.sim.fixed_engine import (
-    _affected,
+from skymule.sim.columns import (
+    affected_slots,
     check_actions,
     fleet_columns,
     flights_record,
     frozen,
     window_slots,
 )
+from skymule.sim.contract import NO_SENSOR
+from skymule.sim.faulted_motion import FEASIBILITY_SLACK_M, FaultedUav, check_wind
 from skymule.world import Mission
 
 #: Margin [m] by which a bound on the distance home must clear the budget before the exact
@@ -583,7 +583,7 @@ class AutonomousEngine:
             rate_bps=per_sensor(self._rate_log),
             remaining_bit=per_sensor(self._remaining_log),
             chosen=per_slot(self._chosen),
-            affected=_affected([m.faults for m in self.missions], width),
+            affected=affected_slots([m.faults for m in self.missions], width),
             battery_used_j=per_slot(self._used_log),
             fleet=None if self.uavs == 1 else self.group.copy(),
             lost=per_slot(self._lost),

@@ -30,10 +30,19 @@ from skymule.errors import SkymuleError
 from skymule.flight.paths import Track
 from skymule.flights import Flights
 from skymule.policies.base import BatchAction, BatchObservation, BatchPolicy, MissionContext
-from skymule.radio.rates import RateTable, rate_bps
+from skymule.radio.rates import rate_bps
 from skymule.sim import contract
 from skymule.sim.batch_fading import apply_fading, stack_fading
 from skymule.sim.batch_faults import BatchFaults, apply_faults, stack_faults
+from skymule.sim.columns import (
+    affected_slots,
+    check_actions,
+    check_flags,
+    fleet_columns,
+    flights_record,
+    frozen,
+    window_slots,
+)
 from skymule.sim.contract import NO_SENSOR
 from skymule.world import Mission
 
@@ -105,71 +114,6 @@ def stack_tracks(missions: Sequence[Mission]) -> TrackTables:
         n_samples=np.array([t.n_samples for t in tracks], np.int64),
         hold_at_end=np.array([t.hold_at_end for t in tracks], bool),
     )
-
-
-def frozen(values: np.ndarray) -> np.ndarray:
-    """A read-only view of ``values``, which is frozen too (so the view cannot be made
-    writeable again): what the engine hands a policy and never writes afterwards."""
-    values.flags.writeable = False
-    return values.view()
-
-
-def window_slots(missions: Sequence[Mission]) -> np.ndarray:
-    """(B,) slot from which nothing is served (the download window closed); n_slots where
-    there is no window."""
-    return np.array(
-        [m.n_slots if m.window_slots is None else m.window_slots for m in missions], np.int64
-    )
-
-
-def check_actions(action: BatchAction, n_flights: int, n_sensors: int, who: str) -> np.ndarray:
-    """(B,) the served sensor of a batched action (NO_SENSOR for none); SkymuleError naming
-    the first bad value and what is allowed."""
-    serve = action.serve
-    if not isinstance(serve, np.ndarray):
-        serve = np.asarray(serve)
-    if serve.shape != (n_flights,) or serve.dtype.kind not in "iu":
-        raise SkymuleError(
-            f"policy {who!r} returned serve of shape {serve.shape} and dtype {serve.dtype}; "
-            f"allowed: integers of shape ({n_flights},), -1 for none"
-        )
-    if serve.min() < NO_SENSOR or serve.max() >= n_sensors:
-        bad = (serve < NO_SENSOR) | (serve >= n_sensors)
-        raise SkymuleError(
-            f"policy {who!r} chose sensor {int(serve[np.argmax(bad)])}; allowed: "
-            f"0..{n_sensors - 1} or -1 (none)"
-        )
-    return serve.astype(np.int64, copy=False)
-
-
-def check_flags(values: np.ndarray | None, n_flights: int, field: str, who: str) -> np.ndarray:
-    """(B,) bool flags of a batched action (all False for None)."""
-    if values is None:
-        return np.zeros(n_flights, bool)
-    flags = values if isinstance(values, np.ndarray) else np.asarray(values)
-    if flags.shape != (n_flights,) or flags.dtype != bool:
-        raise SkymuleError(
-            f"policy {who!r} returned {field} of shape {flags.shape} and dtype {flags.dtype}; "
-            f"allowed: booleans of shape ({n_flights},)"
-        )
-    return flags
-
-
-def fleet_columns(fleet: np.ndarray | None, n_flights: int) -> tuple[np.ndarray, int]:
-    """(B,) the buffer set (fleet mission) of each column and the UAVs per fleet mission K.
-
-    Columns of one fleet mission are contiguous and every fleet mission has K UAVs."""
-    if fleet is None:
-        return np.arange(n_flights), 1
-    fleet = np.asarray(fleet, np.int64)
-    size = int(np.bincount(fleet).max())
-    if (
-        fleet.shape != (n_flights,)
-        or n_flights % size
-        or np.any(fleet != np.repeat(np.arange(n_flights // size), size))
-    ):
-        raise ValueError("fleet columns must be contiguous, K UAVs per fleet mission")
-    return fleet, size
 
 
 class FixedEngine:
@@ -436,7 +380,7 @@ class FixedEngine:
             rate_bps=rate,
             remaining_bit=remaining,
             chosen=None if self._chosen is None else np.ascontiguousarray(self._chosen[:width].T),
-            affected=_affected(faulty, width),
+            affected=affected_slots(faulty, width),
             fleet=None if self.uavs == 1 else self.group.copy(),
             lost=None if self._lost is None else np.ascontiguousarray(self._lost[:width].T),
         )
@@ -478,71 +422,6 @@ class FixedEngine:
             snr[b] = faded
             rate[b] = mission.rate_bps(faded)
         return snr, rate
-
-
-def _affected(faults: Sequence[Any], width: int) -> np.ndarray | None:
-    """(B, T) slots a per-slot fault touched, or None when no flight has faults."""
-    if all(f is None for f in faults):
-        return None
-    out = np.zeros((len(faults), width), bool)
-    for b, draws in enumerate(faults):
-        if draws is not None:
-            touched = draws.affected[:width]
-            out[b, : touched.shape[0]] = touched
-    return out
-
-
-def flights_record(missions: Sequence[Mission], policies: Sequence[str], **arrays: Any) -> Flights:
-    """A :class:`Flights` record of ``missions`` (one per column) from the engine's arrays,
-    with each mission's home, hover points, visit radius and AADM window."""
-    n_sensors = missions[0].n_sensors
-    home, hover, radius, window = mission_geometry(missions, n_sensors)
-    faulty = np.array([m.faults is not None for m in missions], bool)
-    return Flights(
-        faulty=faulty if faulty.any() else None,
-        slot_s=np.array([m.slot_s for m in missions], float),
-        buffers_bit=np.array([m.buffers_bit for m in missions], float).reshape(-1, n_sensors),
-        home_m=home,
-        hover_points_m=hover,
-        visit_radius_m=radius,
-        aadm_window_s=window,
-        policy=tuple(policies),
-        sensor_names=missions[0].sensor_names,
-        **arrays,
-    )
-
-
-def mission_geometry(
-    missions: Sequence[Mission], n_sensors: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """What the summaries need of each mission besides its slots: home (B, 2) [m] (NaN: none),
-    hover points (B, N, 2) [m] (NaN: unknown), visit radius (B,) [m], AADM window (B,) [s]."""
-    home = _rows_by_object([m.home_m for m in missions], (2,))
-    hover = _rows_by_object([m.hover_points_m for m in missions], (n_sensors, 2))
-    radius = np.array([m.visit_radius_m for m in missions], float)
-    window = np.array([m.score_window_s for m in missions], float)
-    return home, hover, radius, window
-
-
-def _rows_by_object(values: Sequence[np.ndarray | None], shape: tuple[int, ...]) -> np.ndarray:
-    """(B, *shape) array of ``values`` (None: NaN), each distinct array object copied once:
-    missions built from one geometry share these arrays."""
-    first: dict[int, int] = {}
-    which = np.array([first.setdefault(id(v), len(first)) for v in values], np.int64)
-    distinct = np.full((len(first), *shape), np.nan)
-    for row in np.unique(which, return_index=True)[1]:
-        value = values[row]
-        if value is not None:
-            distinct[which[row]] = value
-    return distinct[which]
-
-
-def rate_tables_of(missions: Sequence[Mission]) -> list[tuple[RateTable, float]]:
-    """The distinct (rate table, bandwidth) pairs of ``missions``."""
-    seen: dict[tuple[int, float], tuple[RateTable, float]] = {}
-    for m in missions:
-        seen.setdefault((id(m.rate_table), m.bandwidth_hz), (m.rate_table, m.bandwidth_hz))
-    return list(seen.values())
 
 
 def run_fixed(
@@ -626,9 +505,13 @@ def compiled_faults(engine: FixedEngine) -> Any:
     return kernel_faults(engine.faults, len(engine.missions)) if engine.faults.any else None
 
 
-def run_compiled(engine: FixedEngine, rule: Any, policies: Sequence[str]) -> Flights:
+def run_compiled(
+    engine: FixedEngine, rule: Any, policies: Sequence[str], loop: Any = None
+) -> Flights:
     """Every slot of a fresh ``engine`` in the compiled loop (``compiled_reason`` None): the
-    rule of ``rule`` compiled, the same record as the numpy slot loop."""
+    rule of ``rule`` compiled, the same record as the numpy slot loop. ``loop``: the loop to
+    run (default :func:`~skymule.sim.compiled.compiled_loop`; the tests also run
+    :func:`~skymule.sim.compiled.slot_loop` as plain Python, with or without numba)."""
     from skymule.sim import compiled
 
     n_flights, n_sensors = len(engine.missions), engine.n_sensors
@@ -643,7 +526,7 @@ def run_compiled(engine: FixedEngine, rule: Any, policies: Sequence[str]) -> Fli
     left = np.zeros((n_flights, n_sensors))
     faults = compiled_faults(engine)
     chosen = None if faults is None else np.full((n_flights, t_max), NO_SENSOR, np.int64)
-    compiled.compiled_loop()(
+    (compiled.compiled_loop() if loop is None else loop)(
         *compiled_inputs(engine, rule), True, engine.detail, served, downloaded, hovering,
         sample, remaining, n_run, end_sample, left, False, *compiled.no_totals(n_sensors),
         faults, chosen,
@@ -670,5 +553,5 @@ def run_compiled(engine: FixedEngine, rule: Any, policies: Sequence[str]) -> Fli
         rate_bps=rate,
         remaining_bit=kept,
         chosen=None if chosen is None else np.ascontiguousarray(chosen[:, :width]),
-        affected=_affected([m.faults for m in engine.missions], width),
+        affected=affected_slots([m.faults for m in engine.missions], width),
     )

@@ -10,12 +10,11 @@ import shapely
 from shapely.geometry import Point
 
 from conftest import run_cli
-from skymule.metrics import summarize
-from skymule.policies import make_policy
-from skymule.policies.base import Action, MissionContext, Observation
-from skymule.policies import HGAD
-from skymule.scenario import PolicySpec, load_scenario
 from skymule.flights import NO_SENSOR
+from skymule.metrics import summarize
+from skymule.policies import HGAD, make_policy
+from skymule.policies.base import Action, MissionContext, Observation
+from skymule.scenario import PolicySpec, load_scenario
 from skymule.sim.run import run_mission
 from skymule.world import build_mission
 

@@ -17,8 +17,7 @@ from skymule.bounds.autonomous import (
 )
 from skymule.errors import SkymuleError
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
-from skymule.policies import Greedy
-from skymule.policies import HGAD
+from skymule.policies import HGAD, Greedy
 from skymule.policies.planner import Planner
 from skymule.scenario import load_scenario
 from skymule.sim.run import run_mission

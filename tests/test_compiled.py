@@ -8,18 +8,18 @@ is installed the compiled loop is checked as well.
 
 from __future__ import annotations
 
-from dataclasses import fields, replace
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from engine_cases import assert_logs_equal, random_mission, random_spec
 from skymule.errors import SkymuleError
+from skymule.policies import batch_policy
 from skymule.radio.rates import BUILTIN_RATE_TABLES, StepTable, rate_bps
 from skymule.scenario import PolicySpec, load_scenario
-from engine_cases import assert_logs_equal, random_mission, random_spec
-from skymule.policies import batch_policy
 from skymule.sim import compiled, contract, kernels
 from skymule.sim.batch_faults import BatchFaults, apply_faults, kernel_faults
 from skymule.sim.fixed import FixedEngine, compiled_reason, run_compiled

@@ -16,10 +16,6 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from skymule import metrics
-from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
-from skymule.metrics import Flights, Summaries, summaries
-from skymule.scenario import PolicySpec, load_scenario
 from engine_cases import (
     random_geometry,
     random_mission,
@@ -27,7 +23,11 @@ from engine_cases import (
     with_geometry,
     with_random_fading,
 )
+from skymule import metrics
+from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
+from skymule.metrics import Flights, Summaries, summaries
 from skymule.policies import batch_policy
+from skymule.scenario import PolicySpec, load_scenario
 from skymule.sim import compiled, summary_kernels
 from skymule.sim.compiled_summaries import compiled_summaries, flights_summaries
 from skymule.sim.contract import NO_SENSOR

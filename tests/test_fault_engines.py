@@ -13,11 +13,11 @@ from shapely.geometry import Point
 from skymule.errors import SkymuleError
 from skymule.faults import no_faults
 from skymule.fleet_runner import make_fleet_policy, run_fleet
+from skymule.flights import MissionLog
 from skymule.io.runs import slots_frame
 from skymule.metrics import summarize
-from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
-from skymule.flights import MissionLog
 from skymule.policies import batch_policy
+from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
 from skymule.sim import compiled
 from skymule.sim.autonomous import AutonomousEngine
 from skymule.sim.contract import NO_SENSOR
@@ -200,7 +200,7 @@ def test_fault_missions_in_a_batch_equal_each_alone(engine: str) -> None:
                 seed=seed,
                 mission={**mission_spec, "duration_s": duration},
             )
-        )  # fmt: skip
+        )
         for seed, duration in ((1, 500.0), (2, 120.0), (3, 37.0))
     ]
     missions = [*faulty, build_mission(load_scenario("paper-sim-fixed"))]

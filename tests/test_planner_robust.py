@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from skymule.errors import ScenarioError
+from skymule.flights import MissionLog
 from skymule.policies import make_policy
 from skymule.policies.base import Observation
 from skymule.policies.planner import ground_speed_mps
@@ -16,7 +17,6 @@ from skymule.policies.planner_robust import RobustPlanner
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
 from skymule.sim.context import mission_context
 from skymule.sim.contract import NO_SENSOR
-from skymule.flights import MissionLog
 from skymule.sim.run import run_mission
 from skymule.world import Mission, build_mission
 from test_autonomous_bound import random_scenario

@@ -10,11 +10,11 @@ import pandas as pd
 import pytest
 
 from conftest import run_cli
+from skymule.flights import MissionLog
 from skymule.policies import make_policy
 from skymule.resilience import leveled, run_study
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
 from skymule.sim.contract import NO_SENSOR
-from skymule.flights import MissionLog
 from skymule.sim.run import run_mission
 from skymule.world import Mission, build_mission
 

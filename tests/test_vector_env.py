@@ -12,7 +12,6 @@ from shapely.geometry import Point
 
 pytest.importorskip("gymnasium")
 
-import skymule
 from skymule.envs.datamule import DataMuleEnv
 from skymule.envs.vector import DataMuleVectorEnv
 from skymule.errors import SkymuleError

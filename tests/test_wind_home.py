@@ -18,8 +18,8 @@ from skymule.faults import Battery, Wind, no_faults
 from skymule.fleet_runner import simulate_fleet
 from skymule.flight.navigation import Navigator
 from skymule.policies.base import Action, MissionContext, Observation
-from skymule.scenario import load_scenario, scenario_from_dict
 from skymule.policies.batched import as_batch_policy
+from skymule.scenario import load_scenario, scenario_from_dict
 from skymule.sim.autonomous import AutonomousEngine
 from skymule.sim.faulted_motion import FaultedUav
 from skymule.sim.fleet import build_fleet

@@ -166,6 +166,11 @@ class HomeRule:
         check = np.flatnonzero(
             self.on[rows] & ~same_move & ~(bound + step < budget - BOUND_SLACK_M)
         )
+        if not check.size:  # every bound clears the budget: no distance needed, no override
+            self._bound[rows] = bound + step
+            self._exact[rows] = np.nan
+            self._last[rows] = False
+            return overridden
         limit = budget[check]
         # the test is d_home(position) + step > budget; the straight line is a lower bound
         # on d_home, so well past the budget it holds without the exact distance
@@ -296,8 +301,9 @@ class AutonomousEngine:
         self._goal_legal = np.full((n_flights, 2), np.nan)
         self._goal_vis = np.zeros((n_flights, self._k), bool)
         self._goal_dist = np.full((n_flights, self._k), np.nan)
-        t_max, shape = self._t_max, (self._t_max, n_flights)
-        self._positions = np.zeros((t_max + 1, n_flights, 2))
+        # mission-major logs (B, T): the record needs no transpose
+        t_max, shape = self._t_max, (n_flights, self._t_max)
+        self._positions = np.zeros((n_flights, t_max + 1, 2))
         self._served = np.full(shape, NO_SENSOR, np.int64)
         self._downloaded = np.zeros(shape)
         self._hovering = np.zeros(shape, bool)
@@ -306,7 +312,7 @@ class AutonomousEngine:
         self._chosen = np.full(shape, NO_SENSOR, np.int64) if needs_chosen else None
         self._lost = np.zeros(shape, bool) if self.uavs > 1 else None
         self._used_log = np.full(shape, np.nan) if self._battery else None  # NaN: no battery
-        keep = (t_max, n_sensors, n_flights) if self.detail else (0, n_sensors, n_flights)
+        keep = (n_flights, t_max, n_sensors) if self.detail else (n_flights, 0, n_sensors)
         self._snr_log, self._rate_log = np.zeros(keep), np.zeros(keep)
         self._remaining_log = np.zeros(keep)
         self._snr = np.zeros((n_sensors, n_flights))
@@ -392,25 +398,25 @@ class AutonomousEngine:
         stayed = (moved[:, 0] == here[:, 0]) & (moved[:, 1] == here[:, 1]) & ~overridden
         rows = np.flatnonzero(active)
         t = slot[rows]
-        self._positions[t, rows] = here[rows]
-        self._served[t, rows] = served[rows]
-        self._downloaded[t, rows] = bits[rows]
-        self._hovering[t, rows] = stayed[rows]
+        self._positions[rows, t] = here[rows]
+        self._served[rows, t] = served[rows]
+        self._downloaded[rows, t] = bits[rows]
+        self._hovering[rows, t] = stayed[rows]
         if action.target is not None:
-            self._target[t, rows] = np.asarray(action.target, np.int64)[rows]
+            self._target[rows, t] = np.asarray(action.target, np.int64)[rows]
         if self._chosen is not None:
-            self._chosen[t, rows] = chosen[rows]
+            self._chosen[rows, t] = chosen[rows]
         self.last_lost = np.zeros(n_flights, bool) if lost is None else lost & active
         if self._lost is not None:
-            self._lost[t, rows] = self.last_lost[rows]
+            self._lost[rows, t] = self.last_lost[rows]
         if self._used_log is not None:
             kept = [b for b in rows.tolist() if b in self._battery]
-            self._used_log[slot[kept], kept] = self.used_j[kept]
+            self._used_log[kept, slot[kept]] = self.used_j[kept]
         if self.detail:
             buffers = self.remaining if self.uavs == 1 else self.remaining[:, self.group]
-            self._snr_log[t, :, rows] = self._snr[:, rows].T
-            self._rate_log[t, :, rows] = self._rate[:, rows].T
-            self._remaining_log[t, :, rows] = buffers[:, rows].T
+            self._snr_log[rows, t] = self._snr[:, rows].T
+            self._rate_log[rows, t] = self._rate[:, rows].T
+            self._remaining_log[rows, t] = buffers[:, rows].T
         self.position = np.where(active[:, None], moved, here)
         self.slot = slot + active
         return bits
@@ -457,14 +463,20 @@ class AutonomousEngine:
         calm_home = calm[rule.on[calm]]
         likely = calm_home[rule.likely(calm_home)]
         home_move = np.full((len(here), 2), np.nan)
-        if going.size or likely.size:
+        if likely.size:  # their step home in the same query as the policy's steps
             home_vis, home_dist = rule.home_sight(likely)
+            rows = np.concatenate([going, likely])
             vis = np.concatenate([self._goal_vis[going], home_vis])
             dist = np.concatenate([self._goal_dist[going], home_dist])
+            goals = np.concatenate([legal[going], self.home_m[likely]])
+        elif going.size:
+            rows, goals = going, legal[going]
+            vis, dist = self._goal_vis[going], self._goal_dist[going]
+        if going.size or likely.size:
             found = self.paths.steps(
-                np.concatenate([here[going], here[likely]]),
-                np.concatenate([legal[going], self.home_m[likely]]),
-                np.concatenate([self.step_m[going], self.step_m[likely]]),
+                here[rows],
+                goals,
+                self.step_m[rows],
                 (vis, dist),  # sights of new goals are filled in where a path bends
                 checked=False,  # positions and legal goals are in the fence by construction
             )
@@ -548,21 +560,21 @@ class AutonomousEngine:
         n_flights = len(self.missions)
         n_run = np.minimum(self.slot, self.n_slots)
         width = int(n_run.max()) if n_run.size else 0
-        positions = self._positions[: width + 1].copy()
-        positions[n_run, self._columns] = self.position
+        positions = self._positions[:, : width + 1].copy()
+        positions[self._columns, n_run] = self.position
         track = np.concatenate(
             [
-                positions.transpose(1, 0, 2),
+                positions,
                 np.broadcast_to(self.altitude_m[:, None, None], (n_flights, width + 1, 1)),
             ],
             axis=2,
         )
 
         def per_slot(log: np.ndarray | None) -> np.ndarray | None:
-            return None if log is None else np.ascontiguousarray(log[:width].T)
+            return None if log is None else np.ascontiguousarray(log[:, :width])
 
         def per_sensor(log: np.ndarray) -> np.ndarray | None:
-            return log[:width].transpose(2, 0, 1) if self.detail else None
+            return log[:, :width] if self.detail else None
 
         left = self.remaining if self.uavs == 1 else self.remaining[:, self.group]
         return flights_record(

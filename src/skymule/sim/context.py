@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
+from typing import overload
+
 import numpy as np
 
 from skymule.errors import SkymuleError
@@ -79,3 +82,33 @@ def fixed_context(
         track_rate_bps=rates_bps,
         track_hold_at_end=track.hold_at_end,
     )
+
+
+class Contexts(Sequence[MissionContext]):
+    """The B contexts of a batch, each made when first read (a policy that reads none of them,
+    or a few, does not pay for the rest; sweeps run thousands of missions a batch)."""
+
+    def __init__(self, size: int, make: Callable[[int], MissionContext]) -> None:
+        self._size = size
+        self._make = make
+        self._made: dict[int, MissionContext] = {}
+
+    def __len__(self) -> int:
+        return self._size
+
+    @overload
+    def __getitem__(self, index: int) -> MissionContext: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> list[MissionContext]: ...
+
+    def __getitem__(self, index: int | slice) -> MissionContext | list[MissionContext]:
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(self._size))]
+        if not -self._size <= index < self._size:
+            raise IndexError(index)
+        index %= self._size
+        made = self._made.get(index)
+        if made is None:
+            made = self._made[index] = self._make(index)
+        return made

@@ -186,8 +186,8 @@ class FixedEngine:
         self._progress = np.zeros(n_flights)  # wind: share of the next sample reached
         self.remaining = np.ascontiguousarray(self._buffers.T)  # (N, G) shared per fleet
         self.n_run = np.zeros(n_flights, np.int64)
-        # slot-major logs: each slot writes one contiguous block
-        t_max, shape = self._t_max, (self._t_max, n_flights)
+        # mission-major logs (B, T): a slot writes one column, and the record needs no transpose
+        t_max, shape = self._t_max, (n_flights, self._t_max)
         self._served = np.full(shape, NO_SENSOR, np.int64)
         self._downloaded = np.zeros(shape)
         self._hovering = np.zeros(shape, bool)
@@ -195,7 +195,7 @@ class FixedEngine:
         needs_chosen = self.faults.any or self.uavs > 1
         self._chosen = np.full(shape, NO_SENSOR, np.int64) if needs_chosen else None
         self._lost = np.zeros(shape, bool) if self.uavs > 1 else None
-        self._remaining_log = np.zeros((t_max, n_sensors, n_flights)) if detail else None
+        self._remaining_log = np.zeros((n_flights, t_max, n_sensors)) if detail else None
         self._all = np.ones(n_flights, bool)
         self._all.flags.writeable = False
         self._columns = np.arange(n_flights)
@@ -206,21 +206,19 @@ class FixedEngine:
 
     # --- what policies know ----------------------------------------------------------------
 
-    def contexts(self) -> list[MissionContext]:
-        """Each column's :class:`MissionContext` (the track's rates shared between columns on
-        one track)."""
-        from skymule.sim.context import fixed_context
+    def contexts(self) -> Sequence[MissionContext]:
+        """Each column's :class:`MissionContext` (made when read; the track's rates shared
+        between columns on one track)."""
+        from skymule.sim.context import Contexts, fixed_context
 
         tables = self.tables
-        cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        out = []
-        for b, mission in enumerate(self.missions):
+
+        def make(b: int) -> MissionContext:
             u = int(tables.track_id[b])
-            if u not in cache:
-                k = int(tables.n_samples[u])
-                cache[u] = (tables.rate_bps[u, :k], tables.peak_rate_bps[u])
-            out.append(fixed_context(mission, *cache[u]))
-        return out
+            k = int(tables.n_samples[u])
+            return fixed_context(self.missions[b], tables.rate_bps[u, :k], tables.peak_rate_bps[u])
+
+        return Contexts(len(self.missions), make)
 
     @property
     def done(self) -> bool:
@@ -293,17 +291,17 @@ class FixedEngine:
             sensor, self._deliver, self._ok, self.remaining, self.group, self.uavs, self.slot_s
         )
         if self._lost is not None and lost is not None:
-            self._lost[slot] = lost
-        self._served[slot] = sensor
-        self._downloaded[slot] = bits
-        self._hovering[slot] = hover
-        self._sample_log[slot] = self.sample
+            self._lost[:, slot] = lost
+        self._served[:, slot] = sensor
+        self._downloaded[:, slot] = bits
+        self._hovering[:, slot] = hover
+        self._sample_log[:, slot] = self.sample
         if self._chosen is not None:
-            self._chosen[slot] = chosen
+            self._chosen[:, slot] = chosen
         if self._remaining_log is not None:
-            self._remaining_log[slot] = (
+            self._remaining_log[:, slot] = (
                 self.remaining if self.uavs == 1 else self.remaining[:, self.group]
-            )
+            ).T
         self.n_run += active
         moving = ~hover if active is self._all else active & ~hover
         for b in self._wind_rows:
@@ -347,11 +345,11 @@ class FixedEngine:
         """The run record of the slots run so far (``policies``: each column's name)."""
         tables = self.tables
         width = int(self.n_run.max()) if self.n_run.size else 0
-        sample = np.ascontiguousarray(self._sample_log[:width].T)
+        sample = np.ascontiguousarray(self._sample_log[:, :width])
         snr = rate = remaining = None
         if self.detail:
             assert self._remaining_log is not None
-            remaining = self._remaining_log[:width].transpose(2, 0, 1)
+            remaining = self._remaining_log[:, :width]
             snr, rate = self._detail_signal(sample, width)
         faulty = [m.faults for m in self.missions]
         track_position = tables.position_m
@@ -368,9 +366,9 @@ class FixedEngine:
             left_bit=np.ascontiguousarray(
                 (self.remaining if self.uavs == 1 else self.remaining[:, self.group]).T
             ),
-            served=np.ascontiguousarray(self._served[:width].T),
-            downloaded_bit=np.ascontiguousarray(self._downloaded[:width].T),
-            hovering=np.ascontiguousarray(self._hovering[:width].T),
+            served=np.ascontiguousarray(self._served[:, :width]),
+            downloaded_bit=np.ascontiguousarray(self._downloaded[:, :width]),
+            hovering=np.ascontiguousarray(self._hovering[:, :width]),
             track_position_m=track_position,
             track_samples=track_samples,
             track_id=track_id,
@@ -379,10 +377,10 @@ class FixedEngine:
             snr_db=snr,
             rate_bps=rate,
             remaining_bit=remaining,
-            chosen=None if self._chosen is None else np.ascontiguousarray(self._chosen[:width].T),
+            chosen=None if self._chosen is None else np.ascontiguousarray(self._chosen[:, :width]),
             affected=affected_slots(faulty, width),
             fleet=None if self.uavs == 1 else self.group.copy(),
-            lost=None if self._lost is None else np.ascontiguousarray(self._lost[:width].T),
+            lost=None if self._lost is None else np.ascontiguousarray(self._lost[:, :width]),
         )
 
     def _own_tracks(

@@ -72,12 +72,15 @@ def run_mission(mission: Mission, policy: BatchPolicy | Policy, engine: str = "a
 
 def batch_groups(missions: Sequence[Mission], batch_size: int) -> Iterator[list[int]]:
     """Indices of missions that can share a batch (mode, sensor count, autonomous: geofence),
-    at most ``batch_size`` each, in input order within a group."""
+    at most ``batch_size`` each; within a group longest first, so that the missions of one
+    batch end at about the same slot (a mission that is over costs its batch a little every
+    slot until the batch ends)."""
     groups: dict[tuple[Any, ...], list[int]] = {}
     for index, mission in enumerate(missions):
         fence = mission.navigator.fence_key if mission.navigator is not None else b""
         groups.setdefault((mission.mode, mission.n_sensors, fence), []).append(index)
     for indices in groups.values():
+        indices = sorted(indices, key=lambda i: -missions[i].n_slots)  # stable: ties in order
         for start in range(0, len(indices), batch_size):
             yield indices[start : start + batch_size]
 

@@ -342,6 +342,16 @@ class UavSpec(_Spec):
 
 
 class Scenario(_Spec):
+    """A validated mission description: the TOML file, field for field (``extra="forbid"``).
+
+    Sections: ``[mission]`` (duration, slot length, download window), ``[site]`` (origin,
+    geofence), ``[[sensors]]`` (positions, buffers), ``[radio]`` (path loss, link budget, rate
+    table, shadowing, fading), ``[signal]`` (model, radio map or recorded trace),
+    ``[trajectory]`` (fixed waypoints or autonomous flight: home, speed, altitude, return
+    home), ``[policy]`` (name and ``[policy.params]``), ``[[faults]]`` and ``[[uavs]]``
+    (several UAVs). Load one with :func:`load_scenario`; ``to_toml_dict`` writes it back.
+    """
+
     name: str = "scenario"
     seed: Annotated[int, Field(ge=0, lt=2**63)] = 0
     """Seeds every random draw of the mission (shadowing, fading)."""

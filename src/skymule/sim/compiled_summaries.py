@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from skymule import metrics
+import skymule.metrics as metrics
 from skymule.aadm.score import AADM_WINDOW_S, COMPLETE_RTOL, aadm_from_progress
 from skymule.sim import compiled, summary_kernels
 from skymule.sim.columns import mission_geometry

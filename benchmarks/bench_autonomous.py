@@ -2,34 +2,39 @@
 
 Run: python benchmarks/bench_autonomous.py (SKYMULE_BENCH_TINY=1: first Table II case only)
 
-Last, the reference engine's speed (sim/autonomous.py + the tours): missions and mission-slots
-per CPU-second of Greedy and HGAD on the preset plus ``n_random`` random layouts
-(skymule.experiments.layouts), then the batched autonomous engine's (sim/batch_autonomous.py)
+Last, speed: missions and mission-slots per CPU-second of Greedy and HGAD one mission at a
+time (``run_mission``, a batch of one) on the preset plus ``n_random`` random layouts
+(skymule.experiments.layouts), then the batched engine's sweep path (``summarize_missions``)
 on ``n_batched`` more, with the ratio per mission, measured in the same run: its numpy path
-and, when numba is installed, its compiled path queries (sim/batch_paths.py).
+and, when numba is installed, its compiled path queries (sim/batch_paths.py). With
+``--reference-rev REV`` the previous scalar reference engine (``skymule.sim.run.run_mission``
+of revision REV, e.g. 4ddfba8, the last with it) runs the same single missions from a
+``git archive`` of REV, and the batched engine's ratio to it is printed too.
 Each speed is the best of ``repeats`` runs (CPU time; the machine is shared).
-Run: python benchmarks/bench_autonomous.py [n_random [n_batched [repeats]]]
+Run: python benchmarks/bench_autonomous.py [n_random [n_batched [repeats]]] [--reference-rev REV]
 """
 
 from __future__ import annotations
 
+import argparse
+import os
+import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 from _sizes import size
 
 from skymule.experiments.layouts import random_autonomous_scenario
 from skymule.metrics import summarize
-from skymule.policies.greedy import Greedy
-from skymule.policies.hgad import HGAD
+from skymule.policies import HGAD, Greedy
 from skymule.runner import simulate
 from skymule.scenario import PolicySpec, load_scenario
 from skymule.sim import compiled
-from skymule.sim.batch import Engine
-from skymule.sim.batch_autonomous import summarize_autonomous_batch
-from skymule.sim.run import run_mission
+from skymule.sim.run import run_mission, summarize_missions
 from skymule.world import build_mission
 
 PRESET = "paper-sim-autonomous"
@@ -52,61 +57,115 @@ def best_cpu_seconds(run: Callable[[], object], repeats: int) -> float:
     return best
 
 
-def reference_speed(n_random: int, n_batched: int, repeats: int) -> None:
-    """Missions and mission-slots per CPU-second of the reference autonomous engine, and of the
-    batched one (sim/batch_autonomous.py, the sweep path: summaries straight from the batch
-    arrays) on ``n_batched`` further random layouts, with the ratio per mission; each figure
+REFERENCE = """
+import sys, time
+import numpy as np
+from skymule.experiments.layouts import random_autonomous_scenario
+from skymule.policies.greedy import Greedy
+from skymule.policies.hgad import HGAD
+from skymule.scenario import load_scenario
+from skymule.sim.run import run_mission
+from skymule.world import build_mission
+n_random, repeats = int(sys.argv[1]), int(sys.argv[2])
+base = load_scenario("paper-sim-autonomous")
+rng = np.random.default_rng(0)
+missions = [build_mission(s) for s in [base, *(random_autonomous_scenario(rng, base)
+            for _ in range(n_random))]]
+for policy in (Greedy, HGAD):
+    best = float("inf")
+    for _ in range(repeats):
+        start = time.process_time()
+        for mission in missions:
+            run_mission(mission, policy())
+        best = min(best, time.process_time() - start)
+    print(policy.name, len(missions) / best)
+"""
+"""What runs the previous reference engine, from a ``git archive`` of its revision."""
+
+
+def previous_reference(revision: str, n_random: int, repeats: int) -> dict[str, float]:
+    """Missions per CPU-s of revision ``revision``'s scalar reference engine on the same single
+    missions (Greedy, HGAD)."""
+    repo = Path(__file__).resolve().parents[1]
+    with tempfile.TemporaryDirectory() as folder:
+        archive = subprocess.run(
+            ["git", "-C", str(repo), "archive", revision], capture_output=True, check=True
+        ).stdout
+        subprocess.run(["tar", "-x", "-C", folder], input=archive, check=True)
+        env = {**os.environ, "PYTHONPATH": str(Path(folder) / "src")}
+        out = subprocess.run(
+            [sys.executable, "-c", REFERENCE, str(n_random), str(repeats)],
+            capture_output=True, text=True, check=True, env=env, cwd=folder,
+        ).stdout  # fmt: skip
+    return {name: float(rate) for name, rate in (line.split() for line in out.splitlines())}
+
+
+def speed(n_random: int, n_batched: int, repeats: int, revision: str | None) -> None:
+    """Missions and mission-slots per CPU-second one mission at a time, and of the batched
+    sweep path on ``n_batched`` further random layouts, with the ratio per mission; each figure
     the best of ``repeats`` runs."""
     base = load_scenario(PRESET)
     rng = np.random.default_rng(0)
     scenarios = [base, *(random_autonomous_scenario(rng, base) for _ in range(n_random))]
     missions = [build_mission(s) for s in scenarios]
     slots = sum(m.n_slots for m in missions)
-    print(f"reference engine, {len(missions)} missions ({PRESET} + random layouts), per CPU-s:")
-    reference = {}
+    print(f"one mission at a time (a batch of one), {len(missions)} missions ({PRESET} + random "
+          "layouts), per CPU-s:")  # fmt: skip
+    single = {}
     for policy in (Greedy, HGAD):
 
         def run_all(policy: type[Greedy] | type[HGAD] = policy) -> None:
             for mission in missions:
                 run_mission(mission, policy())
 
+        run_mission(missions[0], policy())  # load the compiled path queries outside the timing
         seconds = best_cpu_seconds(run_all, repeats)
-        reference[policy.name] = len(missions) / seconds
+        single[policy.name] = len(missions) / seconds
         print(
             f"  {policy.name:6s} {len(missions) / seconds:6.2f} missions, "
             f"{slots / seconds:8,.0f} mission-slots"
         )
+    reference = previous_reference(revision, n_random, repeats) if revision else {}
+    if reference:
+        print(f"previous reference engine ({revision}), the same missions, per CPU-s:")
+        for name, rate in reference.items():
+            print(f"  {name:6s} {rate:6.2f} missions")
     layouts = [random_autonomous_scenario(rng, base) for _ in range(n_batched)]
     batch = [build_mission(s) for s in layouts]
     slots = sum(m.n_slots for m in batch)
     print(
         f"batched engine (summaries), {len(batch)} random layouts "
-        f"({len({m.n_sensors for m in batch})} sensor counts), per CPU-s, ratio to reference:"
+        f"({len({m.n_sensors for m in batch})} sensor counts), per CPU-s, ratio to one at a time:"
     )
-    engines: tuple[Engine, ...] = ("numpy", "compiled") if compiled.available() else ("numpy",)
+    engines = ("numpy", "compiled") if compiled.available() else ("numpy",)
     for name in ("greedy", "hgad"):
         spec = PolicySpec(name=name)
-        speed = {}
+        rates = {}
         for engine in engines:
-            if engine == "compiled":  # compile (or load from numba's cache) before timing
-                summarize_autonomous_batch(batch[:1], [spec], [layouts[0].name], engine=engine)
+            summarize_missions(batch[:1], [spec], [layouts[0].name], engine=engine)  # warm up
             seconds = best_cpu_seconds(
-                lambda spec=spec, engine=engine: summarize_autonomous_batch(
+                lambda spec=spec, engine=engine: summarize_missions(
                     batch, [spec] * len(batch), [s.name for s in layouts], engine=engine
                 ),
                 repeats,
             )
-            speed[engine] = len(batch) / seconds
-            versus = f", {speed[engine] / speed['numpy']:.2f}x numpy" if engine != "numpy" else ""
+            rates[engine] = len(batch) / seconds
+            versus = f", {rates[engine] / rates['numpy']:.2f}x numpy" if engine != "numpy" else ""
+            old = ""
+            if name in reference:
+                old = f", {rates[engine] / reference[name]:.1f}x the previous reference"
             print(  # the engine last: README's parser reads the last line of each policy
-                f"  {name:6s} {speed[engine]:8.1f} missions, {slots / seconds:10,.0f} "
-                f"mission-slots, {speed[engine] / reference[name]:5.1f}x the reference "
+                f"  {name:6s} {rates[engine]:8.1f} missions, {slots / seconds:10,.0f} "
+                f"mission-slots, {rates[engine] / single[name]:5.1f}x one at a time{old} "
                 f"({engine}{versus})"
             )
 
 
 def main(
-    n_random: int = size(30, 1), n_batched: int = size(1000, 8), repeats: int = size(5, 1)
+    n_random: int = size(30, 1),
+    n_batched: int = size(1000, 8),
+    repeats: int = size(5, 1),
+    revision: str | None = None,
 ) -> None:
     scenario = load_scenario(PRESET)
     mission = build_mission(scenario)
@@ -132,8 +191,12 @@ def main(
             for p in ("initial", "remaining")
         ]
         print(f"  {buffers}  {paper}  {orders[0]} ({orders[0] == paper})  {orders[1]}")
-    reference_speed(n_random, n_batched, repeats)
+    speed(n_random, n_batched, repeats, revision)
 
 
 if __name__ == "__main__":
-    main(*(int(a) for a in sys.argv[1:]))
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("sizes", nargs="*", type=int, help="n_random n_batched repeats")
+    parser.add_argument("--reference-rev", help="also time this revision's reference engine")
+    args = parser.parse_args()
+    main(*args.sizes, revision=args.reference_rev)

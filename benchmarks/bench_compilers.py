@@ -20,8 +20,10 @@ from dataclasses import replace
 import numpy as np
 from _sizes import size
 
-from skymule.scenario import PolicySpec, load_scenario
-from skymule.sim.batch import run_batch, stack_missions
+from skymule.policies import Greedy
+from skymule.scenario import load_scenario
+from skymule.sim.fixed import stack_tracks
+from skymule.sim.run import run_missions
 from skymule.world import build_mission
 
 
@@ -63,19 +65,23 @@ def main(n_missions: int = size(2000, 10)) -> None:
         replace(base, buffers_bit=rng.uniform(200e6, 1500e6, base.n_sensors))
         for _ in range(n_missions)
     ]
-    batch = stack_missions(missions, [PolicySpec(name="greedy")] * n_missions)
     slots = n_missions * base.n_slots
-    result = run_batch(batch, "compiled", keep_remaining=False)
-    numba_s = best_cpu(lambda: run_batch(batch, "compiled", keep_remaining=False))
+    if importlib.util.find_spec("numba") is None:
+        print("  numba not installed (pip install skymule[fast]): comparison skipped")
+        return
+    result = run_missions(missions, Greedy(), detail=False, engine="compiled")
+    numba_s = best_cpu(lambda: run_missions(missions, Greedy(), detail=False, engine="compiled"))
     print(f"Greedy, {n_missions} missions x {base.n_slots} slots x {base.n_sensors} sensors")
     print(f"  numba (skymule compiled loop): {slots / numba_s / 1e6:7.1f} M mission-slots/CPU-s")
     if importlib.util.find_spec("jax") is None:
         print("  JAX   not installed (pip install jax): comparison skipped")
         return
     # the track holds at its last sample: the slot-t sample is min(t, K - 1)
-    index = np.minimum(np.arange(base.n_slots), batch.n_samples[0] - 1)
-    rate, snr = batch.rate_bps[0, index], batch.snr_seen_db[0, index]
-    run, args = jax_greedy(rate, snr, batch.buffers_bit, float(base.slot_s))
+    tables = stack_tracks(missions)
+    index = np.minimum(np.arange(base.n_slots), tables.n_samples[0] - 1)
+    rate, snr = tables.rate_bps[0, index], tables.snr_seen_db[0, index]
+    buffers = np.array([m.buffers_bit for m in missions])
+    run, args = jax_greedy(rate, snr, buffers, float(base.slot_s))
     _, (_, bits) = run(*args)
     bits.block_until_ready()
     jax_s = best_cpu(lambda: run(*args)[1][1].block_until_ready())

@@ -1,4 +1,5 @@
-"""Batched fixed-path Greedy/HGAD: the compiled core vs the numpy core vs one mission at a time.
+"""Fixed-path Greedy/HGAD on the engine: the compiled twin vs the numpy slot loop vs one mission
+at a time.
 
 Run: python benchmarks/bench_engine.py [n_missions] [n_single] [repeats]
 (SKYMULE_BENCH_TINY=1: 20 missions, 2 single, 1 repeat)
@@ -7,10 +8,11 @@ Missions: paper-sim-fixed (4 sensors, 500 slots) with random buffers. For each p
 mission-slots per CPU-second (the machine is shared, so CPU time of this process is the fair
 "per core" figure; each figure is the best of ``repeats``) of:
 
-* single: ``engine.run_fixed`` one mission at a time (the reference engine);
-* numpy loop / compiled loop: ``run_batch`` on a stacked batch, slot loop only;
-* numpy + summaries / compiled + summaries: ``summarize_fixed_batch`` (what sweeps run: the
-  ``metrics.summarize`` dictionaries straight from the batch arrays);
+* single: ``run_mission`` one mission at a time (a batch of one, the numpy slot loop);
+* numpy loop / compiled loop: ``run_missions`` on the whole batch, slot loop only (no
+  per-slot detail);
+* numpy + summaries / compiled + summaries: ``summarize_missions`` (what sweeps run: the
+  ``metrics.summarize`` dictionaries, the compiled twin reducing each mission as it ends);
 
 with the compiled/numpy ratio measured in the same run; then HGAD with summaries on missions
 with faults (outages, Gilbert-Elliott loss, SNR error, missed polls), numpy vs compiled. Then
@@ -31,11 +33,10 @@ from pathlib import Path
 import numpy as np
 from _sizes import size
 
-from skymule.policies import make_policy
+from skymule.policies import batch_policy
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
 from skymule.sim import compiled
-from skymule.sim.batch import run_batch, stack_missions, summarize_fixed_batch
-from skymule.sim.engine import run_fixed
+from skymule.sim.run import run_mission, run_missions, summarize_missions
 from skymule.world import Mission, build_mission
 
 
@@ -61,20 +62,23 @@ def bench_policy(name: str, missions: list[Mission], n_single: int, repeats: int
     """Print each path's mission-slots per CPU-second; returns compiled + summaries (or 0)."""
     specs = [PolicySpec(name=name)] * len(missions)
     names = [m.scenario.name for m in missions]
-    batch = stack_missions(missions, specs)
-    slots = int(run_batch(batch, "numpy").n_run.sum())
+
+    def loop(engine: str) -> object:
+        return run_missions(missions, batch_policy(specs), detail=False, engine=engine)
+
+    slots = int(run_missions(missions, batch_policy(specs), engine="numpy").n_run.sum())
     single = missions[:n_single]
     single_slots = sum(m.n_slots for m in single)
     rate = single_slots / best_cpu_seconds(
-        lambda: [run_fixed(m, make_policy(specs[0])) for m in single], repeats
+        lambda: [run_mission(m, batch_policy(specs[:1]), "numpy") for m in single], repeats
     )
     print(f"{name:6s} {'single (' + str(n_single) + ' missions)':28s} {rate / 1e6:8.2f} M")
     engines = ["numpy", "compiled"] if compiled.available() else ["numpy"]
     rates: dict[str, float] = {}
     for engine in engines:
         paths: dict[str, Callable[[], object]] = {
-            "loop": lambda e=engine: run_batch(batch, e, keep_remaining=False),
-            "+ summaries": lambda e=engine: summarize_fixed_batch(
+            "loop": lambda e=engine: loop(e),
+            "+ summaries": lambda e=engine: summarize_missions(
                 missions, specs, names, batch_size=len(missions), engine=e
             ),
         }
@@ -100,10 +104,10 @@ def bench_faults(base: Mission, n_missions: int, repeats: int) -> None:
     ]
     specs = [PolicySpec(name="hgad")] * n_missions
     names = [m.scenario.name for m in missions]
-    slots = int(run_batch(stack_missions(missions, specs), "numpy").n_run.sum())
+    slots = int(run_missions(missions, batch_policy(specs), detail=False).n_run.sum())
     rates = {}
     for engine in ["numpy", "compiled"] if compiled.available() else ["numpy"]:
-        run = lambda e=engine: summarize_fixed_batch(  # noqa: E731
+        run = lambda e=engine: summarize_missions(  # noqa: E731
             missions, specs, names, batch_size=n_missions, engine=e
         )
         run()

@@ -33,9 +33,9 @@ from _sizes import size
 
 from skymule.errors import SkymuleError
 from skymule.experiments.layouts import random_autonomous_scenario
+from skymule.flights import NO_SENSOR, MissionLog
 from skymule.policies import make_policy
 from skymule.scenario import Scenario, load_scenario, scenario_from_dict
-from skymule.flights import NO_SENSOR, MissionLog
 from skymule.sim.run import run_mission
 from skymule.world import Mission, build_mission
 

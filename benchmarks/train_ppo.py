@@ -33,8 +33,7 @@ from _sizes import size
 from skymule.bounds.autonomous import autonomous_bound
 from skymule.envs.datamule import DataMuleEnv
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
-from skymule.policies.greedy import Greedy
-from skymule.policies.hgad import HGAD
+from skymule.policies import HGAD, Greedy
 from skymule.policies.planner import Planner
 from skymule.policies.rl import RLPolicy
 from skymule.scenario import Scenario, load_scenario

@@ -183,8 +183,14 @@ def _m(text: str) -> float:
     return _f(text) / 1e6
 
 
+PREVIOUS_REV = "4ddfba8"
+"""The last revision with the scalar reference engines: ``bench_autonomous.py`` times its
+autonomous reference engine in the same run (``--reference-rev``)."""
+
+
 def engine_cells(out: str) -> dict[str, str]:
-    """Reference, numpy and compiled batched engine rows from ``bench_engine.py``."""
+    """One mission at a time, the numpy slot loop and the compiled twin, from
+    ``bench_engine.py``."""
     rate = {
         (policy, label.strip()): _f(value)
         for policy, label, value in _numbers(
@@ -196,11 +202,11 @@ def engine_cells(out: str) -> dict[str, str]:
     (written,), *_ = _numbers(r"bytes written per mission-slot: (\d+)", out)
     (bandwidth,), *_ = _numbers(r"memory bandwidth .*?: ([\d.]+) GB/s", out)
     cells = {
-        "^reference engine": (
+        "^one mission at a time": (
             f"{rate['greedy', 'single']:.2f} M (Greedy) / {rate['hgad', 'single']:.2f} M (HGAD) "
             "mission-slots per CPU-s"
         ),
-        "^batched engine, numpy": (
+        "^engine, numpy slot loop": (
             f"Greedy {rate['greedy', 'numpy + summaries']:.1f} M mission-slots/CPU-s with "
             f"summaries ({rate['greedy', 'numpy loop']:.1f} M slot loop only), HGAD "
             f"{rate['hgad', 'numpy + summaries']:.1f} M ({rate['hgad', 'numpy loop']:.1f} M)"
@@ -213,11 +219,49 @@ def engine_cells(out: str) -> dict[str, str]:
         compiled.append(
             f"{name} {summaries:.1f} M with summaries (**×{ratio:.1f}** numpy), {loop:.1f} M loop"
         )
-    cells["^batched engine, compiled"] = (
+    cells["^engine, compiled twin"] = (
         f"{'; '.join(compiled)}; {written} bytes written per mission-slot against "
         f"{_f(bandwidth):.1f} GB/s measured memory bandwidth"
     )
     return cells
+
+
+def policies_cells(out: str) -> dict[str, str]:
+    """Your own policy, batched and per-mission, from ``bench_policies.py``."""
+    ((fixed_rate,),) = _numbers(r"fixed \(.*?\+ summaries: ([\d.]+) M mission-slots", out)
+    ((auto_rate,),) = _numbers(r"autonomous \(.*?\+ summaries: ([\d,]+) missions per", out)
+    forms = _numbers(
+        r"per-mission form, one mission at a time: ([\d.]+) ms per mission; batched ([\d.]+) "
+        r"us per mission: (\d+)x less \(target >= 100\); totals equal: (\w+)",
+        out,
+    )
+    (f_ms, f_us, f_x, f_same), (a_ms, a_us, a_x, a_same) = forms
+    costs = {
+        (mode, where): _f(us)
+        for mode, where, us in _numbers(
+            r"(fixed|autonomous), per-mission policy: engine overhead beyond act, a batch of "
+            r"([\d,]+|one): ([\d.]+) us per slot",
+            out,
+        )
+    }
+    batch = next(where for mode, where in costs if where != "one")
+    return {
+        "^your own batched policy, fixed": (
+            f"{_f(fixed_rate):.1f} M mission-slots per CPU-s with summaries; the per-mission "
+            f"form one mission at a time {_f(f_ms):.1f} ms a mission, **×{f_x}** the batched "
+            f"form's {_f(f_us):.0f} µs; totals equal: {f_same.lower()}"
+        ),
+        "^your own batched policy, autonomous": (
+            f"{_f(auto_rate):,.0f} missions per CPU-s with summaries; the per-mission form one "
+            f"at a time {_f(a_ms):.0f} ms a mission, **×{a_x}** the batched form's "
+            f"{_f(a_us):.0f} µs; totals equal: {a_same.lower()}"
+        ),
+        "^your own per-mission policy": (
+            f"fixed {costs['fixed', batch]:.1f} µs in a batch of {batch} "
+            f"({costs['fixed', 'one']:.0f} µs alone); autonomous "
+            f"{costs['autonomous', batch]:.1f} µs ({costs['autonomous', 'one']:.0f} µs alone)"
+        ),
+    }
 
 
 def sweep_cells(out: str) -> dict[str, str]:
@@ -301,38 +345,47 @@ def bound_cells(out: str) -> dict[str, str]:
 
 
 def autonomous_cells(out: str) -> dict[str, str]:
-    reference = dict(
-        (p, (_f(m), _f(s)))
-        for p, m, s in _numbers(
-            r"(?m)^  (greedy|hgad)\s+([\d.]+) missions,\s+([\d,]+) mission-slots$", out
-        )
-    )
+    """One at a time, the previous reference engine and the batched sweep path, from
+    ``bench_autonomous.py --reference-rev``."""
+    lines = out.split("batched engine (summaries)")
+    single = {p: _f(m) for p, m in _numbers(r"(?m)^  (greedy|hgad)\s+([\d.]+) missions,", lines[0])}
+    head = lines[0].split("previous reference engine")
+    single = {p: _f(m) for p, m in _numbers(r"(?m)^  (greedy|hgad)\s+([\d.]+) missions,", head[0])}
+    previous = {}
+    if len(head) > 1:
+        previous = {
+            p: _f(m) for p, m in _numbers(r"(?m)^  (greedy|hgad)\s+([\d.]+) missions", head[1])
+        }
     batched = {
         (p, engine): (_f(m), _f(x))
         for p, m, x, engine in _numbers(
             r"(?m)^  (greedy|hgad)\s+([\d.]+) missions,\s+[\d,]+ mission-slots,\s+([\d.]+)x "
-            r"the reference \((numpy|compiled)",
-            out,
+            r"one at a time.*?\((numpy|compiled)",
+            lines[1],
         )
     }
     cells = {
-        "^autonomous missions, reference engine": (
-            f"Greedy {reference['greedy'][0]:.0f}, HGAD {reference['hgad'][0]:.0f} "
-            "missions per CPU-s"
+        "^autonomous missions, one at a time": (
+            f"Greedy {single['greedy']:.0f}, HGAD {single['hgad']:.0f} missions per CPU-s"
+            + (
+                f" (the previous reference engine, {PREVIOUS_REV}, in the same run: Greedy "
+                f"{previous['greedy']:.0f}, HGAD {previous['hgad']:.0f})"
+                if previous
+                else ""
+            )
         ),
     }
-    versus_numpy = dict(_numbers(r"(?m)^  (greedy|hgad)\s.*\(compiled, ([\d.]+)x numpy\)$", out))
     for engine in ("numpy", "compiled"):
-        greedy, hgad = batched["greedy", engine], batched["hgad", engine]
-        faster = {
-            name: f", ×{_f(versus_numpy[name]):.1f} numpy" if engine == "compiled" else ""
-            for name in ("greedy", "hgad")
-        }
-        cells[f"^autonomous missions, batched engine, {engine}"] = (
-            f"Greedy {greedy[0]:,.0f} missions per CPU-s (**×{greedy[1]:.0f}** the reference in "
-            f"the same run{faster['greedy']}), HGAD {hgad[0]:,.0f} (×{hgad[1]:.0f}"
-            f"{faster['hgad']})"
-        )
+        if ("greedy", engine) not in batched:
+            continue
+        parts = []
+        for name, label in (("greedy", "Greedy"), ("hgad", "HGAD")):
+            rate, ratio = batched[name, engine]
+            old = f", **×{rate / previous[name]:.0f}** the previous reference" if previous else ""
+            parts.append(
+                f"{label} {rate:,.0f} missions per CPU-s (×{ratio:.0f} one at a time{old})"
+            )
+        cells[f"^autonomous missions, batched, {engine}"] = "; ".join(parts)
     return cells
 
 
@@ -356,7 +409,8 @@ SPEED_BENCHES: dict[str, tuple[tuple[str, ...], Callable[[str], dict[str, str]]]
     "bench_sweep.py": (("--old-rev", BASELINE_REV), sweep_cells),
     "bench_channel.py": ((), channel_cells),
     "bench_bound.py": ((), bound_cells),
-    "bench_autonomous.py": ((), autonomous_cells),
+    "bench_autonomous.py": (("--reference-rev", PREVIOUS_REV), autonomous_cells),
+    "bench_policies.py": ((), policies_cells),
     "bench_planner.py": (("--speed", "20", "--before", BASELINE_REV), planner_cells),
 }
 """Benchmark -> (its arguments for the README, the parser of its output into speed cells).

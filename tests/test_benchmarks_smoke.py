@@ -21,7 +21,7 @@ README_TABLES = runpy.run_path(str(ROOT / "scripts" / "update_readme_tables.py")
 
 # what each benchmark must print (a label of each figure it reports)
 EXPECTED = {
-    "bench_autonomous.py": ["greedy", "hgad", "Table II", "(True)"],
+    "bench_autonomous.py": ["greedy", "hgad", "Table II", "(True)", "one at a time"],
     "bench_bound.py": ["paper-sim-fixed: bound", "optimal-fixed", "bound 120 slots x 4 sensors"],
     "bench_channel.py": ["fspl", "fspl + shadowing", "radio map: query", "dense reference"],
     "bench_compilers.py": ["numba (skymule compiled loop)", "mission-slots/CPU-s"],
@@ -30,6 +30,7 @@ EXPECTED = {
     "bench_vector_env.py": ["single envs stepped in a loop", "numpy paths", "ratio to single"],
     "bench_fleet.py": ["coordinated", "bound", "coordinated - independent hgad"],
     "bench_invariants.py": ["missions with faults run", "y = min(R dt, Q)", "speed cap"],
+    "bench_policies.py": ["serve sensor 0", "largest first", "totals equal: True", "beyond act"],
     "bench_planner.py": ["planner gain over hgad", "mean gap to bound", "above the bound: 0"],
     "bench_resilience.py": ["robust - plain", "hgad-robust", "planner-robust", "ended home"],
     "bench_single.py": ["paper-sim-fixed", "aadm-default", "slots/s"],

@@ -29,12 +29,12 @@ import numpy as np
 from _sizes import size
 
 from skymule.experiments.layouts import random_autonomous_scenario
-from skymule.metrics import summarize
+from skymule.metrics.summary import summarize
 from skymule.policies import HGAD, Greedy
-from skymule.runner import simulate
 from skymule.scenario import PolicySpec, load_scenario
 from skymule.sim import compiled
 from skymule.sim.run import run_mission, summarize_missions
+from skymule.tasks.simulate import simulate
 from skymule.world import build_mission
 
 PRESET = "paper-sim-autonomous"

@@ -35,8 +35,8 @@ from skymule.bounds.autonomous import best_rate_bps, time_sharing_lp
 from skymule.bounds.fixed import LP_METHOD, fixed_path_bound
 from skymule.bounds.fleet import fleet_time_sharing_lp
 from skymule.bounds.mission import mission_bound
-from skymule.runner import simulate
 from skymule.scenario import load_scenario
+from skymule.tasks.simulate import simulate
 from skymule.world import build_mission
 
 SENSORS_XY_M = np.array([[150.0, 200.0], [820.0, 310.0], [420.0, 760.0], [700.0, 900.0]])

@@ -25,9 +25,9 @@ from shapely.geometry import Point
 
 from skymule.bounds.fleet import fleet_bound
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
-from skymule.fleet_runner import simulate_fleet
 from skymule.scenario import Scenario, UavSpec, load_scenario
 from skymule.sim.fleet import build_fleet
+from skymule.tasks.fleet import simulate_fleet
 from skymule.world import build_mission
 
 PRESET = "paper-sim-autonomous"

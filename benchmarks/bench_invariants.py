@@ -33,7 +33,7 @@ from _sizes import size
 
 from skymule.errors import SkymuleError
 from skymule.experiments.layouts import random_autonomous_scenario
-from skymule.flights import NO_SENSOR, MissionLog
+from skymule.metrics.flights import NO_SENSOR, MissionLog
 from skymule.policies import make_policy
 from skymule.scenario import Scenario, load_scenario, scenario_from_dict
 from skymule.sim.run import run_mission

@@ -32,8 +32,8 @@ from _sizes import size
 
 from skymule.bounds.autonomous import autonomous_bound
 from skymule.experiments.layouts import random_autonomous_scenario
-from skymule.flights import MissionLog
-from skymule.metrics import aadm_score, completion_time_s
+from skymule.metrics.flights import MissionLog
+from skymule.metrics.summary import aadm_score, completion_time_s
 from skymule.policies import HGAD
 from skymule.policies import planner as planner_module
 from skymule.policies.planner import Planner

@@ -3,7 +3,7 @@
 Run: python benchmarks/bench_resilience.py [MISSIONS] (SKYMULE_BENCH_TINY=1: 2 missions)
 
 Mission m of a preset uses seed ``preset.seed + m`` and buffers drawn from it (uniform in
-[0.5, 1.5] x the preset's, :func:`skymule.resilience.leveled`). Two conditions on the same
+[0.5, 1.5] x the preset's, :func:`skymule.tasks.resilience.leveled`). Two conditions on the same
 missions: fault-free, and faulty = one random outage per tower (exponential length, mean 60 s)
 plus an SNR error of 6 dB std (3 s correlation) on what the policy sees. Prints per policy the
 mean downloaded Mbit with its 95 % CI, and the paired difference robust - plain (mean, 95 % CI)
@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 from _sizes import size
 
-from skymule.resilience import leveled, mean_ci, paired_difference, run_study, table
 from skymule.scenario import Scenario, load_scenario, scenario_from_dict
+from skymule.tasks.resilience import leveled, mean_ci, paired_difference, run_study, table
 
 POLICIES = {
     "paper-sim-fixed": ("hgad", "hgad-robust"),
@@ -72,7 +72,7 @@ def compare(preset: str, missions: int) -> None:
 
 def homeward(label: str, faults: list[dict[str, Any]], missions: int) -> None:
     """Mbit and the share of missions ending home, under wind (and a battery limit)."""
-    from skymule.runner import simulate
+    from skymule.tasks.simulate import simulate
     from skymule.world import build_mission
 
     preset = "paper-sim-autonomous"

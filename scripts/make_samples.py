@@ -32,10 +32,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from skymule.analyze import analysis_scenario
 from skymule.io.traces import read_trace, write_aadm_log, write_dt_export
-from skymule.runner import simulate
 from skymule.scenario import Scenario, load_scenario
+from skymule.tasks.analyze import analysis_scenario
+from skymule.tasks.simulate import simulate
 from skymule.world import BITS_PER_MBIT, build_mission
 
 SEED = 2025

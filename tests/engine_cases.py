@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from skymule.flight.paths import Track
-from skymule.flights import MissionLog
+from skymule.metrics.flights import MissionLog
 from skymule.radio.rates import Shannon
 from skymule.scenario import PolicySpec
 

@@ -11,8 +11,8 @@ import pytest
 
 from conftest import run_cli
 from skymule.aadm import files
-from skymule.analyze import analyze_flight
 from skymule.errors import SkymuleError
+from skymule.tasks.analyze import analyze_flight
 
 FIXTURES = Path(__file__).parent / "fixtures"
 LOG = FIXTURES / "aadm_merged_small.csv"

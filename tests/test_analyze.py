@@ -8,9 +8,9 @@ import pandas as pd
 import pytest
 
 from conftest import CliResult, run_cli
-from skymule.analyze import analyze_flight, parse_buffers
 from skymule.errors import SkymuleError
 from skymule.report.inputs import load_input
+from skymule.tasks.analyze import analyze_flight, parse_buffers
 
 FIXTURES = Path(__file__).parent / "fixtures"
 LOG = FIXTURES / "aadm_merged_small.csv"

@@ -10,8 +10,8 @@ import shapely
 from shapely.geometry import Point
 
 from conftest import run_cli
-from skymule.flights import NO_SENSOR
-from skymule.metrics import summarize
+from skymule.metrics.flights import NO_SENSOR
+from skymule.metrics.summary import summarize
 from skymule.policies import HGAD, make_policy
 from skymule.policies.base import Action, MissionContext, Observation
 from skymule.scenario import PolicySpec, load_scenario

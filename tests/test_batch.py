@@ -29,11 +29,11 @@ from engine_cases import (
 from skymule.experiments.run import _flat_summary, run_chunk
 from skymule.experiments.sweep import iter_missions, load_sweep
 from skymule.flight.paths import Track
-from skymule.metrics import handover_counts, summarize
+from skymule.metrics.summary import handover_counts, summarize
 from skymule.policies import batch_policy
-from skymule.runner import simulate
 from skymule.scenario import PolicySpec, load_scenario, scenario_from_dict
 from skymule.sim.run import run_mission, run_missions, summarize_missions
+from skymule.tasks.simulate import simulate
 from skymule.world import build_mission
 
 

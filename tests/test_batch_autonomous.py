@@ -22,13 +22,13 @@ from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
 from skymule.experiments.run import _flat_summary, run_chunk
 from skymule.experiments.sweep import iter_missions, load_sweep
 from skymule.flight.navigation import Navigator
-from skymule.metrics import summarize
+from skymule.metrics.summary import summarize
 from skymule.policies import batch_policy
-from skymule.runner import simulate
 from skymule.scenario import PolicySpec, load_scenario, scenario_from_dict
 from skymule.sim.batch_signal import BatchSignal
 from skymule.sim.context import autonomous_peak_rate_bps
 from skymule.sim.run import run_mission, run_missions, summarize_missions
+from skymule.tasks.simulate import simulate
 from skymule.world import build_mission
 
 PRESET = "paper-sim-autonomous"

@@ -17,8 +17,8 @@ import pytest
 from skymule.report.build import build_report
 from skymule.report.html import CSS_PX_PER_IN, PER_RUN_PANELS
 from skymule.report.style import PANEL_WIDTH_IN
-from skymule.runner import simulate
 from skymule.scenario import scenario_from_dict
+from skymule.tasks.simulate import simulate
 from skymule.world import build_mission
 
 CHROMIUM = Path("/usr/bin/chromium")

@@ -16,7 +16,7 @@ from conftest import run_cli
 from skymule.cli import output
 from skymule.cli.tables import fmt
 from skymule.io.traces import write_dt_export
-from skymule.radiomaps import RadioMapFit
+from skymule.tasks.radiomaps import RadioMapFit
 
 WIDTHS = (60, 80, None)  # None: piped (plain text)
 

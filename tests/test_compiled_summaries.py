@@ -16,6 +16,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+import skymule.metrics.summary as metrics
 from engine_cases import (
     random_geometry,
     random_mission,
@@ -23,9 +24,9 @@ from engine_cases import (
     with_geometry,
     with_random_fading,
 )
-from skymule import metrics
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
-from skymule.metrics import Flights, Summaries, summaries
+from skymule.metrics.flights import Flights
+from skymule.metrics.summary import Summaries, summaries
 from skymule.policies import batch_policy
 from skymule.scenario import PolicySpec, load_scenario
 from skymule.sim import compiled, summary_kernels

@@ -16,7 +16,7 @@ import skymule.envs  # noqa: E402  (registers skymule/DataMule-v0)
 from skymule.envs.datamule import DataMuleEnv  # noqa: E402
 from skymule.errors import SkymuleError  # noqa: E402
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario  # noqa: E402
-from skymule.metrics import aadm_score  # noqa: E402
+from skymule.metrics.summary import aadm_score  # noqa: E402
 from skymule.scenario import Scenario, load_scenario  # noqa: E402
 
 SHORT = LayoutRanges(n_sensors=(4, 4), duration_s=(30, 70))

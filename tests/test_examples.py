@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from skymule.io.traces import write_aadm_log, write_dt_export
-from skymule.runner import simulate
 from skymule.scenario import load_scenario
+from skymule.tasks.simulate import simulate
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 NAMES = ("LW1", "LW2", "LW3", "LW4")

@@ -12,10 +12,9 @@ from shapely.geometry import Point
 
 from skymule.errors import SkymuleError
 from skymule.faults import no_faults
-from skymule.fleet_runner import make_fleet_policy, run_fleet
-from skymule.flights import MissionLog
 from skymule.io.runs import slots_frame
-from skymule.metrics import summarize
+from skymule.metrics.flights import MissionLog
+from skymule.metrics.summary import summarize
 from skymule.policies import batch_policy
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
 from skymule.sim import compiled
@@ -24,6 +23,7 @@ from skymule.sim.contract import NO_SENSOR
 from skymule.sim.fixed import FixedEngine
 from skymule.sim.fleet import build_fleet
 from skymule.sim.run import run_mission, run_missions, summarize_missions
+from skymule.tasks.fleet import make_fleet_policy, run_fleet
 from skymule.world import Mission, build_mission
 
 PRESETS = ("paper-sim-fixed", "paper-sim-autonomous")
@@ -288,7 +288,7 @@ def test_a_sweep_draws_each_missions_faults_from_its_seed(tmp_path: Path) -> Non
 
     import skymule
     from conftest import run_cli
-    from skymule.runner import simulate
+    from skymule.tasks.simulate import simulate
 
     preset = Path(skymule.__file__).parent / "scenarios" / "paper-sim-fixed.toml"
     text = preset.read_text(encoding="utf-8")

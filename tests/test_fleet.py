@@ -11,16 +11,16 @@ import pytest
 from conftest import run_cli
 from skymule.bounds.fleet import fleet_bound, fleet_time_sharing_lp
 from skymule.errors import ScenarioError, SkymuleError
-from skymule.fleet_runner import make_fleet_policy, run_fleet, simulate_fleet
 from skymule.flight.paths import Track
 from skymule.policies.base import Action, MissionContext, Observation
 from skymule.policies.fleet import partition
-from skymule.runner import simulate
 from skymule.scenario import Scenario, UavSpec, load_scenario
 from skymule.sim import contract
 from skymule.sim.context import mission_context
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.fleet import Fleet, build_fleet
+from skymule.tasks.fleet import make_fleet_policy, run_fleet, simulate_fleet
+from skymule.tasks.simulate import simulate
 from skymule.world import mission_from_track
 
 MBIT = 1e6
@@ -238,6 +238,26 @@ def test_cli_run_and_compare_on_a_fleet(tmp_path: Path) -> None:
     slots = (tmp_path / "c" / "hgad" / "slots.csv").read_text().splitlines()
     assert slots[0].startswith("uav,") and ",chosen,lost," in slots[0]
     assert len(slots) == 1 + 2 * 500
+    # --json prints the comparison as JSON (no table): the CSV's totals, the bound, each gap
+    printed = run_cli("compare", scenario, "--policies", "hgad,coordinated", "--json")
+    assert printed.returncode == 0, printed.stderr
+    record = json.loads(printed.stdout)
+    assert [r["policy"] for r in record["runs"]] == ["hgad", "coordinated"]
+    bound = record["bound"]["upper_bound_mbit"]
+    for row in record["runs"]:
+        assert row["gap_to_bound_mbit"] == pytest.approx(bound - row["total_downloaded_mbit"])
+
+
+def test_cli_fleet_run_prints_json_or_a_table_that_keeps_every_value(tmp_path: Path) -> None:
+    scenario = Path(__file__).resolve().parents[1] / "examples" / "fleet-lake-wheeler.toml"
+    printed = run_cli("run", scenario, "--json")
+    assert printed.returncode == 0, printed.stderr
+    summary = json.loads(printed.stdout)
+    assert summary["n_uavs"] == len(summary["uavs"]) == 2
+    table = run_cli("run", scenario)  # piped: plain text, full names, every digit
+    assert "total_downloaded_mbit" not in table.stdout  # the short header
+    assert "Mbit" in table.stdout and "…" not in table.stdout
+    assert f"{summary['total_downloaded_mbit']:.1f}" in table.stdout
 
 
 @pytest.mark.parametrize(

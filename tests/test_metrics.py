@@ -15,8 +15,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from skymule.energy import propulsion_power_w
-from skymule.flights import NO_SENSOR, MissionLog, flight_record
-from skymule.metrics import summarize
+from skymule.metrics.flights import NO_SENSOR, MissionLog, flight_record
+from skymule.metrics.summary import summarize
 
 
 def random_log(rng: np.random.Generator, autonomous: bool) -> MissionLog:

@@ -14,12 +14,12 @@ from skymule.bounds.fixed import fixed_path_bound, mission_track_rates
 from skymule.bounds.mission import mission_bound
 from skymule.errors import SkymuleError
 from skymule.flight.paths import Track
-from skymule.metrics import summarize
+from skymule.metrics.summary import summarize
 from skymule.policies import HGAD, POLICIES, Greedy
 from skymule.policies.optimal_fixed import OptimalFixed, plan_schedule, slot_counts
-from skymule.runner import simulate
 from skymule.scenario import Scenario, load_scenario
 from skymule.sim.run import run_mission
+from skymule.tasks.simulate import simulate
 from skymule.world import Mission, build_mission, mission_from_track
 
 REL = 1e-9

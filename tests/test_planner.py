@@ -9,7 +9,7 @@ import pytest
 
 from skymule.bounds.autonomous import autonomous_bound
 from skymule.errors import SkymuleError
-from skymule.metrics import aadm_score, completion_time_s
+from skymule.metrics.summary import aadm_score, completion_time_s
 from skymule.policies import HGAD, make_policy
 from skymule.policies.planner import Planner, allocate_hover, held_karp, two_opt_order
 from skymule.scenario import load_scenario

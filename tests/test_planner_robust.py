@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from skymule.errors import ScenarioError
-from skymule.flights import MissionLog
+from skymule.metrics.flights import MissionLog
 from skymule.policies import make_policy
 from skymule.policies.base import Observation
 from skymule.policies.planner import ground_speed_mps

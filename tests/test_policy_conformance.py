@@ -18,12 +18,12 @@ import shapely
 
 from conftest import run_cli
 from skymule.errors import SkymuleError
-from skymule.flights import NO_SENSOR, MissionLog
+from skymule.metrics.flights import NO_SENSOR, MissionLog
 from skymule.policies import POLICIES, make_policy, unknown_policies
 from skymule.policies.base import Action
-from skymule.runner import simulate
 from skymule.scenario import load_scenario
 from skymule.sim.run import run_mission
+from skymule.tasks.simulate import simulate
 from skymule.world import Mission, build_mission
 
 PLUGINS = Path(__file__).parent / "plugins"

@@ -20,8 +20,8 @@ from skymule.radio.pathloss import PATHLOSS_MODELS, LogDistance
 from skymule.radio.rates import BUILTIN_RATE_TABLES, resolve_rate_table
 from skymule.radio.sources import build_pathloss
 from skymule.registry import Registry
-from skymule.runner import simulate
 from skymule.scenario import PolicySpec, RadioSpec, load_scenario, presets
+from skymule.tasks.simulate import simulate
 
 ROOT = Path(__file__).parents[1]
 

@@ -10,12 +10,12 @@ import pandas as pd
 import pytest
 
 from conftest import run_cli
-from skymule.flights import MissionLog
+from skymule.metrics.flights import MissionLog
 from skymule.policies import make_policy
-from skymule.resilience import leveled, run_study
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.run import run_mission
+from skymule.tasks.resilience import leveled, run_study
 from skymule.world import Mission, build_mission
 
 

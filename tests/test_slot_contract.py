@@ -10,11 +10,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from skymule.flight.paths import Track
-from skymule.flights import NO_SENSOR
+from skymule.metrics.flights import NO_SENSOR
 from skymule.policies import HGAD, Greedy, make_policy
-from skymule.runner import simulate
 from skymule.scenario import load_scenario
 from skymule.sim.run import run_mission
+from skymule.tasks.simulate import simulate
 from skymule.world import mission_from_track
 
 # Two sensors A, B over a ten-sample trace. With bandwidth 1 MHz the AADM table gives rates

@@ -16,8 +16,8 @@ from conftest import SMALL_SWEEP, run_cli, write
 from skymule.experiments import store
 from skymule.experiments.run import run_sweep
 from skymule.experiments.sweep import iter_missions, load_sweep
-from skymule.runner import simulate
 from skymule.scenario import scenario_from_dict
+from skymule.tasks.simulate import simulate
 
 SKYMULE = str(Path(sys.executable).with_name("skymule"))
 

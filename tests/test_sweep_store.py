@@ -21,8 +21,8 @@ from conftest import SMALL_SWEEP, run_cli, write
 from skymule.experiments import store
 from skymule.experiments.run import auto_chunk_size, run_sweep
 from skymule.experiments.sweep import load_sweep, plan_missions
-from skymule.runner import simulate
 from skymule.scenario import load_scenario, scenario_from_dict
+from skymule.tasks.simulate import simulate
 
 SMALL = SMALL_SWEEP
 

@@ -15,7 +15,6 @@ from shapely.geometry import Point, Polygon, box
 from skymule.energy import propulsion_power_w
 from skymule.errors import ScenarioError
 from skymule.faults import Battery, Wind, no_faults
-from skymule.fleet_runner import simulate_fleet
 from skymule.flight.navigation import Navigator
 from skymule.policies.base import Action, MissionContext, Observation
 from skymule.policies.batched import as_batch_policy
@@ -24,6 +23,7 @@ from skymule.sim.autonomous import AutonomousEngine
 from skymule.sim.faulted_motion import FaultedUav
 from skymule.sim.fleet import build_fleet
 from skymule.sim.run import run_mission
+from skymule.tasks.fleet import simulate_fleet
 from skymule.world import Mission, build_mission
 
 
@@ -242,8 +242,8 @@ def test_the_battery_account_is_logged_and_summarised(tmp_path: Path) -> None:
     """The log, slots.csv and summary.json carry what the battery paid, slot by slot; under a
     wind it is not the calm-air energy_kj (docs/faults.md)."""
     from skymule.io.runs import read_run, slots_frame
-    from skymule.metrics import summarize
-    from skymule.runner import RunResult
+    from skymule.metrics.summary import summarize
+    from skymule.tasks.simulate import RunResult
 
     usable = 19 * (P_10 + 10 * P_4 / 4) + P_HOVER + 1.0
     battery = Battery(capacity_j=usable / 0.8, reserve_fraction=0.2, return_speed_mps=10.0)
@@ -335,7 +335,7 @@ def test_each_uav_draws_its_own_faults_and_shares_the_towers() -> None:
 
 @pytest.mark.parametrize("policy", ["greedy", "hgad"])
 def test_a_one_uav_fleet_with_faults_is_the_single_uav_engine(policy: str) -> None:
-    from skymule.runner import simulate
+    from skymule.tasks.simulate import simulate
 
     single = simulate(_fleet_scenario(None), policy)
     fleet = simulate_fleet(_fleet_scenario([{"name": "only"}]), policy)

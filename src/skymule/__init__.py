@@ -31,14 +31,14 @@ __version__ = "0.1.0"
 _EXPORTS = {
     "Scenario": "skymule.scenario",
     "load_scenario": "skymule.scenario",
-    "simulate": "skymule.runner",
-    "RunResult": "skymule.runner",
+    "simulate": "skymule.tasks.simulate",
+    "RunResult": "skymule.tasks.simulate",
     "build_mission": "skymule.world",
     "Mission": "skymule.world",
     "run_mission": "skymule.sim.run",
     "run_missions": "skymule.sim.run",
     "summarize_missions": "skymule.sim.run",
-    "compare_policies": "skymule.compare",
+    "compare_policies": "skymule.tasks.compare",
     "load_sweep": "skymule.experiments.sweep",
     "run_sweep": "skymule.experiments.run",
     "Action": "skymule.policies.base",
@@ -48,8 +48,8 @@ _EXPORTS = {
     "BatchAction": "skymule.policies.base",
     "BatchObservation": "skymule.policies.base",
     "BatchPolicy": "skymule.policies.base",
-    "Flights": "skymule.flights",
-    "MissionLog": "skymule.flights",
+    "Flights": "skymule.metrics.flights",
+    "MissionLog": "skymule.metrics.flights",
 }
 
 __all__ = [
@@ -77,10 +77,9 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:
-    from skymule.compare import compare_policies
     from skymule.experiments.run import run_sweep
     from skymule.experiments.sweep import load_sweep
-    from skymule.flights import Flights, MissionLog
+    from skymule.metrics.flights import Flights, MissionLog
     from skymule.policies.base import (
         Action,
         BatchAction,
@@ -90,9 +89,10 @@ if TYPE_CHECKING:
         Observation,
         Policy,
     )
-    from skymule.runner import RunResult, simulate
     from skymule.scenario import Scenario, load_scenario
     from skymule.sim.run import run_mission, run_missions, summarize_missions
+    from skymule.tasks.compare import compare_policies
+    from skymule.tasks.simulate import RunResult, simulate
     from skymule.world import Mission, build_mission
 
 

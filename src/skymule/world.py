@@ -15,13 +15,13 @@ from pathlib import Path
 import numpy as np
 from shapely.geometry import Point, Polygon, box
 
-from skymule.aadm.plan import is_plan, plan_waypoints_m, scenario_fence
 from skymule.aadm.score import AADM_WINDOW_S
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.faults.draws import FaultDraws, draw_faults, fault_rng
 from skymule.flight.navigation import Navigator, hover_point
 from skymule.flight.paths import Track, path_length_m, read_waypoints_csv, sample_path
 from skymule.geo import LocalFrame, covers, sensor_positions_m
+from skymule.io.qgc_plan import is_plan, plan_waypoints_m, scenario_fence
 from skymule.radio.channel import mission_fading_db, signal_source
 from skymule.radio.rates import RateTable, rate_bps, resolve_rate_table
 from skymule.radio.sources import SignalSource
@@ -255,7 +255,7 @@ def _waypoints(scenario: Scenario, frame: LocalFrame) -> np.ndarray:
     spec = scenario.trajectory.waypoints
     if spec is None:
         raise ScenarioError("trajectory.waypoints is required for mode = 'fixed' with a model")
-    if is_plan(spec):  # a QGroundControl .plan (skymule.aadm.plan)
+    if is_plan(spec):  # a QGroundControl .plan (skymule.io.qgc_plan)
         waypoints = plan_waypoints_m(scenario.resolve_path(str(spec)), frame)
     elif isinstance(spec, str):
         waypoints = read_waypoints_csv(scenario.resolve_path(spec), frame.to_local)

@@ -65,7 +65,7 @@ def fly_loopback(
     log_path: Path | None = None,
 ) -> LoopbackResult:
     """Fly ``scenario`` on loopback (pacing ``poll_s`` of wall time a poll) and run the engine."""
-    from skymule.runner import simulate
+    from skymule.tasks.simulate import simulate
 
     if policy is not None:
         scenario = scenario.with_policy(policy)

@@ -1,7 +1,7 @@
 """The ``skymule`` command line.
 
-The commands only parse arguments, call the library (:mod:`skymule.runner`,
-:mod:`skymule.compare`, :mod:`skymule.radiomaps`, ...) and print. User mistakes (bad
+The commands only parse arguments, call the library (:mod:`skymule.tasks.simulate`,
+:mod:`skymule.tasks.compare`, :mod:`skymule.tasks.radiomaps`, ...) and print. User mistakes (bad
 scenario, trace, flag) print one line and exit with status 2; the library raises
 :class:`~skymule.errors.SkymuleError` for them and :func:`main` turns it into that line.
 Anything else is a bug and keeps its traceback.

@@ -108,8 +108,8 @@ def analyze(
     ] = False,
 ) -> None:
     """Replay a recorded flight under several policies and write a compare folder + report."""
-    from skymule.analyze import DEFAULT_BUFFER_MBIT, analyze_flight
     from skymule.cli.missions import summary_columns
+    from skymule.tasks.analyze import DEFAULT_BUFFER_MBIT, analyze_flight
 
     out_dir = out if out is not None else Path(f"{log.stem}-analysis")
     guard_analysis(out_dir, force)
@@ -150,7 +150,7 @@ def fit_radiomap_command(
 ) -> None:
     """Fit a radio map (log-distance + kriged residual) per sensor to recorded flights."""
     from skymule.cli.missions import _working
-    from skymule.radiomaps import RadioMapFit, fit_radiomap_files, parse_origin
+    from skymule.tasks.radiomaps import RadioMapFit, fit_radiomap_files, parse_origin
 
     with _working("fitting the radio map"):
         fit = fit_radiomap_files(
@@ -175,7 +175,7 @@ def score_radiomap_command(
     json_out: Annotated[bool, typer.Option("--json", help="Print the scores as JSON.")] = False,
 ) -> None:
     """How well a radio map (or a scenario's model) predicts a recorded flight."""
-    from skymule.radiomaps import parse_origin, score_against_trace
+    from skymule.tasks.radiomaps import parse_origin, score_against_trace
 
     scores = score_against_trace(source, trace, origin=parse_origin(origin) if origin else None)
     if json_out:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
@@ -11,11 +10,12 @@ import typer
 
 import skymule.cli.output as output
 from skymule.cli.folders import guard_bound, guard_compare, guard_run, guard_sweep
+from skymule.cli.output import print_json
 from skymule.cli.tables import fmt, print_table
 
 if TYPE_CHECKING:
-    from skymule.compare import Comparison
     from skymule.scenario import Scenario
+    from skymule.tasks.compare import Comparison
 
 ScenarioArg = Annotated[str, typer.Argument(help="Scenario TOML path or preset name.")]
 SetOption = Annotated[
@@ -36,7 +36,7 @@ GAP_COLUMNS = ("gap_to_bound_mbit", "gap_to_bound_frac")
 
 
 def summary_columns() -> tuple[str, ...]:
-    from skymule.metrics import HEADLINE_METRICS
+    from skymule.metrics.summary import HEADLINE_METRICS
 
     return ("policy", *HEADLINE_METRICS)
 
@@ -45,16 +45,6 @@ def load(scenario: str, overrides: list[str] | None) -> Scenario:
     from skymule.scenario import load_scenario
 
     return load_scenario(scenario, overrides or ())
-
-
-def print_json(data: Any) -> None:
-    print(json.dumps(data, indent=2, default=_jsonable))
-
-
-def _jsonable(value: Any) -> Any:
-    if hasattr(value, "item"):  # numpy scalars
-        return value.item()
-    return str(value)
 
 
 def per_sensor_rows(summary: dict[str, Any]) -> list[dict[str, Any]]:
@@ -85,15 +75,15 @@ def run(
     force: ForceOption = False,
 ) -> None:
     """Run one mission and print its summary."""
-    from skymule.runner import simulate
+    from skymule.tasks.simulate import simulate
 
     spec = load(scenario, overrides)
     if spec.uavs:  # several UAVs (docs/fleet.md)
-        from skymule.fleet_cli import run_fleet_command
+        from skymule.cli.fleet import run_fleet_command
 
         if out is not None:
             guard_run(out, spec.name, policy or spec.policy.name, force)
-        return run_fleet_command(spec, policy, out, output.console)
+        return run_fleet_command(spec, policy, out, json_out)
     if policy is not None:
         spec = spec.with_policy(policy)
     if out is not None:
@@ -137,18 +127,23 @@ def compare(
     force: ForceOption = False,
 ) -> None:
     """Run one scenario under several policies on identical signal draws."""
-    from skymule.compare import compare_policies, compare_sources, parse_sources, write_compare
     from skymule.policies import check_policies
+    from skymule.tasks.compare import (
+        compare_policies,
+        compare_sources,
+        parse_sources,
+        write_compare,
+    )
 
     base = load(scenario, overrides)
     if sources is None and base.uavs:  # several UAVs (docs/fleet.md)
-        from skymule.fleet_cli import check_policy_names, compare_fleet_command
+        from skymule.cli.fleet import check_policy_names, compare_fleet_command
 
         fleet_names = _names(policies)
         check_policy_names(fleet_names, policies)
         if out is not None:
             guard_compare(out, base.name, fleet_names, force)
-        return compare_fleet_command(base, fleet_names, out, output.console)
+        return compare_fleet_command(base, fleet_names, out, json_out)
     names = check_policies(_names(policies))
     source_specs = parse_sources(sources) if sources is not None else None
     if out is not None:
@@ -204,7 +199,7 @@ def bound(
     force: ForceOption = False,
 ) -> None:
     """Upper bound on the data any policy can download in a scenario (LP/MILP, HiGHS)."""
-    from skymule.compare import scenario_bound, write_bound
+    from skymule.tasks.compare import scenario_bound, write_bound
 
     spec = load(scenario, overrides)
     if out is not None:

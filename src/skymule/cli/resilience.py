@@ -40,7 +40,7 @@ def resilience(
 ) -> None:
     """Every policy over increasing fault intensity, paired draws: Mbit (mean, 95 % CI)."""
     from skymule.policies import check_policies
-    from skymule.resilience import parse_levels, plot, run_study, table
+    from skymule.tasks.resilience import parse_levels, plot, run_study, table
 
     values = parse_levels(levels, fault)
     names = check_policies(_names(policies))

@@ -35,7 +35,7 @@ from gymnasium import spaces
 import skymule.envs.observation as enc
 from skymule.envs.vector import ENV_POLICY_NAME, REWARDS, EnvMissions, anchors_m
 from skymule.errors import SkymuleError
-from skymule.flights import MissionLog
+from skymule.metrics.flights import MissionLog
 from skymule.policies.base import Observation
 from skymule.scenario import Scenario, load_scenario
 from skymule.world import Mission, build_mission

@@ -36,7 +36,7 @@ from gymnasium.vector.utils import batch_space
 import skymule.envs.observation as enc
 from skymule.aadm.score import slot_rewards
 from skymule.errors import SkymuleError
-from skymule.flights import MissionLog
+from skymule.metrics.flights import MissionLog
 from skymule.policies.base import BatchAction, BatchObservation
 from skymule.scenario import Scenario, load_scenario
 from skymule.sim.contract import NO_SENSOR

@@ -33,7 +33,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from skymule.errors import SkymuleError
-from skymule.metrics import HEADLINE_METRICS
+from skymule.metrics.summary import HEADLINE_METRICS
 
 PARTS = "results"
 RESULTS = "results.parquet"

@@ -20,11 +20,11 @@ import numpy as np
 import pandas as pd
 
 from skymule.errors import SkymuleError
-from skymule.flights import NO_SENSOR, MissionLog
 from skymule.geo import LocalFrame
 from skymule.io.runschema import check_slots, validate_scenario_json, validate_summary
 from skymule.io.textfiles import read_text
-from skymule.metrics import BITS_PER_MBIT, power_w, speed_mps, step_lengths_m
+from skymule.metrics.flights import NO_SENSOR, MissionLog
+from skymule.metrics.summary import BITS_PER_MBIT, power_w, speed_mps, step_lengths_m
 
 SUMMARY_FILE = "summary.json"
 SLOTS_FILE = "slots.csv"

@@ -2,7 +2,7 @@
 
 * independent UAVs -- the baseline: each UAV runs its own single-UAV policy (Greedy, HGAD,
   the planner, ...) as if alone, one column of the engine each; the slot contract settles the
-  sensors they both choose (:func:`skymule.fleet_runner.make_fleet_policy`);
+  sensors they both choose (:func:`skymule.tasks.fleet.make_fleet_policy`);
 * :class:`Coordinated` -- ``coordinated``: assigns every sensor to one UAV before take-off (the
   partition that minimises the longest UAV's tour time, travel plus the hover time to empty
   its sensors, :func:`partition`), then each UAV runs the tour planner

@@ -2,7 +2,7 @@
 
 A fleet run folder is a run folder whose ``slots.csv`` has a ``uav`` column (one row per UAV
 per slot) and whose ``summary.json`` has the fleet totals plus ``uavs``, one single-UAV
-summary per UAV (:mod:`skymule.fleet_runner`). On top of the checks every run folder gets
+summary per UAV (:mod:`skymule.tasks.fleet`). On top of the checks every run folder gets
 (:func:`skymule.io.runs.read_run`), the two files must agree on the fleet: the same UAV
 names, every UAV with the summary's ``slots`` rows, and each UAV's download in the slot table
 equal to its summary's. A damaged folder is one line naming the file and what is wrong.

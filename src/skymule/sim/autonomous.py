@@ -35,7 +35,7 @@ import shapely
 
 from skymule.errors import SkymuleError
 from skymule.flight.navigation import Navigator
-from skymule.flights import Flights
+from skymule.metrics.flights import Flights
 from skymule.policies.base import BatchAction, BatchObservation, BatchPolicy, MissionContext
 from skymule.sim import contract
 from skymule.sim.batch_faults import BatchFaults, apply_faults, stack_faults

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from skymule.errors import SkymuleError
-from skymule.flights import Flights
+from skymule.metrics.flights import Flights
 from skymule.policies.base import BatchAction
 from skymule.sim.contract import NO_SENSOR
 from skymule.world import Mission

@@ -15,8 +15,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-import skymule.metrics as metrics
+import skymule.metrics.summary as metrics
 from skymule.aadm.score import AADM_WINDOW_S, COMPLETE_RTOL, aadm_from_progress
+from skymule.metrics import visits
+from skymule.metrics.flights import Flights
 from skymule.sim import compiled, summary_kernels
 from skymule.sim.columns import mission_geometry
 
@@ -43,7 +45,7 @@ def summary_tables(
     (None: all); the others, whose first visits come from their targets, get "never"."""
     steps, power, pair = metrics.power_tables(track_position_m, track_samples, track_id, slot_s)
     if near_rows is None:
-        near, group = metrics.near_samples(
+        near, group = visits.near_samples(
             track_position_m, track_samples, track_id, hover_points_m, visit_radius_m
         )
     else:
@@ -82,7 +84,7 @@ def _near_of_rows(
     near = np.zeros((0, n_sensors), np.int64)
     group = np.zeros(0, np.int64)
     if rows.size:
-        near, group = metrics.near_samples(
+        near, group = visits.near_samples(
             track_position_m, track_samples, track_id[rows], hover_points_m[rows],
             visit_radius_m[rows],
         )  # fmt: skip
@@ -92,7 +94,7 @@ def _near_of_rows(
     return np.concatenate([near, never]), groups
 
 
-def target_tables(flights: metrics.Flights) -> summary_kernels.TargetTables:
+def target_tables(flights: Flights) -> summary_kernels.TargetTables:
     """What :func:`~skymule.sim.summary_kernels.first_target_arrivals` looks up, with
     ``visits.first_visit_slots``'s choice of rows: with targets, the missions that ran some
     slots and know some hover point (none without targets)."""
@@ -190,7 +192,7 @@ def compiled_summaries(engine: FixedEngine, rule: Any, loop: Any = None) -> metr
     )
 
 
-def flights_summaries(flights: metrics.Flights, use_numba: bool = True) -> metrics.Summaries:
+def flights_summaries(flights: Flights, use_numba: bool = True) -> metrics.Summaries:
     """``metrics.summaries(flights)`` by the kernels, one pass over the slot arrays (compiled
     unless ``use_numba`` is False: then plain Python, as the tests run it).
 

@@ -28,7 +28,7 @@ import numpy as np
 
 from skymule.errors import SkymuleError
 from skymule.flight.paths import Track
-from skymule.flights import Flights
+from skymule.metrics.flights import Flights
 from skymule.policies.base import BatchAction, BatchObservation, BatchPolicy, MissionContext
 from skymule.radio.rates import rate_bps
 from skymule.sim import contract

@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 
 from skymule.errors import SkymuleError
-from skymule.flights import Flights, MissionLog
-from skymule.metrics import summary_dicts, summary_rows, with_battery
+from skymule.metrics.flights import Flights, MissionLog
+from skymule.metrics.summary import summary_dicts, summary_rows, with_battery
 from skymule.policies.base import BatchPolicy, Policy
 from skymule.policies.batched import as_batch_policy, policy_names
 from skymule.scenario import PolicySpec

@@ -2,8 +2,8 @@
 
 The summaries reduce each mission's per-slot arrays (served sensor, bits, hover flag, track
 sample) to a few numbers: bits downloaded, distance, energy, handovers, hover slots, the slot
-each sensor was first visited in and the AADM score's progress. :mod:`skymule.metrics` does it
-with numpy over (B, T) arrays, the reference; this module does the same reductions for one
+each sensor was first visited in and the AADM score's progress. :mod:`skymule.metrics.summary` does
+it with numpy over (B, T) arrays, the reference; this module does the same reductions for one
 mission's rows in the subset of Python numba compiles, so the compiled slot loop
 (:mod:`skymule.sim.compiled`) can reduce each mission while its slots are still in cache and
 never write the (B, T) logs, and a pass over arrays already written (:func:`reduce_rows`: the
@@ -17,7 +17,7 @@ Value for value means the same floating-point sums: numpy sums a row pairwise
 The lookup tables (distance and power per track sample, the first track sample near each
 sensor) come from the same functions ``metrics`` uses (``metrics.power_tables``,
 ``metrics.near_samples``); the distance to a hover point is ``np.hypot``, as in
-:mod:`skymule.visits` (numba calls the same C library function).
+:mod:`skymule.metrics.visits` (numba calls the same C library function).
 """
 
 from __future__ import annotations

@@ -3,12 +3,8 @@
 Every summary number (``summary.json``, sweep rows, comparison tables) comes from
 :func:`summaries` over a :class:`Flights`: the batched engine builds one from its arrays
 without any per-mission log, and :func:`summarize` is the one-mission case, built from a
-:class:`~skymule.sim.log.MissionLog`. The AADM score comes from its one implementation,
-:func:`skymule.aadm.score.aadm_scores`, called here for every summary.
-
-:class:`Flights` (positions as tracks plus sample indices) is defined in
-:mod:`skymule.flights` and the visit order in :mod:`skymule.visits`; both are re-exported
-here, so ``from skymule.metrics import Flights`` keeps working.
+:class:`~skymule.metrics.flights.MissionLog`. The AADM score comes from its one
+implementation, :func:`skymule.aadm.score.aadm_scores`, called here for every summary.
 """
 
 from __future__ import annotations
@@ -21,13 +17,8 @@ import numpy as np
 
 from skymule.aadm.score import AADM_WINDOW_S, AadmScore, aadm_scores
 from skymule.energy import propulsion_power_w
-from skymule.flights import NO_SENSOR, MissionLog
-from skymule.flights import Flights as Flights
-from skymule.flights import unique_rows as unique_rows
-from skymule.visits import first_visit_slots as first_visit_slots
-from skymule.visits import near_samples as near_samples
-from skymule.visits import order_from_first as order_from_first
-from skymule.visits import visit_order as visit_order
+from skymule.metrics.flights import NO_SENSOR, Flights, MissionLog, unique_rows
+from skymule.metrics.visits import first_visit_slots, order_from_first
 
 BITS_PER_MBIT = 1e6
 

@@ -1,14 +1,14 @@
 """The order in which each mission first visited its sensors (``visit_order`` in summaries).
 
-Vectorised over the missions of a :class:`~skymule.flights.Flights`; part of the metrics
-(:mod:`skymule.metrics` calls it), kept apart for the size of that module.
+Vectorised over the missions of a :class:`~skymule.metrics.flights.Flights`; part of the metrics
+(:mod:`skymule.metrics.summary` calls it), kept apart for the size of that module.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from skymule.flights import NO_SENSOR, Flights, unique_rows
+from skymule.metrics.flights import NO_SENSOR, Flights, unique_rows
 
 
 def visit_order(flights: Flights) -> np.ndarray:

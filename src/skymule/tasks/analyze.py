@@ -5,7 +5,7 @@ as metres from the site origin, the AADM launch point for Lake Wheeler towers) b
 trace scenario: one sensor per SNR
 column, buffers from an AADM volume file or ``--buffers`` (default: 1000 Mbit each, the
 challenge's example). Greedy, HGAD (or any registered policies) then replay the same trace
-through the engine (:func:`skymule.runner.simulate`) and each writes a run folder; the
+through the engine (:func:`skymule.tasks.simulate.simulate`) and each writes a run folder; the
 result is a compare folder that ``skymule report`` reads like any other.
 
 When the flight's own download log is given, it becomes one more run folder, ``flight``:
@@ -50,11 +50,11 @@ import pandas as pd
 from skymule.aadm import files as aadm_files
 from skymule.aadm.score import aadm_score_one, share_slot_from_altitude
 from skymule.errors import SkymuleError
-from skymule.flights import NO_SENSOR, MissionLog, flight_record
 from skymule.geo import load_site
 from skymule.io.runs import slots_frame, write_run
 from skymule.io.traces import Trace, normalise_column, read_trace, read_volumes
-from skymule.metrics import summarize
+from skymule.metrics.flights import NO_SENSOR, MissionLog, flight_record
+from skymule.metrics.summary import summarize
 from skymule.policies import check_policies
 from skymule.scenario import Scenario, scenario_from_dict
 from skymule.world import BITS_PER_MBIT, Mission, build_mission
@@ -315,7 +315,7 @@ def analyze_flight(
 
     Returns the comparison rows (one per run folder written).
     """
-    from skymule.compare import compare_policies, comparison_row, write_compare
+    from skymule.tasks.compare import compare_policies, comparison_row, write_compare
 
     check_policies(list(policies))
     trace = read_trace(log_path)

@@ -10,10 +10,10 @@ import pandas as pd
 import pytest
 
 from conftest import run_cli
-from skymule.aadm.plan import read_qgc_plan
 from skymule.errors import SkymuleError
 from skymule.geo import LocalFrame, load_geofence
 from skymule.io.exports import plan_waypoints
+from skymule.io.qgc_plan import read_qgc_plan
 from skymule.scenario import load_scenario
 from skymule.world import build_mission
 

@@ -2,7 +2,7 @@
 
 The API behind ``skymule fit-radiomap`` and ``skymule score-radiomap``::
 
-    from skymule.radiomaps import fit_radiomap_files, score_against_trace
+    from skymule.tasks.radiomaps import fit_radiomap_files, score_against_trace
 
     fit = fit_radiomap_files([Path("dt_flight.csv")])         # sensors from the trace header
     fit.fitted.write(Path("map.json")); fit.rows              # one dict per sensor

@@ -6,9 +6,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from skymule.flights import MissionLog
 from skymule.io.runs import slots_frame, write_run
-from skymule.metrics import summarize
+from skymule.metrics.flights import MissionLog
+from skymule.metrics.summary import summarize
 from skymule.policies import batch_policy
 from skymule.scenario import Scenario
 from skymule.sim.run import run_mission

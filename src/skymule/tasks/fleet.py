@@ -1,6 +1,6 @@
 """Several UAVs from scenario to results: build the fleet, run its policy, summarise, write.
 
-The fleet counterpart of :mod:`skymule.runner`. ``summary.json`` of a fleet run holds the
+The fleet counterpart of :mod:`skymule.tasks.simulate`. ``summary.json`` of a fleet run holds the
 fleet totals at the top level (the keys of a single-UAV summary that make sense for a fleet:
 downloads, completion, per-sensor downloads) plus ``uavs``: one single-UAV summary per UAV
 (its own downloads, distance, energy, landing) with ``lost_slots``, the slots in which it
@@ -19,10 +19,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from skymule.bounds.result import MissionBound
 from skymule.errors import SkymuleError
-from skymule.flights import Flights
 from skymule.io.runs import slots_frame, write_run
-from skymule.metrics import BITS_PER_MBIT, summarize
+from skymule.metrics.flights import Flights
+from skymule.metrics.summary import BITS_PER_MBIT, summarize
 from skymule.policies import batch_policy
 from skymule.policies.base import BatchPolicy, Policy
 from skymule.policies.batched import PerFleet, PerMission, policy_names
@@ -31,6 +32,7 @@ from skymule.scenario import Scenario
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.fleet import Fleet, build_fleet
 from skymule.sim.run import run_missions
+from skymule.tasks.compare import COMPARISON_CSV, with_gap, write_bound
 
 FLEET_POLICIES = (COORDINATED,)
 """Policies that decide for the whole fleet (any single-UAV policy runs independently)."""
@@ -159,6 +161,57 @@ def simulate_fleet(
     chosen = make_fleet_policy(fleet, policy)
     log = run_fleet(fleet, chosen)
     return FleetResult(fleet, log, fleet_summary(fleet, log, fleet_policy_name(chosen, fleet)))
+
+
+@dataclass(frozen=True)
+class FleetComparison:
+    """Several policies on one built fleet (identical draws), with the K-UAV upper bound.
+
+    Attributes:
+        results: one finished run per policy, in the order asked.
+        bound: the fleet's upper bound, or None (``note`` says why).
+        note: why there is no bound ("" when there is one).
+    """
+
+    fleet: Fleet
+    results: tuple[FleetResult, ...]
+    bound: MissionBound | None
+    note: str = ""
+
+    def rows(self) -> list[dict[str, Any]]:
+        """One row per policy: the fleet totals (no per-UAV or per-sensor detail) + the gap."""
+        return [
+            with_gap(
+                {k: v for k, v in result.summary.items() if not isinstance(v, dict | list)},
+                self.bound,
+            )
+            for result in self.results
+        ]
+
+
+def compare_fleet(scenario: Scenario, policies: Sequence[str]) -> FleetComparison:
+    """Run ``scenario``'s fleet under each of ``policies`` on one built fleet, with its bound."""
+    from skymule.bounds.fleet import fleet_bound
+    from skymule.bounds.result import BoundError
+
+    fleet = build_fleet(scenario)
+    try:
+        bound, note = fleet_bound(fleet), ""
+    except BoundError as exc:
+        bound, note = None, str(exc)
+    results = tuple(simulate_fleet(scenario, name, fleet=fleet) for name in policies)
+    return FleetComparison(fleet, results, bound, note)
+
+
+def write_fleet_compare(comparison: FleetComparison, out: Path) -> list[Path]:
+    """Write one run folder per policy, comparison.csv and bound.json; the top-level files."""
+    for result in comparison.results:
+        result.write(out / result.summary["policy"])
+    written = [out / COMPARISON_CSV]
+    pd.DataFrame(comparison.rows()).to_csv(written[0], index=False)
+    if comparison.bound is not None:
+        written.append(write_bound(out, comparison.bound))
+    return written
 
 
 def fleet_policy_name(policy: BatchPolicy, fleet: Fleet) -> str:

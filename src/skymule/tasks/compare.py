@@ -3,7 +3,7 @@
 The Python API behind ``skymule compare``, ``skymule compare --sources`` and
 ``skymule analyze``::
 
-    from skymule.compare import compare_policies, write_compare
+    from skymule.tasks.compare import compare_policies, write_compare
     from skymule.scenario import load_scenario
 
     comparison = compare_policies(load_scenario("paper-sim-fixed"), ["greedy", "hgad"])
@@ -34,8 +34,8 @@ from skymule.errors import SkymuleError
 from skymule.policies import check_policies
 from skymule.radio.pathloss import PATHLOSS_MODELS
 from skymule.registry import did_you_mean
-from skymule.runner import RunResult, simulate
 from skymule.scenario import Scenario
+from skymule.tasks.simulate import RunResult, simulate
 from skymule.world import Mission, build_mission
 
 if TYPE_CHECKING:

@@ -123,7 +123,7 @@ def run_study(
     with_bound: bool = True,
 ) -> Study:
     """Run every policy on ``missions`` paired missions at every level."""
-    from skymule.runner import simulate
+    from skymule.tasks.simulate import simulate
     from skymule.world import build_mission
 
     for level in levels:  # every level's mistake before anything runs

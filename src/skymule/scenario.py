@@ -24,7 +24,7 @@ from skymule.errors import ScenarioError, SkymuleError
 from skymule.faults.specs import SINGLE_KINDS, fault_params
 from skymule.io.textfiles import read_text
 from skymule.overrides import apply_override
-from skymule.policies import POLICIES, policy_params_model
+from skymule.policies.registry import POLICIES, policy_params_model
 from skymule.radio.pathloss import PATHLOSS_MODELS
 from skymule.registry import Registry, did_you_mean, unknown_name_message
 

@@ -1,0 +1,154 @@
+"""The policies a scenario may name, and their parameter models: what validating a
+``[policy]`` section needs, without importing any policy.
+
+:data:`POLICIES` maps a name to a factory (``factory(params) -> policy``) with its parameter
+model as ``params`` metadata (``POLICIES.meta(name, "params")``). :mod:`skymule.policies`
+registers the built-in policies in it when imported (which importing this module does first,
+as its parent package); you can register your own the same way. Names of the form
+``"package.module:Class"`` (plug-ins) and ``"rl:model.zip"`` (learned models) need no entry.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, Any, Protocol
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from skymule.errors import SkymuleError
+from skymule.registry import Registry
+
+
+class PolicySpec(Protocol):
+    """What a factory reads of a scenario's ``[policy]`` section
+    (:class:`skymule.scenario.PolicySpec`, which validates against this registry)."""
+
+    name: str
+    params: dict[str, Any]
+
+    def policy_params(self) -> BaseModel | None: ...
+
+    def model_copy(self, *, update: dict[str, Any]) -> Any: ...
+
+
+class NoParams(BaseModel):
+    """Parameter model of a policy without parameters (an empty ``[policy.params]``)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, strict=True)
+
+
+class HGADParams(NoParams):
+    hover_threshold: Annotated[float, Field(gt=0, le=1)] = 1.0
+    """Fraction of the peak rate that triggers a hover."""
+    max_hover_s: Annotated[float, Field(gt=0)] = 60.0
+    """Longest hover [s]."""
+
+
+class RobustParams(HGADParams):
+    fail_slots: Annotated[int, Field(ge=1)] = 3
+    """A hover (or target) is abandoned after this many consecutive slots with no data."""
+    window_slots: Annotated[int, Field(ge=1)] = 2
+    """Slots in the moving average of observed rates that choices and hovers follow."""
+    arrive_m: Annotated[float, Field(ge=0, allow_inf_nan=False)] = 10.0
+    """Autonomous: a reported position this close to a hover point counts as there [m]."""
+
+
+class RobustPlannerParams(NoParams):
+    fail_slots: Annotated[int, Field(ge=1)] = 3
+    """A sensor is marked down after this many consecutive served slots with no data."""
+    backoff_s: Annotated[float, Field(gt=0, allow_inf_nan=False)] = 60.0
+    """How long a sensor stays down [s] (doubled each further time; back up when it reports)."""
+    window_slots: Annotated[int, Field(ge=1)] = 5
+    """Slots in the moving mean of the observed - predicted SNR that choices follow."""
+    arrive_m: Annotated[float, Field(ge=0, allow_inf_nan=False)] = 10.0
+    """A reported position this close to a hover point counts as there [m]."""
+
+
+PolicyFactory = Callable[[Any], Any]
+"""Makes a fresh policy (per-mission or batched) from its validated parameters."""
+
+POLICIES: Registry[PolicyFactory] = Registry(
+    "policy", extra_allowed="or an import path 'package.module:Class'"
+)
+"""Policy registry: name -> factory(params), with ``params`` = its parameter model."""
+
+
+LEARNED_PREFIX = "rl:"
+"""Policy names ``rl:path/to/model.zip``: a model trained in skymule's environments."""
+
+
+def import_target(name: str) -> Any:
+    """``Attr`` of ``module`` for ``"module:Attr"``, looking in the current folder too."""
+    module_name, _, attribute = name.partition(":")
+    if not module_name or not attribute:
+        raise SkymuleError(f"policy {name!r}: an import path is 'package.module:Class'")
+    cwd = str(Path.cwd())
+    if cwd not in sys.path and "" not in sys.path:
+        # `python -m skymule` has the current folder on the path, the installed script does
+        # not; a policy file next to the scenario should work either way
+        sys.path.append(cwd)
+    try:
+        module = importlib.import_module(module_name)
+    except Exception as exc:  # any failure inside the user's module is theirs to see
+        reason = f"{type(exc).__name__}: {exc}"
+        raise SkymuleError(
+            f"policy {name!r}: could not import module {module_name}: {reason}"
+        ) from None
+    try:
+        target = getattr(module, attribute)
+    except AttributeError:
+        public = [n for n in dir(module) if not n.startswith("_")]
+        from skymule.registry import did_you_mean
+
+        raise SkymuleError(
+            f"policy {name!r}: module {module_name} has no {attribute!r}"
+            f"{did_you_mean(attribute, public)}"
+        ) from None
+    if not callable(target):
+        raise SkymuleError(f"policy {name!r}: {attribute!r} is not a class or function")
+    return target
+
+
+def _params_of(target: Any) -> type[BaseModel] | None:
+    params = getattr(target, "Params", None)
+    return params if isinstance(params, type) and issubclass(params, BaseModel) else None
+
+
+def policy_params_model(name: str) -> type[BaseModel] | None:
+    """The parameter model of policy ``name`` (None: a plug-in without ``Params``).
+
+    Raises the one-line :class:`SkymuleError` for an unknown name or a plug-in that fails to
+    import.
+    """
+    if name.startswith(LEARNED_PREFIX):  # rl:path/to/model.zip: the model is the parameter
+        return None
+    if ":" in name:
+        return _params_of(import_target(name))
+    params: type[BaseModel] = POLICIES.meta(name, "params", NoParams)
+    return params
+
+
+def unknown_policies(names: list[str]) -> list[str]:
+    """The names among ``names`` that resolve to no policy (empty when all are fine)."""
+    unknown = []
+    for name in names:
+        try:
+            policy_params_model(name)
+        except SkymuleError:
+            unknown.append(name)
+    return unknown
+
+
+def check_policies(names: list[str], option: str = "--policies") -> list[str]:
+    """``names`` if every one resolves; else the first problem as one line."""
+    if not names:
+        raise SkymuleError(f"{option} is empty; allowed: {', '.join(POLICIES)}")
+    for name in names:
+        try:
+            policy_params_model(name)
+        except SkymuleError as exc:
+            raise SkymuleError(f"{option}: {exc}") from None
+    return names

@@ -8,7 +8,6 @@ comes out is in metres, seconds, bits and dB.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
@@ -26,8 +25,8 @@ from skymule.radio.channel import mission_fading_db, signal_source
 from skymule.radio.rates import RateTable, rate_bps, resolve_rate_table
 from skymule.radio.sources import SignalSource
 from skymule.scenario import Scenario
-
-BITS_PER_MBIT = 1e6
+from skymule.sim import contract
+from skymule.units import BITS_PER_MBIT
 
 #: Half-width [m] of the square that stands in for a geofence when a scenario gives none.
 UNFENCED_HALF_WIDTH_M = 1.0e6
@@ -114,7 +113,7 @@ class Mission:
         """Slots that start before the download window closes, or None (no window)."""
         if self.aadm_window_s is None:
             return None
-        return math.ceil(self.aadm_window_s / self.slot_s - 1e-9)
+        return int(contract.window_slots(self.aadm_window_s, self.slot_s))
 
     @property
     def score_window_s(self) -> float:
@@ -204,7 +203,7 @@ def check_duration(mission: Mission) -> None:
     ]
     nearest = int(np.argmin(distances))
     name = np.asarray(mission.sensor_names)[reachable][nearest]
-    needed_slots = 2 * math.ceil(distances[nearest] / mission.max_step_m - 1e-9)
+    needed_slots = 2 * int(contract.slots_to_cover(distances[nearest], mission.max_step_m))
     if mission.n_slots < max(needed_slots, 1):
         raise ScenarioError(
             f"mission.duration_s = {mission.n_slots * mission.slot_s:g}: too short to fly from "

@@ -35,7 +35,8 @@ from skymule.policies.base import BatchObservation, BatchPolicy, MissionContext,
 from skymule.policies.batched import as_batch_policy
 from skymule.sim.columns import check_actions
 from skymule.sim.context import mission_context
-from skymule.world import BITS_PER_MBIT, Mission
+from skymule.units import BITS_PER_MBIT
+from skymule.world import Mission
 
 log = logging.getLogger("skymule.aadm.agent")
 

@@ -45,7 +45,8 @@ from skymule.aadm.score import (
     poll_download_bit,
 )
 from skymule.errors import SkymuleError
-from skymule.world import BITS_PER_MBIT, Mission
+from skymule.units import BITS_PER_MBIT
+from skymule.world import Mission
 
 log = logging.getLogger("skymule.aadm.controller")
 

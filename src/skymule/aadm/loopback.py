@@ -27,7 +27,8 @@ from skymule.aadm.vehicle import TAKEOFF_ALTITUDE_M, KinematicVehicle
 from skymule.flight.navigation import Navigator
 from skymule.policies import make_policy
 from skymule.scenario import Scenario
-from skymule.world import BITS_PER_MBIT, build_mission, fence_or_box
+from skymule.units import BITS_PER_MBIT
+from skymule.world import build_mission, fence_or_box
 
 
 @dataclass(frozen=True)

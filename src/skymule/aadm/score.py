@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from skymule.radio.rates import BUILTIN_RATE_TABLES
+from skymule.sim.contract import served_bits, window_slots
 
 #: The challenge's download window since the volumes were shared [s].
 AADM_WINDOW_S = 500.0
@@ -96,12 +97,10 @@ def aadm_scores(
     slot = np.broadcast_to(np.asarray(slot_s, float), (n_missions,))
     window = np.broadcast_to(np.asarray(window_s, float), (n_missions,))
     slots = np.arange(width)[None, :]
-    window_slots = np.ceil((window - 1e-9) / slot)  # slots k with k * slot < window - 1e-9
-    if share.any() or (window_slots < width).any():
+    inside = window_slots(window, slot)
+    if share.any() or (inside < width).any():
         since = slots - share[:, None]  # slot index since sharing
-        counted = (
-            (since >= 0) & (slots < ran[:, None]) & (since * slot[:, None] < window[:, None] - 1e-9)
-        )
+        counted = (since >= 0) & (slots < ran[:, None]) & (since < inside[:, None])
         got = np.where(counted, down, 0.0)
     else:  # every slot counts (shared at once, window past the end; padding holds zeros)
         counted, got = None, down
@@ -207,8 +206,8 @@ def poll_download_bit(
     counts as 0 dB (the controller's rule); a tower not heard from reports -99 dB (rate 0).
     """
     snr = np.where(np.isnan(np.asarray(snr_db, float)), UNREADABLE_SNR_DB, snr_db)
-    offered = BUILTIN_RATE_TABLES["aadm-lte-cqi"].efficiency(snr) * bandwidth_hz * poll_s
-    return np.minimum(offered, np.maximum(np.asarray(left_bit, float), 0.0))
+    rate_bps = BUILTIN_RATE_TABLES["aadm-lte-cqi"].efficiency(snr) * bandwidth_hz
+    return served_bits(rate_bps, np.maximum(np.asarray(left_bit, float), 0.0), poll_s)
 
 
 def share_slot_from_altitude(altitude_m: np.ndarray) -> int:
@@ -244,7 +243,7 @@ def slot_rewards(
         counted_bit: (B,) bits counted so far; updated in place.
         completed: (B,) whether the download completed already; updated in place.
     """
-    counted = live & ((slots_run - 1) * slot_s < window_s - 1e-9)
+    counted = live & (slots_run - 1 < window_slots(window_s, slot_s))
     got = np.where(counted, bits, 0.0)
     counted_bit += got
     has = total_bit > 0

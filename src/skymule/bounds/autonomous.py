@@ -90,6 +90,7 @@ from skymule.bounds.result import BoundResult
 from skymule.errors import SkymuleError
 from skymule.flight.navigation import Navigator
 from skymule.radio.pathloss import PATHLOSS_MODELS
+from skymule.sim.contract import seen_snr_db
 from skymule.world import Mission
 
 __all__ = [
@@ -322,7 +323,7 @@ def _grid_best_snr(
         ]
     )
     snr = mission.source.snr_db(np.column_stack([points, np.full(len(points), altitude_m)]))
-    snr = np.nan_to_num(snr, nan=-np.inf)
+    snr = seen_snr_db(snr)
     order = np.argsort(np.hypot(*(points - home_m).T))
     dist_sorted = np.hypot(*(points[order] - home_m).T)
     running = np.maximum.accumulate(snr[order], axis=0)

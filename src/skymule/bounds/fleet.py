@@ -40,6 +40,7 @@ from scipy.optimize import linprog
 
 from skymule.bounds.fixed import LP_METHOD
 from skymule.bounds.result import BoundError, MissionBound
+from skymule.sim.contract import seen_snr_db
 from skymule.sim.fleet import Fleet
 from skymule.world import Mission
 
@@ -49,7 +50,7 @@ def fixed_best_rate_bps(mission: Mission) -> np.ndarray:
     track = mission.track
     if track is None:
         raise BoundError("bound: trajectory.mode = 'fixed' needs a track; none was built")
-    snr = np.nan_to_num(np.asarray(track.snr_db, float), nan=-np.inf)
+    snr = seen_snr_db(track.snr_db)
     reached = np.maximum.accumulate(snr, axis=0)  # best sample among 0..j
     index = np.minimum(np.arange(mission.n_slots), track.n_samples - 1)
     best = reached[index]

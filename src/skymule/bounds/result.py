@@ -8,8 +8,7 @@ from typing import Any
 import numpy as np
 
 from skymule.errors import SkymuleError
-
-BITS_PER_MBIT = 1e6
+from skymule.units import BITS_PER_MBIT
 
 
 class BoundError(SkymuleError):

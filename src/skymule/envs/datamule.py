@@ -38,6 +38,7 @@ from skymule.errors import SkymuleError
 from skymule.metrics.flights import MissionLog
 from skymule.policies.base import Observation
 from skymule.scenario import Scenario, load_scenario
+from skymule.units import BITS_PER_MBIT
 from skymule.world import Mission, build_mission
 
 __all__ = ["ENV_POLICY_NAME", "REWARDS", "DataMuleEnv", "anchors_m", "observation_vector"]
@@ -202,7 +203,7 @@ class DataMuleEnv(gym.Env[np.ndarray, Any]):
             observation = self._terminal_observation()
         else:
             observation = core.encoded(core.observe())[0]
-        info = {"slot": slot, "served": sensor, "downloaded_mbit": bits[0] / enc.BITS_PER_MBIT}
+        info = {"slot": slot, "served": sensor, "downloaded_mbit": bits[0] / BITS_PER_MBIT}
         return observation / self._scale, float(reward[0]), self._done, False, info
 
     def _terminal_observation(self) -> np.ndarray:

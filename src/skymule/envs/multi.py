@@ -37,6 +37,7 @@ from skymule.policies.base import BatchAction, Observation
 from skymule.scenario import Scenario, load_scenario
 from skymule.sim.autonomous import AutonomousEngine
 from skymule.sim.fleet import Fleet, build_fleet
+from skymule.units import BITS_PER_MBIT
 
 #: SNR sent for "no link" (-inf) [dB]: below every rate table's lowest entry.
 NO_LINK_DB = -100.0
@@ -86,8 +87,8 @@ class DataMuleParallelEnv(ParallelEnv[str, np.ndarray, np.ndarray]):
                 observation.position_m,
                 [left_s],
                 snr,
-                observation.rate_bps / 1e6,
-                observation.remaining_bit / 1e6,
+                observation.rate_bps / BITS_PER_MBIT,
+                observation.remaining_bit / BITS_PER_MBIT,
             ]
         ).astype(np.float32)
 
@@ -147,7 +148,7 @@ class DataMuleParallelEnv(ParallelEnv[str, np.ndarray, np.ndarray]):
         bits = flight.step(BatchAction(serve=serve, goto_m=goto), "agents")
         lost = flight.last_lost
         agents = list(self.agents)
-        rewards = {a: float(b) / 1e6 for a, b in zip(agents, bits, strict=True)}
+        rewards = {a: float(b) / BITS_PER_MBIT for a, b in zip(agents, bits, strict=True)}
         infos = {a: {"lost": bool(lost[k])} for k, a in enumerate(agents)}
         done = flight.done
         if not done:

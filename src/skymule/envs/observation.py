@@ -37,6 +37,7 @@ from __future__ import annotations
 import numpy as np
 
 from skymule.sim.contract import NO_SENSOR
+from skymule.units import BITS_PER_MBIT
 
 #: SNR values are clipped to this range [dB]; no link (-inf, NaN) maps to the floor.
 SNR_FLOOR_DB = -30.0
@@ -53,7 +54,6 @@ N_HEADINGS = 9
 #: Bound on the position and offset fields [m] (the unfenced square is 1e6 m half-width).
 POSITION_LIMIT_M = 4.0e6
 
-BITS_PER_MBIT = 1e6
 
 MOVES = ("headings", "velocity")
 

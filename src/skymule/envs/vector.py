@@ -40,6 +40,7 @@ from skymule.metrics.flights import MissionLog
 from skymule.policies.base import BatchAction, BatchObservation
 from skymule.scenario import Scenario, load_scenario
 from skymule.sim.contract import NO_SENSOR
+from skymule.units import BITS_PER_MBIT
 from skymule.world import Mission, build_mission
 
 REWARDS = ("mbit", "aadm")
@@ -149,7 +150,7 @@ class EnvMissions:
 
     def _reward(self, bits: np.ndarray, slots_run: np.ndarray, live: np.ndarray) -> np.ndarray:
         if self.reward_mode == "mbit":
-            return bits / enc.BITS_PER_MBIT
+            return bits / BITS_PER_MBIT
         return slot_rewards(
             bits, slots_run, live, self._slot_s, self._total_bit, self._window_s,
             self._counted, self._completed,

@@ -41,7 +41,8 @@ from skymule.experiments.sweep import (
     plan_missions,
 )
 from skymule.radio.channel import mission_fading_db
-from skymule.world import BITS_PER_MBIT, Mission, mission_faults
+from skymule.units import BITS_PER_MBIT
+from skymule.world import Mission, mission_faults
 
 if TYPE_CHECKING:
     from skymule.scenario import Scenario

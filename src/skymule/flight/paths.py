@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from skymule.errors import ScenarioError
+from skymule.sim.contract import slots_to_cover
 
 
 @dataclass(frozen=True)
@@ -55,7 +56,7 @@ def sample_path(waypoints_m: np.ndarray, speed_mps: float, slot_s: float) -> np.
     cumulative = np.concatenate([[0.0], np.cumsum(segment)])
     length = cumulative[-1]
     step = speed_mps * slot_s
-    n_samples = int(np.ceil(length / step - 1e-9)) + 1 if length > 0 else 1
+    n_samples = int(slots_to_cover(length, step)) + 1 if length > 0 else 1
     arc = np.minimum(np.arange(n_samples) * step, length)
     return np.column_stack([np.interp(arc, cumulative, waypoints[:, axis]) for axis in range(3)])
 

@@ -24,7 +24,8 @@ from skymule.geo import LocalFrame
 from skymule.io.runschema import check_slots, validate_scenario_json, validate_summary
 from skymule.io.textfiles import read_text
 from skymule.metrics.flights import NO_SENSOR, MissionLog
-from skymule.metrics.summary import BITS_PER_MBIT, power_w, speed_mps, step_lengths_m
+from skymule.metrics.summary import power_w, speed_mps, step_lengths_m
+from skymule.units import BITS_PER_MBIT
 
 SUMMARY_FILE = "summary.json"
 SLOTS_FILE = "slots.csv"

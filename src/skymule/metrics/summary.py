@@ -19,8 +19,7 @@ from skymule.aadm.score import AADM_WINDOW_S, AadmScore, aadm_scores
 from skymule.energy import propulsion_power_w
 from skymule.metrics.flights import NO_SENSOR, Flights, MissionLog, unique_rows
 from skymule.metrics.visits import first_visit_slots, order_from_first
-
-BITS_PER_MBIT = 1e6
+from skymule.units import BITS_PER_MBIT
 
 HEADLINE_METRICS = (
     "total_downloaded_mbit",

@@ -272,8 +272,7 @@ class RobustHGAD(HGAD):
         state = self._state
         silent = (state.sensor >= 0) & (self._fails >= self._limit)
         if silent.any():  # the tower went silent: give up the hover; it cools down
-            state.cooling[contract.cells(state.sensor, columns)[silent]] = True
-            state.sensor[silent] = NO_SENSOR
+            contract.end_hover(state, contract.cells(state.sensor, columns), silent)
             self._fails[silent] = 0
         rate = np.ascontiguousarray(observation.rate_bps.T)
         self._recent = [*self._recent, rate][-self.window_slots :]

@@ -24,6 +24,7 @@ from skymule.errors import SkymuleError
 from skymule.policies.base import Action, MissionContext, Observation
 from skymule.policies.planner import Planner
 from skymule.policies.touring import held_karp, leg_slots
+from skymule.sim.contract import slots_to_cover
 
 #: Largest number of assignments :func:`partition` enumerates (K^n); beyond, a greedy split.
 MAX_ASSIGNMENTS = 200_000
@@ -64,7 +65,7 @@ def tour_cost_slots(context: MissionContext, sensors: np.ndarray) -> np.ndarray:
     peak = np.asarray(context.peak_rate_bps, float)[sensors]
     buffers = np.asarray(context.buffers_bit, float)[sensors]
     with np.errstate(divide="ignore"):
-        hover = np.where(peak > 0, np.ceil(buffers / (peak * context.slot_s) - 1e-9), np.inf)
+        hover = np.where(peak > 0, slots_to_cover(buffers, peak * context.slot_s), np.inf)
     members = (np.arange(1 << len(sensors))[:, None] >> np.arange(len(sensors))) & 1
     return travel + (members * np.minimum(hover, context.n_slots)).sum(axis=1)
 

@@ -61,7 +61,7 @@ from skymule.policies.touring import (
     leg_slots,
     two_opt_order,
 )
-from skymule.sim.contract import served_bits
+from skymule.sim.contract import seen_snr_db, served_bits, slots_to_cover
 from skymule.sim.plans import plans_kernel
 
 __all__ = [
@@ -183,7 +183,7 @@ class Planner:
         if self._context.predict_snr_db is None or self._context.rate_of_snr_bps is None:
             return None
         points = np.column_stack([xy, np.full(len(xy), altitude_m)])
-        return np.nan_to_num(self._context.predict_snr_db(points), nan=-np.inf)
+        return seen_snr_db(self._context.predict_snr_db(points))
 
     def _rates(self, snr_db: np.ndarray | None, count: int) -> np.ndarray:
         """(count, N) predicted rates [bit/s] (zeros without a predictor)."""
@@ -216,7 +216,7 @@ class Planner:
                 dt = self._context.slot_s
                 speed = ground_speed_mps(np.diff(path, axis=0), self._wind_mps, self._step / dt)
                 time = np.concatenate([[0.0], np.cumsum(WIND_MARGIN * seg / speed)])
-                slots = max(math.ceil(time[-1] / dt - 1e-9), 1)
+                slots = max(int(slots_to_cover(time[-1], dt)), 1)
                 at = np.interp(np.arange(1, slots) * dt, time, along)
             pts = np.column_stack(
                 [np.interp(at, along, path[:, 0]), np.interp(at, along, path[:, 1])]
@@ -562,10 +562,9 @@ class Planner:
                     continue
                 self._at_target = True
             serve = target if remaining[target] > 0 else en_route
+            rate = self._seen_rate_bps(observation)[target]
             left = remaining[target] - (
-                min(self._seen_rate_bps(observation)[target] * self._slot_s(), remaining[target])
-                if serve == target
-                else 0.0
+                served_bits(rate, remaining[target], self._slot_s()) if serve == target else 0.0
             )
             if self._stay_left > 0 and left > 0:
                 self._stay_left -= 1

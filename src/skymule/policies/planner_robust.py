@@ -49,6 +49,7 @@ import numpy as np
 
 from skymule.policies.base import Action, MissionContext, Observation
 from skymule.policies.planner import XY, Planner
+from skymule.sim.contract import slots_to_cover
 
 #: Slowed slots the wind estimate keeps (the latest).
 WIND_SAMPLES = 200
@@ -155,7 +156,7 @@ class RobustPlanner(Planner):
                 self._run_sensor, self._run = -1, 0
             if self._run >= self.fail_slots:
                 self._times_down[sensor] += 1
-                backoff = math.ceil(self.backoff_s / self._slot_s() - 1e-9)
+                backoff = int(slots_to_cover(self.backoff_s, self._slot_s()))
                 self._down_until[sensor] = slot + backoff * 2 ** int(self._times_down[sensor] - 1)
                 self._run_sensor, self._run = -1, 0
         up = (self._down_until <= slot) | (observation.rate_bps > 0)

@@ -10,12 +10,11 @@ Operations Research 6(6), 1958.
 from __future__ import annotations
 
 import itertools
-import math
 
 import numpy as np
 
 from skymule.faults.motion import wind_triangle_ground_speed_mps
-from skymule.sim.contract import served_bits
+from skymule.sim.contract import served_bits, slots_to_cover
 
 #: Positions closer than this [m] count as the same point.
 SAME_POINT_M = 1e-6
@@ -23,7 +22,7 @@ SAME_POINT_M = 1e-6
 
 def leg_slots(distance_m: float, step_m: float) -> int:
     """Slots to fly ``distance_m`` [m] at ``step_m`` [m] per slot: ceil(L / s)."""
-    return math.ceil(distance_m / step_m - 1e-9) if distance_m > SAME_POINT_M else 0
+    return int(slots_to_cover(distance_m, step_m)) if distance_m > SAME_POINT_M else 0
 
 
 def allocate_hover(
@@ -40,7 +39,7 @@ def allocate_hover(
             break
         if rate_bps[j] <= 0 or need_bit[j] <= 0:
             continue
-        want = math.ceil(need_bit[j] / (rate_bps[j] * slot_s) - 1e-9)
+        want = int(slots_to_cover(need_bit[j], rate_bps[j] * slot_s))
         extra[j] = min(want, left)
         left -= extra[j]
     return extra
@@ -52,7 +51,7 @@ def knapsack_bits(
     """Bits from hovering: one free slot per target plus the knapsack's extra slots."""
     first = served_bits(rate_bps, buffer_bit, slot_s)
     extra = allocate_hover(rate_bps, buffer_bit - first, budget, slot_s)
-    return float(np.minimum(rate_bps * slot_s * (1 + extra), buffer_bit).sum())
+    return float(served_bits(rate_bps, buffer_bit, slot_s * (1 + extra)).sum())
 
 
 def held_karp(

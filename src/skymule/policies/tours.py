@@ -264,7 +264,7 @@ class HGADTours:
             silent = (limit > 0) & (self._fails[cols] >= limit)
             goal = np.where(self._arrive_m[cols] > 0, sensor, STAY)
         left = now - contract.served_bits(rate_bps[sensor, cols], now, self._slot_s[cols])
-        ends = (self._budget_s[cols] <= contract.HOVER_EPS_S) | (left <= 0)
+        ends = contract.hover_ends(self._budget_s[cols], left)
         if self._robust:
             ends |= silent
             done = cols[ends]
@@ -335,8 +335,8 @@ class HGADTours:
             gain = (left > 0) & (self._peak[target, todo] > 0)
             start = todo[gain]
             self._hovering[start] = True
-            self._budget_s[start] = np.minimum(
-                left[gain] / self._peak[target[gain], start], self._max_hover_s[start]
+            self._budget_s[start] = contract.hover_budget_s(
+                left[gain], self._peak[target[gain], start], self._max_hover_s[start]
             )
             shown[start] = self._target[start]
             serve[start], goal[start] = self._hover_slot(start, rate_bps, remaining)

@@ -15,6 +15,7 @@ import numpy as np
 
 from skymule.errors import SkymuleError
 from skymule.registry import Registry
+from skymule.sim.contract import seen_snr_db
 
 #: AERPAW AADM controller's LTE CQI table: (SNR threshold dB, efficiency b/s/Hz), the rate is
 #: that of the highest threshold the SNR reaches; below -6.7 dB there is no link.
@@ -54,11 +55,10 @@ class StepTable:
         return thresholds, np.concatenate([[0.0], np.asarray(self.efficiencies, float)])
 
     def efficiency(self, snr_db: np.ndarray) -> np.ndarray:
-        snr = np.asarray(snr_db, float)
         thresholds, table = self._lookup
-        # searchsorted(side="right") counts thresholds <= snr, i.e. ">= threshold" semantics
-        # NaN (no link) reaches no threshold; np.where is several times nan_to_num's speed
-        index = np.searchsorted(thresholds, np.where(np.isnan(snr), -np.inf, snr), side="right")
+        # searchsorted(side="right") counts thresholds <= snr, i.e. ">= threshold" semantics;
+        # no link (NaN -> -inf) reaches no threshold
+        index = np.searchsorted(thresholds, seen_snr_db(snr_db), side="right")
         return table[index]
 
 
@@ -70,8 +70,7 @@ class Shannon:
     max_efficiency: float = np.inf
 
     def efficiency(self, snr_db: np.ndarray) -> np.ndarray:
-        snr = np.asarray(snr_db, float)
-        snr = np.where(np.isnan(snr), -np.inf, snr)  # NaN: no link, efficiency 0
+        snr = seen_snr_db(snr_db)  # no link: efficiency 0
         return np.minimum(np.log2(1.0 + 10.0 ** (snr / 10.0)), self.max_efficiency)
 
 

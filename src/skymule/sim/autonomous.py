@@ -351,7 +351,7 @@ class AutonomousEngine:
         snr = self.signal.snr_db(self.position, self.slot, None if every else active)
         rate = self.signal.rate_bps(snr)
         self._snr, self._rate = snr, rate
-        seen = np.where(np.isnan(snr), -np.inf, snr)  # no link: -inf
+        seen = contract.seen_snr_db(snr)
         seen_rate, deliver = rate, rate
         position = np.column_stack([self.position, self.altitude_m])
         self._ok = None

@@ -19,7 +19,7 @@ import skymule.metrics.summary as metrics
 from skymule.aadm.score import AADM_WINDOW_S, COMPLETE_RTOL, aadm_from_progress
 from skymule.metrics import visits
 from skymule.metrics.flights import Flights
-from skymule.sim import compiled, summary_kernels
+from skymule.sim import compiled, contract, summary_kernels
 from skymule.sim.columns import mission_geometry
 
 if TYPE_CHECKING:
@@ -55,7 +55,7 @@ def summary_tables(
     # aadm_scores pads arrays with no slot to one; it masks slots per mission only when some
     # window closes before the last slot of the padded arrays
     width = max(width, 1)
-    per_slot = bool((np.ceil((window_s - 1e-9) / slot_s) < width).any())
+    per_slot = bool((contract.window_slots(window_s, slot_s) < width).any())
     return summary_kernels.SummaryTables(
         steps_m=steps,
         power_w=power,

@@ -31,6 +31,30 @@ NO_SENSOR = -1
 HOVER_EPS_S = 1e-12
 """A hover ends once its remaining budget is at or below this [s] (round-off only)."""
 
+ROUND_OFF = 1e-9
+"""Relative slack of slot counts: a time or distance that is a whole number of slots (or
+steps) up to float round-off counts as that number, not one more."""
+
+
+def seen_snr_db(snr_db: Any) -> Any:
+    """SNR as policies and rate tables read it: NaN (no link, no sample) becomes -inf."""
+    snr = np.asarray(snr_db, float)
+    return np.where(np.isnan(snr), -np.inf, snr)
+
+
+def slots_to_cover(amount: Any, per_slot: Any) -> Any:
+    """Whole slots (or steps) that cover ``amount`` at ``per_slot`` each: ceil(amount /
+    per_slot), a whole number up to round-off counting as itself (elementwise; a float for
+    scalars)."""
+    return np.ceil(np.asarray(amount, float) / per_slot - ROUND_OFF)
+
+
+def window_slots(window_s: Any, slot_s: Any) -> Any:
+    """Slots k that start inside a download window: k * slot_s < window_s - ROUND_OFF, i.e.
+    the first ``window_slots`` slots (elementwise). The engines stop serving from there and the
+    AADM score counts nothing after it."""
+    return np.ceil((np.asarray(window_s, float) - ROUND_OFF) / slot_s)
+
 
 def served_bits(rate_bps: Any, remaining_bit: Any, slot_s: Any) -> Any:
     """Bits a served sensor delivers in one slot: y = min(R * dt, Q) (elementwise, any shape).
@@ -210,6 +234,24 @@ class HoverState:
         )
 
 
+def hover_budget_s(left_bit: Any, peak_rate_bps: Any, max_hover_s: Any) -> Any:
+    """HGAD's hover length T_hover = min(Q_i / R*_i, max_hover_s) [s] (elementwise; R*_i > 0)."""
+    return np.minimum(left_bit / peak_rate_bps, max_hover_s)
+
+
+def hover_ends(budget_left_s: Any, left_after_bit: Any) -> Any:
+    """True where a hover ends after this slot: its budget (already counted down by this slot)
+    is used up, within :data:`HOVER_EPS_S`, or the hovered buffer is empty."""
+    return (budget_left_s <= HOVER_EPS_S) | (left_after_bit <= 0)
+
+
+def end_hover(state: HoverState, cell: np.ndarray, ends: np.ndarray) -> None:
+    """Stop the hovers of missions ``ends`` ((B,) bool); each hovered sensor (``cell``, its
+    :func:`cells`) cools down."""
+    state.cooling[cell[ends]] = True
+    state.sensor[ends] = NO_SENSOR
+
+
 def hover_sensor_or(state: HoverState, choice: np.ndarray) -> np.ndarray:
     """(B,) the sensor served this slot: the hovered one while hovering, else ``choice``."""
     return np.where(state.sensor >= 0, state.sensor, choice)
@@ -258,9 +300,7 @@ def hgad_update(
     hover_flag = (state.sensor >= 0) & active
     np.logical_and(state.cooling, ~(rate_bps.reshape(-1) < threshold_bps), out=state.cooling)
     np.subtract(state.budget_s, slot_s, out=state.budget_s, where=hover_flag)
-    ends = hover_flag & ((state.budget_s <= HOVER_EPS_S) | (left_after_bit <= 0))
-    state.cooling[cell[ends]] = True
-    state.sensor[ends] = NO_SENSOR
+    end_hover(state, cell, hover_flag & hover_ends(state.budget_s, left_after_bit))
     peak_served = peak_rate_bps.take(cell)
     trigger = (
         enabled
@@ -276,8 +316,8 @@ def hgad_update(
         return hover_flag
     chosen = np.flatnonzero(trigger)
     max_hover = np.broadcast_to(max_hover_s, trigger.shape)
-    state.budget_s[chosen] = np.minimum(
-        left_after_bit[chosen] / peak_served[chosen], max_hover[chosen]
+    state.budget_s[chosen] = hover_budget_s(
+        left_after_bit[chosen], peak_served[chosen], max_hover[chosen]
     )
     state.sensor[chosen] = sensor[chosen]
     return hover_flag | trigger

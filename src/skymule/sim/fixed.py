@@ -102,7 +102,7 @@ def stack_tracks(missions: Sequence[Mission]) -> TrackTables:
         peak[u] = rate[u, :k].max(axis=0) if k else 0.0
     for values in (rate, snr, position, peak):
         values.flags.writeable = False
-    seen = np.where(np.isnan(snr), -np.inf, snr)  # no link: -inf
+    seen = contract.seen_snr_db(snr)
     seen.flags.writeable = False
     return TrackTables(
         track_id=track_id,

@@ -57,7 +57,8 @@ from skymule.metrics.flights import NO_SENSOR, MissionLog, flight_record
 from skymule.metrics.summary import summarize
 from skymule.policies import check_policies
 from skymule.scenario import Scenario, scenario_from_dict
-from skymule.world import BITS_PER_MBIT, Mission, build_mission
+from skymule.units import BITS_PER_MBIT
+from skymule.world import Mission, build_mission
 
 #: Buffer per tower when neither a volume file nor --buffers is given [Mbit].
 DEFAULT_BUFFER_MBIT = 1000.0

@@ -36,6 +36,7 @@ from skymule.radio.pathloss import PATHLOSS_MODELS
 from skymule.registry import did_you_mean
 from skymule.scenario import Scenario
 from skymule.tasks.simulate import RunResult, simulate
+from skymule.units import BITS_PER_MBIT
 from skymule.world import Mission, build_mission
 
 if TYPE_CHECKING:
@@ -139,7 +140,7 @@ def with_gap(row: dict[str, Any], upper: MissionBound | None) -> dict[str, Any]:
     """``row`` plus upper_bound_mbit and the gap columns (unchanged without a bound)."""
     if upper is None:
         return row
-    bound_mbit = upper.upper_bound_bit / 1e6
+    bound_mbit = upper.upper_bound_bit / BITS_PER_MBIT
     gap = bound_mbit - row["total_downloaded_mbit"]
     frac = gap / bound_mbit if bound_mbit > 0 else 0.0
     return {**row, "upper_bound_mbit": bound_mbit, GAP_COLUMNS[0]: gap, GAP_COLUMNS[1]: frac}
@@ -147,7 +148,11 @@ def with_gap(row: dict[str, Any], upper: MissionBound | None) -> dict[str, Any]:
 
 def bound_row(upper: MissionBound, **extra: object) -> dict[str, Any]:
     """The ``bound`` row of a printed comparison: only the total is filled."""
-    return {**extra, "policy": "bound", "total_downloaded_mbit": upper.upper_bound_bit / 1e6}
+    return {
+        **extra,
+        "policy": "bound",
+        "total_downloaded_mbit": upper.upper_bound_bit / BITS_PER_MBIT,
+    }
 
 
 def write_bound(folder: Path, upper: MissionBound) -> Path:

@@ -23,7 +23,7 @@ from skymule.bounds.result import MissionBound
 from skymule.errors import SkymuleError
 from skymule.io.runs import slots_frame, write_run
 from skymule.metrics.flights import Flights
-from skymule.metrics.summary import BITS_PER_MBIT, summarize
+from skymule.metrics.summary import summarize
 from skymule.policies import batch_policy
 from skymule.policies.base import BatchPolicy, Policy
 from skymule.policies.batched import PerFleet, PerMission, policy_names
@@ -33,6 +33,7 @@ from skymule.sim.contract import NO_SENSOR
 from skymule.sim.fleet import Fleet, build_fleet
 from skymule.sim.run import run_missions
 from skymule.tasks.compare import COMPARISON_CSV, with_gap, write_bound
+from skymule.units import BITS_PER_MBIT
 
 FLEET_POLICIES = (COORDINATED,)
 """Policies that decide for the whole fleet (any single-UAV policy runs independently)."""

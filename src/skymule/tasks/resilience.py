@@ -25,8 +25,7 @@ import pandas as pd
 
 from skymule.errors import SkymuleError
 from skymule.scenario import Scenario, scenario_from_dict
-
-BITS_PER_MBIT = 1e6
+from skymule.units import BITS_PER_MBIT
 
 FaultLevel = Callable[[float], dict[str, Any]]
 

@@ -50,13 +50,6 @@ def test_python_hypot_equals_math_hypot():
     assert path_kernels.python_hypot(0.0, 0.0) == 0.0
 
 
-def test_numpy_sum_equals_np_sum():
-    rng = np.random.default_rng(6)
-    for n in range(1, 129):
-        values = rng.uniform(0.0, 500.0, n)
-        assert path_kernels.numpy_sum(values, n) == np.sum(values), n
-
-
 @pytest.mark.parametrize("twin", TWINS)
 def test_compiled_path_queries_equal_navigator(preset, twin):
     """steps and travel distances of many random pairs (starts on vertices, start == goal,

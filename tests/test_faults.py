@@ -25,7 +25,9 @@ from skymule.faults import (
 )
 from skymule.faults.models import stationary_bad_share, two_state_chain
 from skymule.faults.motion import leg_seconds
+from skymule.radio.rates import BUILTIN_RATE_TABLES
 from skymule.scenario import load_scenario
+from skymule.sim.batch_faults import BatchFaults, apply_faults
 
 NAMES = ("LW1", "LW2", "LW3", "LW4")
 
@@ -38,6 +40,23 @@ class Entry:
 
 def _draw(*entries: Entry, n_slots: int = 500, slot_s: float = 1.0, seed: int = 7) -> FaultDraws:
     return draw_faults(list(entries), n_slots, NAMES, slot_s, fault_rng(seed))
+
+
+def _seen_snr_db(draws: FaultDraws, true_snr_db: np.ndarray) -> np.ndarray:
+    """(T, N) the SNR a policy sees under ``draws`` in each slot: the engines' fault view
+    (``sim.batch_faults.apply_faults``) of one mission."""
+    table = BUILTIN_RATE_TABLES["aadm-lte-cqi"]
+    faults = BatchFaults(
+        np.zeros(1, np.int64), draws.deliverable()[None], draws.snr_error_db[None],
+        np.zeros(1, np.int64), ((table, 1.4e6),),
+    )  # fmt: skip
+    rate = np.zeros((len(NAMES), 1))
+    return np.stack(
+        [
+            apply_faults(faults, t, rate, true_snr_db[t][:, None])[1][:, 0]
+            for t in range(len(true_snr_db))
+        ]
+    )
 
 
 # --- outages -------------------------------------------------------------------------------
@@ -109,7 +128,7 @@ def test_snr_error_changes_only_what_is_seen() -> None:
     true_snr = np.random.default_rng(0).uniform(-5, 30, (5000, 4))
     draws = _draw(Entry("snr-error", {"bias_db": -3.0, "std_db": 4.0}), n_slots=5000)
     assert draws.deliverable().all()  # no data is lost: the accounting is untouched
-    error = draws.observed_snr_db(true_snr) - true_snr
+    error = _seen_snr_db(draws, true_snr) - true_snr
     assert np.allclose(error, draws.snr_error_db, rtol=0, atol=1e-12)
     assert error.mean() == pytest.approx(-3.0, abs=0.1)
     assert error.std() == pytest.approx(4.0, rel=0.03)
@@ -132,7 +151,7 @@ def test_observed_snr_is_minus_inf_where_nothing_can_be_delivered() -> None:
         Entry("missed-polls", {"probability": 0.2}),
         n_slots=1000,
     )
-    seen = draws.observed_snr_db(np.full((1000, 4), 12.0))
+    seen = _seen_snr_db(draws, np.full((1000, 4), 12.0))
     assert np.isneginf(seen[:10, 0]).all()
     assert np.isneginf(seen[draws.poll_missed]).all()
     open_slots = ~draws.poll_missed

@@ -15,7 +15,6 @@ from shapely.ops import nearest_points
 
 from skymule.flight.navigation import (
     Navigator,
-    advance_along,
     hover_point,
     path_length,
     shortest_path,
@@ -147,24 +146,20 @@ def test_path_symmetry_and_triangle_inequality() -> None:
 # --------------------------------------------------------------------------- polyline helpers
 
 
-def test_path_length_and_advance_along() -> None:
-    path = [(0.0, 0.0), (3.0, 4.0), (3.0, 10.0)]
-    assert path_length(path) == pytest.approx(11.0)
+def test_path_length_and_steps_along_a_bent_path() -> None:
+    """A step moves its length along the in-fence path, bends included; a goal within reach
+    is reached exactly."""
+    assert path_length([(0.0, 0.0), (3.0, 4.0), (3.0, 10.0)]) == pytest.approx(11.0)
     assert path_length([(1.0, 1.0)]) == 0.0
-    pos, rest = advance_along(path, 2.5)
-    assert pos == pytest.approx((1.5, 2.0))
-    assert rest[0] == pos and rest[1:] == [(3.0, 4.0), (3.0, 10.0)]
-    pos, rest = advance_along(path, 7.0)
-    assert pos == pytest.approx((3.0, 6.0))
-    assert path_length(rest) == pytest.approx(4.0)
-    pos, rest = advance_along(path, 5.0)  # exactly at the corner
-    assert pos == pytest.approx((3.0, 4.0)) and path_length(rest) == pytest.approx(6.0)
-    pos, rest = advance_along(path, 50.0)
-    assert pos == (3.0, 10.0) and rest == [(3.0, 10.0)]
-    with pytest.raises(ValueError):
-        advance_along(path, -1.0)
-    with pytest.raises(ValueError):
-        advance_along([], 1.0)
+    nav = Navigator(U_FENCE)  # (5, 25) -> (10, 10) -> (20, 10) -> (25, 25) round the notch
+    first = math.hypot(5.0, 15.0)
+    starts, goals = np.array([U_START] * 4), np.array([U_GOAL] * 4)
+    moved = nav.steps(starts, goals, np.array([2.5, first, first + 4.0, 50.0]))
+    t = 2.5 / first
+    np.testing.assert_allclose(moved[0], (5.0 + 5.0 * t, 25.0 - 15.0 * t), atol=1e-12)
+    np.testing.assert_allclose(moved[1], (10.0, 10.0), atol=1e-12)  # exactly at the bend
+    np.testing.assert_allclose(moved[2], (14.0, 10.0), atol=1e-12)
+    assert tuple(moved[3]) == U_GOAL
 
 
 # --------------------------------------------------------------------------- stepping

@@ -33,7 +33,7 @@ import numpy as np
 from gymnasium import spaces
 
 import skymule.envs.observation as enc
-from skymule.envs.vector import ENV_POLICY_NAME, REWARDS, EnvMissions, anchors_m
+from skymule.envs.vector import ENV_POLICY_NAME, REWARDS, EnvMissions, anchors_m, check_reward
 from skymule.errors import SkymuleError
 from skymule.metrics.flights import MissionLog
 from skymule.policies.base import Observation
@@ -99,9 +99,7 @@ class DataMuleEnv(gym.Env[np.ndarray, Any]):
     ) -> None:  # fmt: skip
         if move not in enc.MOVES:
             raise SkymuleError(f"move = {move!r} is not allowed; allowed: {', '.join(enc.MOVES)}")
-        if reward not in REWARDS:
-            raise SkymuleError(f"reward = {reward!r} is not allowed; allowed: {', '.join(REWARDS)}")
-        self.move, self.reward_mode = move, reward
+        self.move, self.reward_mode = move, check_reward(reward)
         self._generator = (
             None if isinstance(scenario, Mission) or not callable(scenario) else scenario
         )

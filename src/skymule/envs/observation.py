@@ -62,11 +62,6 @@ _ANGLES = np.deg2rad(45.0 * np.arange(N_HEADINGS - 1))
 HEADING_UNIT = np.vstack([np.zeros(2), np.column_stack([np.cos(_ANGLES), np.sin(_ANGLES)])])
 
 
-def observation_size(n_sensors: int) -> int:
-    """Length of the observation vector for ``n_sensors`` sensors."""
-    return 3 + 5 * n_sensors
-
-
 def observation_bounds(n_sensors: int) -> tuple[np.ndarray, np.ndarray]:
     """(low, high) float32 bounds of the observation vector (see the module docstring)."""
     n = n_sensors

@@ -45,6 +45,14 @@ from skymule.world import Mission, build_mission
 
 REWARDS = ("mbit", "aadm")
 
+
+def check_reward(reward: str) -> str:
+    """``reward`` if it is one of :data:`REWARDS`, else the one-line SkymuleError."""
+    if reward not in REWARDS:
+        raise SkymuleError(f"reward = {reward!r} is not allowed; allowed: {', '.join(REWARDS)}")
+    return reward
+
+
 #: Policy name written into the logs of environment episodes.
 ENV_POLICY_NAME = "env"
 
@@ -73,10 +81,8 @@ class EnvMissions:
         from skymule.sim.autonomous import AutonomousEngine
         from skymule.sim.fixed import FixedEngine
 
-        if reward not in REWARDS:
-            raise SkymuleError(f"reward = {reward!r} is not allowed; allowed: {', '.join(REWARDS)}")
         self.missions = tuple(missions)
-        self.reward_mode = reward
+        self.reward_mode = check_reward(reward)
         self.autonomous = missions[0].mode == "autonomous"
         self.engine: AutonomousEngine | FixedEngine
         if self.autonomous:
@@ -161,17 +167,6 @@ class EnvMissions:
         return self.engine.record([ENV_POLICY_NAME] * len(self.missions)).mission(0)
 
 
-def _same_fence(missions: Sequence[Mission]) -> None:
-    """SkymuleError naming the first mission on another geofence than mission 0."""
-    keys = [m.navigator.fence_key if m.navigator is not None else b"" for m in missions]
-    for index, key in enumerate(keys):
-        if key != keys[0]:
-            raise SkymuleError(
-                f"vector env: mission {index} ({missions[index].scenario.name!r}) has another "
-                "geofence than mission 0; all missions must share one fence"
-            )
-
-
 class DataMuleVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
     """B autonomous missions stepped together (see the module docstring for what it supports).
 
@@ -193,8 +188,7 @@ class DataMuleVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
     ) -> None:
         if not missions:
             raise SkymuleError("vector env: give at least one mission")
-        if reward not in REWARDS:
-            raise SkymuleError(f"reward = {reward!r} is not allowed; allowed: {', '.join(REWARDS)}")
+        check_reward(reward)
         built = [m if isinstance(m, Mission) else _build(m) for m in missions]
         for index, mission in enumerate(built):
             if mission.mode != "autonomous":
@@ -208,7 +202,6 @@ class DataMuleVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
                 f"vector env: missions have {sorted(set(sizes))} sensors; all missions must "
                 f"have the same number (the observation's size)"
             )
-        _same_fence(built)
         self.missions = tuple(built)
         self.reward_mode = reward
         self._engine_choice = engine

@@ -4,8 +4,8 @@
 of per-slot arrays. Draw it once per mission and hand the same object to every policy
 (paired comparisons: each policy meets the same outages). :func:`stack_draws` puts several
 missions' draws on a leading missions axis for a batched engine. How engines apply the
-arrays is the contract in ``docs/faults.md``; :meth:`FaultDraws.observed_snr_db` and
-:meth:`FaultDraws.deliverable` implement its two rules.
+arrays is the contract in ``docs/faults.md`` (:meth:`FaultDraws.deliverable` here, what a
+policy sees in :func:`skymule.sim.batch_faults.apply_faults`).
 """
 
 from __future__ import annotations
@@ -110,14 +110,6 @@ class FaultDraws:
         """(T, N) True where a served sensor delivers data: its link is up and the poll is not
         missed. Elsewhere a served sensor delivers 0 bits."""
         return self.link_up & ~self.poll_missed[..., None]
-
-    def observed_snr_db(self, true_snr_db: np.ndarray) -> np.ndarray:
-        """(T, N) SNR the policy sees: true + error where deliverable, ``-inf`` elsewhere.
-
-        The rate that is accounted stays the one of the true SNR (see ``docs/faults.md``).
-        """
-        seen = np.asarray(true_snr_db, dtype=float) + self.snr_error_db
-        return np.where(self.deliverable(), seen, -np.inf)
 
     @property
     def affected(self) -> np.ndarray:

@@ -43,9 +43,9 @@ _HOVER_DETOUR_MARGINS = 4.0
 #: Number of times :func:`hover_point` halves the clearance before giving up on it.
 _HOVER_HALVINGS = 10
 
-#: ``math.hypot`` over arrays: :func:`advance_along` measures segments with ``math.hypot``,
-#: which differs from ``np.hypot`` in the last bit for about 1 pair in 200; the vectorised
-#: :meth:`Navigator.steps` must land on the same floats.
+#: ``math.hypot`` over arrays: :meth:`Navigator.steps` measures segments with ``math.hypot``
+#: (as skymule's first, scalar engine did; it differs from ``np.hypot`` in the last bit for
+#: about 1 pair in 200), so that every position, and every result, stays what it was.
 math_hypot = np.frompyfunc(math.hypot, 2, 1)
 
 #: :meth:`Navigator.shortest_paths` tests the start's view of this many vertices one at a time
@@ -120,35 +120,6 @@ def path_length(path: list[XY] | np.ndarray) -> float:
     if len(pts) < 2:
         return 0.0
     return float(np.hypot(*np.diff(pts, axis=0).T).sum())
-
-
-def advance_along(path: list[XY], distance_m: float) -> tuple[XY, list[XY]]:
-    """Move up to ``distance_m`` metres along a polyline.
-
-    Args:
-        path: polyline ``[p0, p1, ..., pn]`` of ``(x, y)`` points in metres (non-empty).
-        distance_m: distance to travel, metres (``>= 0``).
-
-    Returns:
-        ``(position, remaining)`` where ``position`` is the point reached (exactly the last
-        point if ``distance_m >= path_length(path)``) and ``remaining`` is the rest of the
-        polyline starting at ``position`` (``[position]`` once the end is reached).
-    """
-    if not path:
-        raise ValueError("path must contain at least one point")
-    if distance_m < 0:
-        raise ValueError(f"distance_m must be >= 0, got {distance_m}")
-    left = float(distance_m)
-    for i in range(len(path) - 1):
-        (x0, y0), (x1, y1) = path[i], path[i + 1]
-        seg = math.hypot(x1 - x0, y1 - y0)
-        if left < seg:
-            t = left / seg
-            pos = (x0 + t * (x1 - x0), y0 + t * (y1 - y0))
-            return pos, [pos, *(_as_xy(p) for p in path[i + 1 :])]
-        left -= seg
-    end = _as_xy(path[-1])
-    return end, [end]
 
 
 def _ring_reflex_vertices(coords: np.ndarray) -> np.ndarray:
@@ -257,15 +228,9 @@ class Navigator:
             if outside.any():
                 raise ValueError(f"{name} {_as_xy(xy[np.argmax(outside)])} is outside the fence")
 
-    def covers_goal(self, xy: XY) -> bool:
-        """True if ``xy`` is inside the fence (within 1e-6 m): a goal the UAV may fly to.
-
-        (For a point, "the polygon covers it" and "it intersects the polygon" are the same.)
-        """
-        return bool(shapely.intersects_xy(self._goal_cover, xy[0], xy[1]))
-
     def covers_goals(self, points_xy: np.ndarray) -> np.ndarray:
-        """(P,) :meth:`covers_goal` of P points (P, 2), one vectorised call."""
+        """(P,) True where a point (P, 2) is inside the fence (within 1e-6 m): goals the UAV may
+        fly to (for a point, "covered" and "intersects" are the same)."""
         p = np.asarray(points_xy, float).reshape(-1, 2)
         return np.asarray(shapely.intersects_xy(self._goal_cover, p[:, 0], p[:, 1]), bool)
 
@@ -469,7 +434,7 @@ class Navigator:
         left = step_lengths(max_step_m, len(count))
         moved = points[np.arange(len(count)), count - 1].copy()  # the goal, if reached
         placed = np.zeros(len(count), bool)
-        for seg in range(points.shape[1] - 1):  # advance_along, one segment for all rows
+        for seg in range(points.shape[1] - 1):  # one segment for all rows at a time
             rows = np.flatnonzero(~placed & (seg < count - 1))
             if not rows.size:
                 break

@@ -21,8 +21,6 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from skymule.sim.contract import served_bits
-
 if TYPE_CHECKING:
     from skymule.flight.navigation import Navigator
 
@@ -257,10 +255,3 @@ class BatchPolicy(Protocol):
     def act(self, observation: BatchObservation) -> BatchAction:
         """Decide the current slot of every mission (rows of ``observation``)."""
         ...
-
-
-def slot_download_bit(observation: Observation, sensor: int, slot_s: float) -> float:
-    """Bits sensor ``sensor`` would deliver this slot: min(R * dt, Q) (the slot contract)."""
-    return float(
-        served_bits(observation.rate_bps[sensor], observation.remaining_bit[sensor], slot_s)
-    )

@@ -16,7 +16,6 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import replace
-from typing import Protocol
 
 import numpy as np
 
@@ -33,20 +32,6 @@ MAX_ASSIGNMENTS = 200_000
 EXACT_MAX_SENSORS = 10
 
 COORDINATED = "coordinated"
-
-
-class FleetPolicy(Protocol):
-    """Decides for all K UAVs at once. A fresh one (or ``reset``) for every mission."""
-
-    name: str
-
-    def reset(self, contexts: Sequence[MissionContext]) -> None: ...
-
-    def act(self, observations: Sequence[Observation]) -> tuple[Action, ...]: ...
-
-    def names(self) -> tuple[str, ...]:
-        """(K,) the policy name logged for each UAV."""
-        ...
 
 
 def tour_cost_slots(context: MissionContext, sensors: np.ndarray) -> np.ndarray:

@@ -73,12 +73,6 @@ def legal_goals(navigator: Navigator, goals: np.ndarray) -> np.ndarray:
     return legal
 
 
-def legal_goal(navigator: Navigator, goal: tuple[float, float]) -> tuple[float, float]:
-    """:func:`legal_goals` of one goal."""
-    x_m, y_m = legal_goals(navigator, np.asarray(goal, float))[0]
-    return float(x_m), float(y_m)
-
-
 class HomeRule:
     """The return-home override of B flights, each at its own slot.
 
@@ -620,4 +614,4 @@ def run_autonomous(
     return flights.record(policy_names(policy, len(missions)))
 
 
-__all__ = ["AutonomousEngine", "HomeRule", "legal_goal", "legal_goals", "run_autonomous"]
+__all__ = ["AutonomousEngine", "HomeRule", "legal_goals", "run_autonomous"]

@@ -18,9 +18,6 @@ the compiled engine with the numpy engine on the batched autonomous engine's tes
 
 from __future__ import annotations
 
-import hashlib
-import inspect
-import types
 from collections.abc import Callable
 from functools import cache
 from typing import Any, Protocol
@@ -32,6 +29,7 @@ from skymule.flight.navigation import Navigator, goal_sights, step_lengths, vert
 from skymule.sim import compiled
 from skymule.sim import path_kernels as pk
 from skymule.sim import visibility_kernels as vk
+from skymule.sim.summary_kernels import block_sum
 
 #: Longest route [vertices] the kernels sum as ``np.sum`` does (numpy's summation block, 128
 #: values, minus the start and goal segments): larger fences keep the numpy path.
@@ -90,21 +88,13 @@ def _plain_kernels() -> dict[str, Callable[..., Any]]:
 
 @cache
 def _kernels() -> dict[str, Callable[..., Any]]:
-    """The kernels of :mod:`~skymule.sim.path_kernels` compiled, once per process.
-
-    Cached on disk; numba's cache notices changes to a function's own source only, so each
-    compiled copy is named after a hash of the whole module's source (as
-    :func:`skymule.sim.compiled.jit`): a change to any helper gives new names, never a stale
-    entry.
-    """
-    import numba
-    from numba.extending import register_jitable
-
+    """The kernels of :mod:`~skymule.sim.path_kernels` compiled, once per process (cached on
+    disk by :func:`skymule.sim.compiled.jit`)."""
     helpers = (
         pk._exact_square,
         pk._exact_product,
         pk.python_hypot,
-        pk.numpy_sum,
+        block_sum,
         pk._path_point,
         pk._path_size,
         vk._point_segment_distance2,
@@ -117,17 +107,7 @@ def _kernels() -> dict[str, Callable[..., Any]]:
         vk._along_edge,
         vk.segment_visibility,
     )
-    for helper in helpers:
-        register_jitable(helper)
-    source = inspect.getsource(pk) + inspect.getsource(vk)
-    digest = hashlib.sha256(source.encode()).hexdigest()[:12]
-    out: dict[str, Callable[..., Any]] = {}
-    for function in KERNELS:
-        name = f"{function.__name__}_{digest}"
-        copy = types.FunctionType(function.__code__, function.__globals__, name)
-        copy.__qualname__ = name
-        out[function.__name__] = numba.njit(nogil=True, cache=True)(copy)
-    return out
+    return {function.__name__: compiled.jit(function, helpers) for function in KERNELS}
 
 
 def path_queries(navigator: Navigator, engine: str, context: str = "") -> Paths:
@@ -138,8 +118,7 @@ def path_queries(navigator: Navigator, engine: str, context: str = "") -> Paths:
     one-line SkymuleError (prefixed with ``context``)."""
     if engine == "plain":
         return CompiledPaths(navigator, plain=True)
-    if engine not in ("auto", "numpy", "compiled"):
-        raise SkymuleError(f"{context}engine = {engine!r}; allowed: auto, numpy, compiled")
+    compiled.check_engine(engine, context)
     usable = compiled.available() and supports(navigator)
     if engine == "compiled" and not usable:
         why = "numba is not installed" if not compiled.available() else "the fence is too large"

@@ -34,14 +34,28 @@ from typing import Any
 
 import numpy as np
 
+from skymule.errors import SkymuleError
 from skymule.sim import contract, kernels, summary_kernels
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.kernels import KernelFaults
+
+ENGINES = ("auto", "numpy", "compiled")
+"""``engine``: ``numpy`` (the slot loop in numpy, the reference), ``compiled`` (the compiled
+twins: the policy's rule for Greedy/HGAD on fixed paths, the path queries on autonomous ones;
+a one-line error where they cannot run) or ``auto`` (compiled where it can, else numpy)."""
 
 
 def available() -> bool:
     """True if numba is installed (``pip install skymule[fast]``)."""
     return importlib.util.find_spec("numba") is not None
+
+
+def check_engine(engine: str, context: str = "") -> str:
+    """``engine`` if it is one of :data:`ENGINES`, else the one-line SkymuleError (its text
+    prefixed with ``context``)."""
+    if engine not in ENGINES:
+        raise SkymuleError(f"{context}engine = {engine!r}; allowed: {', '.join(ENGINES)}")
+    return engine
 
 
 def no_logs() -> tuple[np.ndarray, ...]:

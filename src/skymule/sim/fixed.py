@@ -31,7 +31,7 @@ from skymule.flight.paths import Track
 from skymule.metrics.flights import Flights
 from skymule.policies.base import BatchAction, BatchObservation, BatchPolicy, MissionContext
 from skymule.radio.rates import rate_bps
-from skymule.sim import contract
+from skymule.sim import compiled, contract
 from skymule.sim.batch_fading import apply_fading, stack_fading
 from skymule.sim.batch_faults import BatchFaults, apply_faults, stack_faults
 from skymule.sim.columns import (
@@ -441,8 +441,7 @@ def run_fixed(
     engine = FixedEngine(missions, fleet, detail)
     policy.reset(engine.contexts())
     names = policy_names(policy, len(missions))
-    if engine_choice not in ("auto", "numpy", "compiled"):
-        raise SkymuleError(f"engine = {engine_choice!r}; allowed: auto, numpy, compiled")
+    compiled.check_engine(engine_choice)
     if engine_choice != "numpy":
         rule = getattr(policy, "slot_rule", lambda: None)()
         why = compiled_reason(engine, rule)
@@ -463,7 +462,6 @@ __all__ = ["FixedEngine", "rate_bps", "run_fixed"]
 
 def compiled_reason(engine: FixedEngine, rule: Any) -> str | None:
     """Why the compiled loop cannot run ``engine``'s flights under ``rule`` (None: it can)."""
-    from skymule.sim import compiled
     from skymule.sim.batch_faults import kernel_faults
 
     if rule is None:
@@ -510,7 +508,6 @@ def run_compiled(
     rule of ``rule`` compiled, the same record as the numpy slot loop. ``loop``: the loop to
     run (default :func:`~skymule.sim.compiled.compiled_loop`; the tests also run
     :func:`~skymule.sim.compiled.slot_loop` as plain Python, with or without numba)."""
-    from skymule.sim import compiled
 
     n_flights, n_sensors = len(engine.missions), engine.n_sensors
     t_max = int(engine.n_slots.max())

@@ -8,9 +8,10 @@ shortest-path query, written so every float is the one the numpy methods compute
 * the same operations in the same order (``(d_s + D) + d_g``, first index of the minimum,
   stable order of ties);
 * segment lengths of a step as :func:`math.hypot` (:func:`python_hypot`, a port of CPython's
-  ``vector_norm``, which :func:`skymule.flight.navigation.advance_along` uses), of a travel
+  ``vector_norm``, which :meth:`skymule.flight.navigation.Navigator.steps` uses), of a travel
   distance as ``np.hypot`` (the C library's, which numba also calls);
-* path lengths summed as ``np.sum`` does (:func:`numpy_sum`: numpy's pairwise summation).
+* path lengths summed as ``np.sum`` does (:func:`~skymule.sim.summary_kernels.block_sum`:
+  numpy's pairwise summation, routes being shorter than its block of 128).
 
 Nothing imports a compiler: the module runs as plain Python too (slowly).
 """
@@ -20,6 +21,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from skymule.sim.summary_kernels import block_sum
 
 #: Veltkamp's splitting constant 2**27 + 1 (Dekker 1971, eq. 5.5): splits a double into two
 #: halves whose products are exact.
@@ -85,27 +88,6 @@ def python_hypot(x: float, y: float) -> float:
     frac1 += lo
     h += (csum - 1.0 + (frac1 + frac2)) / (2.0 * h)
     return h / scale
-
-
-def numpy_sum(values: np.ndarray, n: int) -> float:
-    """``np.sum(values[:n])``, float for float: numpy's pairwise summation (sequential below 8
-    values, eight running sums up to its block of 128; longer rows are not supported)."""
-    if n < 8:
-        total = -0.0
-        for i in range(n):
-            total += values[i]
-        return total
-    r = np.empty(8)
-    for j in range(8):
-        r[j] = values[j]
-    stop = n - n % 8
-    for i in range(8, stop, 8):
-        for j in range(8):
-            r[j] += values[i + j]
-    total = (r[0] + r[1] + (r[2] + r[3])) + (r[4] + r[5] + (r[6] + r[7]))
-    for i in range(stop, n):
-        total += values[i]
-    return total
 
 
 def rank_vertices(
@@ -259,7 +241,8 @@ def path_lengths(
     out: np.ndarray,
 ) -> None:
     """``out`` (P,): each row's path length, as ``Navigator.travel_distances`` (segment
-    lengths by ``np.hypot``, summed by :func:`numpy_sum`)."""
+    lengths by ``np.hypot``, summed in numpy's order by
+    :func:`~skymule.sim.summary_kernels.block_sum`)."""
     lengths = np.empty(nodes.shape[2] + 1)
     for row in range(start.shape[0]):
         n = _path_size(row, bend, first, last, count)
@@ -270,4 +253,4 @@ def path_lengths(
             )
             lengths[seg] = np.hypot(bx - ax, by - ay)
             ax, ay = bx, by
-        out[row] = numpy_sum(lengths, n - 1)
+        out[row] = block_sum(lengths, 0, n - 1)

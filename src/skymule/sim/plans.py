@@ -16,31 +16,11 @@ is served there).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from functools import cache
 
 import numpy as np
 
 from skymule.sim import compiled, contract
-
-
-@dataclass(frozen=True)
-class PlanBatch:
-    """P plans from one state (the UAV's position, slot and buffers), flattened.
-
-    Attributes:
-        order: (S,) stops of every plan, plan p's at ``start[p]:start[p] + length[p]``.
-        extra: (S,) slots to stay at each stop.
-        start: (P,) first stop of each plan; length: (P,) its number of stops.
-        legs: (S + P,) leg index of each leg: plan p's legs (to each stop, then home) at
-            ``start[p] + p`` onwards.
-    """
-
-    order: np.ndarray
-    extra: np.ndarray
-    start: np.ndarray
-    length: np.ndarray
-    legs: np.ndarray
 
 
 def simulate_plans(

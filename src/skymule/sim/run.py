@@ -21,18 +21,8 @@ from skymule.metrics.summary import summary_dicts, summary_rows, with_battery
 from skymule.policies.base import BatchPolicy, Policy
 from skymule.policies.batched import as_batch_policy, policy_names
 from skymule.scenario import PolicySpec
+from skymule.sim import compiled
 from skymule.world import Mission
-
-ENGINES = ("auto", "numpy", "compiled")
-"""``engine``: ``numpy`` (the slot loop in numpy, the reference), ``compiled`` (the compiled
-twins: the policy's rule for Greedy/HGAD on fixed paths, the path queries on autonomous ones;
-a one-line error where they cannot run) or ``auto`` (compiled where it can, else numpy)."""
-
-
-def check_engine(engine: str) -> str:
-    if engine not in ENGINES:
-        raise SkymuleError(f"engine = {engine!r}; allowed: {', '.join(ENGINES)}")
-    return engine
 
 
 def run_missions(
@@ -47,12 +37,13 @@ def run_missions(
 
     ``policy``: a batched policy, one per-mission policy (for B = 1) or one per mission.
     ``fleet``: (B,) the fleet mission of each column (its UAVs share buffers); ``detail``:
-    keep per-slot SNR, rates and buffers (run folders); ``engine``: :data:`ENGINES`.
+    keep per-slot SNR, rates and buffers (run folders); ``engine``: one of
+    :data:`skymule.sim.compiled.ENGINES`.
     """
     from skymule.sim.autonomous import run_autonomous
     from skymule.sim.fixed import run_fixed
 
-    check_engine(engine)
+    compiled.check_engine(engine)
     batch = as_batch_policy(policy)
     modes = {m.mode for m in missions}
     if len(modes) != 1:
@@ -101,11 +92,10 @@ def summarize_missions(
     compiled loop's per-mission reductions (no per-slot log at all).
     """
     from skymule.policies import batch_policy
-    from skymule.sim import compiled
     from skymule.sim.compiled_summaries import compiled_summaries, flights_summaries
     from skymule.sim.fixed import FixedEngine, compiled_reason
 
-    check_engine(engine)
+    compiled.check_engine(engine)
     rows: list[dict[str, Any] | None] = [None] * len(missions)
     for part in batch_groups(missions, batch_size):
         chosen = [missions[i] for i in part]

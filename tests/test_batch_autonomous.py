@@ -26,7 +26,6 @@ from skymule.metrics.summary import summarize
 from skymule.policies import batch_policy
 from skymule.scenario import PolicySpec, load_scenario, scenario_from_dict
 from skymule.sim.batch_signal import BatchSignal
-from skymule.sim.context import autonomous_peak_rate_bps
 from skymule.sim.run import run_mission, run_missions, summarize_missions
 from skymule.tasks.simulate import simulate
 from skymule.world import build_mission
@@ -88,15 +87,22 @@ def layouts(preset):
 
 
 def test_batch_peak_rates_equal_each_missions(layouts):
-    """HGAD's R*_i of a whole batch, bit for bit those of each mission (fading, shadowing and
-    two-ray layouts included)."""
+    """HGAD's R*_i of a whole batch, bit for bit those of each mission in a batch of one
+    (fading, shadowing and two-ray layouts included): the rate at its own hover point."""
     for missions in by_sensor_count(layouts):
         hover = np.stack([np.asarray(m.hover_points_m, float) for m in missions], axis=1)
         hover[0, 0] = np.nan  # a sensor without a hover point: rate 0
         missions = [replace(missions[0], hover_points_m=hover[:, 0]), *missions[1:]]
         peak = BatchSignal(missions, missions[0].n_sensors).peak_rate_bps(hover)
         for b, mission in enumerate(missions):
-            np.testing.assert_array_equal(peak[:, b], autonomous_peak_rate_bps(mission))
+            alone = BatchSignal([mission], mission.n_sensors).peak_rate_bps(hover[:, b : b + 1])
+            np.testing.assert_array_equal(peak[:, b], alone[:, 0])
+            at_hover = np.column_stack(
+                [np.nan_to_num(hover[:, b]), np.full(mission.n_sensors, mission.altitude_m)]
+            )
+            own = np.diag(mission.rate_bps(mission.source.snr_db(at_hover)))  # by hand
+            known = np.isfinite(hover[:, b, 0])
+            np.testing.assert_array_equal(alone[known, 0], own[known])
         assert peak[0, 0] == 0.0 and peak[1:, 0].all()
 
 

@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import json
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -12,15 +15,106 @@ import pytest
 from conftest import run_cli
 from skymule.geo import LocalFrame, load_site
 from skymule.io.exports import (
+    KML_NS,
     MAV_CMD_NAV_WAYPOINT,
+    MapExport,
+    MapPoint,
     export_run,
     plan_waypoints,
-    read_geojson_export,
-    read_kml_export,
-    read_plan,
 )
 from skymule.io.runs import write_run
 from skymule.report.inputs import hover_segments, load_run
+
+# --- readers of what the exporters write (the round trips below) ---------------------------
+
+
+def read_geojson_export(path: Path) -> MapExport:
+    """Parse a GeoJSON written by :func:`geojson_document` back."""
+    data = json.loads(path.read_text())
+    track = np.zeros((0, 3))
+    fence = None
+    points = []
+    for feature in data["features"]:
+        geometry, props = feature["geometry"], dict(feature["properties"])
+        kind = props.pop("kind", "")
+        if kind == "path":
+            track = np.array([[la, lo, al] for lo, la, al in geometry["coordinates"]], float)
+        elif kind == "geofence":
+            fence = np.array([[la, lo] for lo, la in geometry["coordinates"][0]], float)
+        elif geometry["type"] == "Point":
+            lon, lat, alt = geometry["coordinates"]
+            name = props.pop("name", "")
+            points.append(MapPoint(name, kind, lat, lon, alt, tuple(props.items())))
+    return MapExport(track, fence, tuple(points))
+
+
+def _parse_coords(text: str) -> np.ndarray:
+    return np.array([[float(v) for v in token.split(",")] for token in text.split()], float)
+
+
+def _value(text: str) -> Any:
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+def read_kml_export(path: Path) -> MapExport:
+    """Parse a KML written by :func:`kml_document` back."""
+    ns = {"k": KML_NS}
+    root = ET.parse(path).getroot()
+    track = np.zeros((0, 3))
+    fence = None
+    points = []
+    for mark in root.iter(f"{{{KML_NS}}}Placemark"):
+        name = mark.findtext("k:name", default="", namespaces=ns)
+        line = mark.find("k:LineString/k:coordinates", ns)
+        ring = mark.find(".//k:LinearRing/k:coordinates", ns)
+        point = mark.find("k:Point/k:coordinates", ns)
+        if line is not None and line.text:
+            lon_lat_alt = _parse_coords(line.text)
+            track = lon_lat_alt[:, [1, 0, 2]]
+        elif ring is not None and ring.text:
+            fence = _parse_coords(ring.text)[:, [1, 0]]
+        elif point is not None and point.text:
+            lon, lat, alt = _parse_coords(point.text)[0]
+            data = {
+                d.get("name", ""): _value(d.findtext("k:value", default="", namespaces=ns))
+                for d in mark.findall("k:ExtendedData/k:Data", ns)
+            }
+            kind = str(data.pop("kind", ""))
+            points.append(MapPoint(name, kind, lat, lon, alt, tuple(data.items())))
+    return MapExport(track, fence, tuple(points))
+
+
+@dataclass(frozen=True)
+class PlanItem:
+    """A NAV_WAYPOINT read back from a .plan: degrees, altitude [m], hold [s]."""
+
+    lat: float
+    lon: float
+    alt_m: float
+    hold_s: float
+
+
+def read_plan(path: Path) -> list[PlanItem]:
+    """NAV_WAYPOINT items of a QGroundControl ``.plan`` (one-line error if it is not one)."""
+    try:
+        data = json.loads(path.read_text())
+        items = data["mission"]["items"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise AssertionError(f"{path}: not a QGroundControl .plan ({exc})") from None
+    return [
+        PlanItem(
+            float(i["params"][4]),
+            float(i["params"][5]),
+            float(i["params"][6]),
+            float(i["params"][0]),
+        )
+        for i in items
+        if i.get("type") == "SimpleItem" and i.get("command") == MAV_CMD_NAV_WAYPOINT
+    ]
+
 
 ORIGIN = (35.7274824, -78.6962749)
 FRAME = LocalFrame(*ORIGIN)

@@ -16,9 +16,9 @@ from skymule.policies.base import Action, MissionContext, Observation
 from skymule.policies.fleet import partition
 from skymule.scenario import Scenario, UavSpec, load_scenario
 from skymule.sim import contract
-from skymule.sim.context import mission_context
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.fleet import Fleet, build_fleet
+from skymule.sim.run import mission_context
 from skymule.tasks.fleet import make_fleet_policy, run_fleet, simulate_fleet
 from skymule.tasks.simulate import simulate
 from skymule.world import mission_from_track

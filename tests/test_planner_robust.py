@@ -15,9 +15,8 @@ from skymule.policies.base import Observation
 from skymule.policies.planner import ground_speed_mps
 from skymule.policies.planner_robust import RobustPlanner
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
-from skymule.sim.context import mission_context
 from skymule.sim.contract import NO_SENSOR
-from skymule.sim.run import run_mission
+from skymule.sim.run import mission_context, run_mission
 from skymule.world import Mission, build_mission
 from test_autonomous_bound import random_scenario
 from test_fault_engines import MIXED_FAULTS, _true_yield_holds

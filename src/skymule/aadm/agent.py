@@ -34,7 +34,7 @@ from skymule.errors import SkymuleError
 from skymule.policies.base import BatchObservation, BatchPolicy, MissionContext, Policy
 from skymule.policies.batched import as_batch_policy
 from skymule.sim.columns import check_actions
-from skymule.sim.context import mission_context
+from skymule.sim.run import mission_context
 from skymule.units import BITS_PER_MBIT
 from skymule.world import Mission
 

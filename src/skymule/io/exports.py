@@ -153,26 +153,6 @@ def geojson_document(export: MapExport, name: str) -> dict[str, Any]:
     return {"type": "FeatureCollection", "name": name, "features": features}
 
 
-def read_geojson_export(path: Path) -> MapExport:
-    """Parse a GeoJSON written by :func:`geojson_document` back."""
-    data = json.loads(path.read_text())
-    track = np.zeros((0, 3))
-    fence = None
-    points = []
-    for feature in data["features"]:
-        geometry, props = feature["geometry"], dict(feature["properties"])
-        kind = props.pop("kind", "")
-        if kind == "path":
-            track = np.array([[la, lo, al] for lo, la, al in geometry["coordinates"]], float)
-        elif kind == "geofence":
-            fence = np.array([[la, lo] for lo, la in geometry["coordinates"][0]], float)
-        elif geometry["type"] == "Point":
-            lon, lat, alt = geometry["coordinates"]
-            name = props.pop("name", "")
-            points.append(MapPoint(name, kind, lat, lon, alt, tuple(props.items())))
-    return MapExport(track, fence, tuple(points))
-
-
 # ---------------------------------------------------------------------------
 # KML
 # ---------------------------------------------------------------------------
@@ -224,45 +204,6 @@ def kml_document(export: MapExport, name: str) -> str:
             _sub(geometry, "coordinates", _coords([[point.lon, point.lat, point.alt_m]]))
     ET.indent(root)
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode")
-
-
-def _parse_coords(text: str) -> np.ndarray:
-    return np.array([[float(v) for v in token.split(",")] for token in text.split()], float)
-
-
-def _value(text: str) -> Any:
-    try:
-        return float(text)
-    except ValueError:
-        return text
-
-
-def read_kml_export(path: Path) -> MapExport:
-    """Parse a KML written by :func:`kml_document` back."""
-    ns = {"k": KML_NS}
-    root = ET.parse(path).getroot()
-    track = np.zeros((0, 3))
-    fence = None
-    points = []
-    for mark in root.iter(f"{{{KML_NS}}}Placemark"):
-        name = mark.findtext("k:name", default="", namespaces=ns)
-        line = mark.find("k:LineString/k:coordinates", ns)
-        ring = mark.find(".//k:LinearRing/k:coordinates", ns)
-        point = mark.find("k:Point/k:coordinates", ns)
-        if line is not None and line.text:
-            lon_lat_alt = _parse_coords(line.text)
-            track = lon_lat_alt[:, [1, 0, 2]]
-        elif ring is not None and ring.text:
-            fence = _parse_coords(ring.text)[:, [1, 0]]
-        elif point is not None and point.text:
-            lon, lat, alt = _parse_coords(point.text)[0]
-            data = {
-                d.get("name", ""): _value(d.findtext("k:value", default="", namespaces=ns))
-                for d in mark.findall("k:ExtendedData/k:Data", ns)
-            }
-            kind = str(data.pop("kind", ""))
-            points.append(MapPoint(name, kind, lat, lon, alt, tuple(data.items())))
-    return MapExport(track, fence, tuple(points))
 
 
 # ---------------------------------------------------------------------------
@@ -389,35 +330,6 @@ def plan_document(run: RunData, tolerance_m: float = 1.0) -> dict[str, Any]:
         },
         "rallyPoints": {"points": [], "version": 2},
     }
-
-
-@dataclass(frozen=True)
-class PlanItem:
-    """A NAV_WAYPOINT read back from a .plan: degrees, altitude [m], hold [s]."""
-
-    lat: float
-    lon: float
-    alt_m: float
-    hold_s: float
-
-
-def read_plan(path: Path) -> list[PlanItem]:
-    """NAV_WAYPOINT items of a QGroundControl ``.plan`` (one-line error if it is not one)."""
-    try:
-        data = json.loads(path.read_text())
-        items = data["mission"]["items"]
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise SkymuleError(f"{path}: not a QGroundControl .plan ({exc})") from None
-    return [
-        PlanItem(
-            float(i["params"][4]),
-            float(i["params"][5]),
-            float(i["params"][6]),
-            float(i["params"][0]),
-        )
-        for i in items
-        if i.get("type") == "SimpleItem" and i.get("command") == MAV_CMD_NAV_WAYPOINT
-    ]
 
 
 # ---------------------------------------------------------------------------

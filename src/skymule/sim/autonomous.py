@@ -38,7 +38,7 @@ from skymule.flight.navigation import Navigator
 from skymule.metrics.flights import Flights
 from skymule.policies.base import BatchAction, BatchObservation, BatchPolicy, MissionContext
 from skymule.sim import contract
-from skymule.sim.batch_faults import BatchFaults, apply_faults, stack_faults
+from skymule.sim.batch_faults import BatchFaults, add_gps_error, apply_faults, stack_faults
 from skymule.sim.batch_paths import Paths, Sight, path_queries
 from skymule.sim.batch_signal import BatchSignal
 from skymule.sim.columns import (
@@ -354,11 +354,8 @@ class AutonomousEngine:
             seen_rate, seen, deliver, self._ok = apply_faults(self.faults, self.slot, rate, seen)
             if every and not active.all():  # after the last slot there is no fault draw
                 seen_rate[:, ~active], seen[:, ~active] = rate[:, ~active], true_seen[:, ~active]
-            for b in self.faults.index.tolist():
-                draws = self.missions[b].faults
-                assert draws is not None
-                if active[b]:
-                    position[b, :2] += draws.gps_error_m[self.slot[b]]
+            live = [b for b in self.faults.index.tolist() if active[b]]
+            add_gps_error(self.missions, live, self.slot, position)
         self._deliver = deliver
         remaining = self.remaining if self.uavs == 1 else self.remaining[:, self.group]
         self._observed = True

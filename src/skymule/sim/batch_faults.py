@@ -139,3 +139,16 @@ def kernel_faults(faults: BatchFaults, n_missions: int) -> KernelFaults | None:
         efficiency=efficiency,
         bandwidth_hz=np.array([bandwidth for _, bandwidth in faults.rate_models], float),
     )
+
+
+def add_gps_error(
+    missions: Sequence[Mission], rows: Sequence[int], slot: np.ndarray, position_m: np.ndarray
+) -> None:
+    """Add GPS errors to the positions UAVs report: mission ``rows[i]``'s error of its slot
+    ``slot[rows[i]]`` onto ``position_m`` (B, 3) in place (x, y; none past its draws)."""
+    for b in rows:
+        draws = missions[b].faults
+        assert draws is not None
+        t = int(slot[b])
+        if t < draws.gps_error_m.shape[0]:
+            position_m[b, :2] += draws.gps_error_m[t]

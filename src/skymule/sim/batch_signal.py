@@ -145,8 +145,7 @@ class BatchSignal:
 
     def peak_rate_bps(self, hover_m: np.ndarray) -> np.ndarray:
         """(N, B) R*_i of every mission: the rate from sensor i at its own hover point
-        ``hover_m`` (N, B, 2) (NaN: unknown, rate 0), without fading, as
-        :func:`skymule.sim.context.autonomous_peak_rate_bps` gives each mission."""
+        ``hover_m`` (N, B, 2) (NaN: unknown, rate 0), without fading (paper Alg. 2)."""
         peak = np.zeros(hover_m.shape[:2])
         for sensor in range(hover_m.shape[0]):
             snr = self.snr_db(np.nan_to_num(hover_m[sensor], nan=0.0), None)

@@ -261,10 +261,10 @@ def slot_loop(
 
 
 def jit(
-    function: Callable[..., None],
+    function: Callable[..., Any],
     calls: tuple[Callable[..., Any], ...],
     inline: tuple[Callable[..., Any], ...] = (),
-) -> Callable[..., None]:
+) -> Callable[..., Any]:
     """``function`` compiled by numba, with the plain-Python functions it ``calls``; those in
     ``inline`` are also pasted into their callers (numba's ``inline="always"``).
 

@@ -12,33 +12,6 @@ from skymule.policies.base import MissionContext
 from skymule.world import Mission
 
 
-def autonomous_peak_rate_bps(mission: Mission) -> np.ndarray:
-    """(N,) R*_i for autonomous flight: the rate at sensor i's own hover point (paper Alg. 2).
-
-    0 for sensors without a position (no hover point).
-    """
-    if mission.source is None or mission.hover_points_m is None:
-        raise SkymuleError("autonomous missions need signal.source = 'model' or 'radiomap'")
-    hover = mission.hover_points_m
-    points = np.nan_to_num(hover, nan=0.0)
-    at_hover = np.column_stack([points, np.full(len(points), mission.altitude_m)])
-    snr = mission.source.snr_db(at_hover)  # (N sensors at their own hover point, N)
-    peak = np.diag(mission.rate_bps(snr)).copy() if len(points) else np.zeros(0)
-    peak[~np.all(np.isfinite(hover), axis=1)] = 0.0
-    return peak
-
-
-def mission_context(mission: Mission) -> MissionContext:
-    """The context a policy's ``reset`` gets (fixed or autonomous), read-only."""
-    if mission.mode == "autonomous":
-        return autonomous_context(mission, autonomous_peak_rate_bps(mission))
-    track = mission.track
-    if track is None:
-        raise SkymuleError("a fixed-trajectory mission needs a track (trajectory.waypoints)")
-    rates = mission.rate_bps(track.snr_db)
-    return fixed_context(mission, rates, rates.max(axis=0))
-
-
 def autonomous_context(mission: Mission, peak_rate_bps: np.ndarray) -> MissionContext:
     """The context of an autonomous mission given its peak rates R*_i (N,) (the rate at each
     sensor's own hover point, computed for a whole batch at once)."""

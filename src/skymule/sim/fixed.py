@@ -33,7 +33,7 @@ from skymule.policies.base import BatchAction, BatchObservation, BatchPolicy, Mi
 from skymule.radio.rates import rate_bps
 from skymule.sim import compiled, contract
 from skymule.sim.batch_fading import apply_fading, stack_fading
-from skymule.sim.batch_faults import BatchFaults, apply_faults, stack_faults
+from skymule.sim.batch_faults import BatchFaults, add_gps_error, apply_faults, stack_faults
 from skymule.sim.columns import (
     affected_slots,
     check_actions,
@@ -170,9 +170,7 @@ class FixedEngine:
             missions, n_sensors
         )
         self.faults: BatchFaults = stack_faults(missions, n_sensors)
-        self._gps_rows = np.array(
-            [b for b, m in enumerate(missions) if m.faults is not None], np.int64
-        )
+        self._gps_rows = [b for b, m in enumerate(missions) if m.faults is not None]
         self._wind_rows = [
             b for b, m in enumerate(missions) if m.faults is not None and m.faults.wind is not None
         ]
@@ -249,7 +247,7 @@ class FixedEngine:
         position = self._positions.take(self._base_row + self.sample, axis=0)
         if self.faults.any:  # the policy sees the faulty SNR; `deliver` is what serving yields
             rate, snr, deliver, self._ok = apply_faults(self.faults, slot, rate, snr)
-            self._gps_error(position, slot)
+            add_gps_error(self.missions, self._gps_rows, np.full(len(position), slot), position)
         self._deliver = deliver
         remaining = self.remaining if self.uavs == 1 else self.remaining[:, self.group]
         self._observed = True
@@ -261,14 +259,6 @@ class FixedEngine:
             rate_bps=frozen(rate).T,
             remaining_bit=frozen(remaining.copy()).T,
         )
-
-    def _gps_error(self, position: np.ndarray, slot: int) -> None:
-        """Add each fault mission's GPS error of slot ``slot`` to the position it sees."""
-        for b in self._gps_rows.tolist():
-            draws = self.missions[b].faults
-            assert draws is not None
-            if slot < draws.gps_error_m.shape[0]:
-                position[b, :2] += draws.gps_error_m[slot]
 
     # --- what happens ----------------------------------------------------------------------
 

@@ -18,7 +18,7 @@ import numpy as np
 from skymule.errors import SkymuleError
 from skymule.metrics.flights import Flights, MissionLog
 from skymule.metrics.summary import summary_dicts, summary_rows, with_battery
-from skymule.policies.base import BatchPolicy, Policy
+from skymule.policies.base import BatchPolicy, MissionContext, Policy
 from skymule.policies.batched import as_batch_policy, policy_names
 from skymule.scenario import PolicySpec
 from skymule.sim import compiled
@@ -54,6 +54,15 @@ def run_missions(
     if mode == "autonomous":
         return run_autonomous(missions, batch, fleet=fleet, detail=detail, engine=engine)
     raise SkymuleError(f"trajectory.mode = {mode!r} is not supported; allowed: fixed, autonomous")
+
+
+def mission_context(mission: Mission) -> MissionContext:
+    """What a policy's ``reset`` gets for ``mission``: the engine's context of a batch of one."""
+    from skymule.sim.autonomous import AutonomousEngine
+    from skymule.sim.fixed import FixedEngine
+
+    engine = AutonomousEngine([mission]) if mission.mode == "autonomous" else FixedEngine([mission])
+    return engine.contexts()[0]
 
 
 def run_mission(mission: Mission, policy: BatchPolicy | Policy, engine: str = "auto") -> MissionLog:

@@ -18,6 +18,9 @@ def test_readme_python_blocks_run() -> None:
     plugin = namespace["LargestBufferFirst"]
     policy = plugin(plugin.Params(min_snr_db=3))  # type: ignore[attr-defined,operator]
     assert policy.name == "largest-buffer-first" and policy.params.min_snr_db == 3
+    batched = namespace["batched"]  # the README's batched form, run beside the per-mission one
+    assert float(batched.downloaded_bit.sum()) > 0  # type: ignore[attr-defined]
+    assert namespace["LargestBufferFirstBatched"].batched is True  # type: ignore[attr-defined]
     comparison = namespace["comparison"]
     gaps = [round(r["gap_to_bound_mbit"], 1) for r in comparison.rows()]  # type: ignore[attr-defined]
     assert gaps == [562.4, 243.6]

@@ -24,6 +24,7 @@ from skymule.sim.faulted_motion import FaultedUav
 from skymule.sim.fleet import build_fleet
 from skymule.sim.run import run_mission
 from skymule.tasks.fleet import simulate_fleet
+from skymule.tasks.simulate import simulate
 from skymule.world import Mission, build_mission
 
 
@@ -376,3 +377,23 @@ def test_a_fleet_is_checked_against_its_own_uavs_speeds() -> None:
     data.pop("uavs")  # one UAV at 4 m/s cannot fly against 5 m/s
     with pytest.raises(ScenarioError, match=r"faults\[0\] \(wind\): speed_mps = 5.0 must be below"):
         scenario_from_dict(data, "one", Path(base.base_dir))
+
+
+@pytest.mark.parametrize("policy", ["greedy", "hgad"])
+def test_a_calm_wind_is_the_calm_return_home(policy: str) -> None:
+    """The return home in time per leg (``sim/faulted_motion.py``, used under a wind) is the
+    calm ``HomeRule`` stated in time: with a wind of 0 m/s every leg flies at the cap, and the
+    flights are the calm ones (positions to round-off: the two walk a path by other floats)."""
+    short = ["mission.duration_s=160"]  # the deadline binds: the rule sends the UAV home
+    calm = load_scenario("paper-sim-autonomous", short)
+    windy = load_scenario(
+        "paper-sim-autonomous", [*short, 'faults=[{kind="wind", params={speed_mps=0.0}}]']
+    )
+    a, b = simulate(calm, policy).log, simulate(windy, policy).log
+    assert simulate(windy, policy).mission.faults.wind is not None  # type: ignore[union-attr]
+    assert a.n_slots == b.n_slots
+    np.testing.assert_allclose(a.position_m, b.position_m, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(a.served, b.served)
+    np.testing.assert_allclose(a.downloaded_bit, b.downloaded_bit, rtol=1e-12)
+    home = build_mission(calm).home_m
+    assert home is not None and np.hypot(*(a.end_position_m[:2] - home)) < 1e-6

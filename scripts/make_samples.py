@@ -36,7 +36,8 @@ from skymule.io.traces import read_trace, write_aadm_log, write_dt_export
 from skymule.scenario import Scenario, load_scenario
 from skymule.tasks.analyze import analysis_scenario
 from skymule.tasks.simulate import simulate
-from skymule.world import BITS_PER_MBIT, build_mission
+from skymule.units import BITS_PER_MBIT
+from skymule.world import build_mission
 
 SEED = 2025
 DT_MODEL = "two-ray"

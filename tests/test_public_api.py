@@ -25,6 +25,16 @@ def test_the_policy_protocols_document_their_methods() -> None:
             assert getattr(protocol, method).__doc__, (protocol, method)
 
 
+def test_the_environments_document_reset_and_step() -> None:
+    pytest.importorskip("gymnasium", reason="the environments need gymnasium (test extra)")
+    from skymule.envs.datamule import DataMuleEnv
+    from skymule.envs.vector import DataMuleVectorEnv
+
+    for env in (DataMuleEnv, DataMuleVectorEnv):
+        for method in ("reset", "step"):
+            assert getattr(env, method).__doc__ != getattr(env.__mro__[1], method).__doc__
+
+
 def test_importing_skymule_loads_nothing_heavy() -> None:
     """``import skymule`` (as ``skymule --help`` does) loads the engine only when asked."""
     code = "import sys, skymule; print(sorted(m for m in sys.modules if m.startswith('skymule')))"

@@ -154,6 +154,8 @@ class DataMuleEnv(gym.Env[np.ndarray, Any]):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start an episode: the mission from the start (a new one drawn from the generator,
+        if any; ``seed`` makes it reproducible). Returns (observation, info)."""
         super().reset(seed=seed)
         self.mission = self._draw_mission()
         self._core = EnvMissions([self.mission], self.reward_mode, detail=True)
@@ -192,6 +194,9 @@ class DataMuleEnv(gym.Env[np.ndarray, Any]):
         return self._core
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """One slot: serve and move as ``action`` says, by the engine's rules. Returns
+        (observation, reward, terminated, truncated, info with the slot, the sensor served and
+        the Mbit downloaded)."""
         core = self._running()
         sensor, move_m = self._decode(action)
         bits, reward = core.step(np.array([sensor]), move_m[None], np.ones(1, bool))

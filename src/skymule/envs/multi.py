@@ -95,6 +95,7 @@ class DataMuleParallelEnv(ParallelEnv[str, np.ndarray, np.ndarray]):
     def reset(
         self, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, np.ndarray], dict[str, dict[str, Any]]]:
+        """Start the fleet mission again; (observations, infos) per agent (UAV)."""
         if seed is not None and seed != self._fleet.scenario.seed:
             self._fleet = build_fleet(self.scenario.model_copy(update={"seed": int(seed)}))
         fleet = np.zeros(self._fleet.size, np.int64)
@@ -133,6 +134,9 @@ class DataMuleParallelEnv(ParallelEnv[str, np.ndarray, np.ndarray]):
         dict[str, bool],
         dict[str, dict[str, Any]],
     ]:
+        """One slot of every UAV: each agent's (serve, heading), conflicts settled by the
+        engine (the higher rate wins a sensor). Returns observations, rewards, terminations,
+        truncations and infos, per agent."""
         flight = self._flight
         if flight is None or not self.agents:
             raise SkymuleError("step() after the episode ended: call reset() first")

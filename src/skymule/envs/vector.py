@@ -229,6 +229,8 @@ class DataMuleVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start every mission again at home with full buffers; ((B, 3 + 5N) observations,
+        info). The missions are built already, so ``seed`` changes nothing."""
         super().reset(seed=seed)  # the missions are deterministic: the seed changes nothing
         self._core.restart(np.ones(self.num_envs, bool))
         self._needs_reset[:] = False
@@ -255,6 +257,9 @@ class DataMuleVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
     def step(
         self, actions: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """One slot of every mission: ``actions`` (B, 2) (serve 0 = none or sensor + 1,
+        heading). Returns (observations, rewards, terminated, truncated, info), each (B, ...);
+        an ended mission restarts on the next step (``NEXT_STEP`` autoreset)."""
         values = self._check(actions)
         restart = self._needs_reset.copy()
         live = ~restart

@@ -1,7 +1,7 @@
 """Per-slot fading in the batched engine: stacking each mission's fading, applying a slot's.
 
 Missions with ``Mission.fading_db`` have their SNR and rate recomputed each slot from the
-track SNR plus that slot's fading, as the reference engine does (:mod:`skymule.sim.batch`).
+track SNR plus that slot's fading.
 """
 
 from __future__ import annotations

@@ -1,10 +1,10 @@
 """Faults in the batched engine: stacking each mission's fault draws, applying a slot's.
 
-The same rules as the reference engine (``docs/faults.md``; :mod:`skymule.sim.faulting`):
-the policy sees ``snr + error`` where the link delivers and -inf where not (its rate from the
-mission's rate table); a served sensor yields the TRUE rate where deliverable, else 0 bits.
-Missions without faults are untouched. A wind (which changes progress along the track) is not
-batched: such missions are not :func:`~skymule.sim.batch.batchable`. :func:`kernel_faults`
+The rules of ``docs/faults.md``: the policy sees ``snr + error`` where the link delivers and
+-inf where not (its rate from the mission's rate table); a served sensor yields the TRUE rate
+where deliverable, else 0 bits.
+Missions without faults are untouched; a wind (progress along the track, the way home) is
+the engines' own (:mod:`skymule.sim.faulted_motion`). :func:`kernel_faults`
 lays the same draws out for the compiled loop (:func:`skymule.sim.kernels.fault_view`).
 """
 

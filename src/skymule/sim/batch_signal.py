@@ -1,6 +1,6 @@
 """SNR and rates at B UAV positions at once, for missions with different sensors and sources.
 
-The batched autonomous engine (:mod:`skymule.sim.batch_autonomous`) needs, every slot, what
+The autonomous engine (:mod:`skymule.sim.autonomous`) needs, every slot, what
 ``mission.source.snr_db`` and ``mission.rate_bps`` give each mission at its UAV's position.
 Missions of one batch may have their own sensors and signal sources:
 

@@ -495,48 +495,20 @@ def run_compiled(
     engine: FixedEngine, rule: Any, policies: Sequence[str], loop: Any = None
 ) -> Flights:
     """Every slot of a fresh ``engine`` in the compiled loop (``compiled_reason`` None): the
-    rule of ``rule`` compiled, the same record as the numpy slot loop. ``loop``: the loop to
-    run (default :func:`~skymule.sim.compiled.compiled_loop`; the tests also run
+    rule of ``rule`` compiled, writing the engine's own logs, so :meth:`FixedEngine.record`
+    gives the same record as the numpy slot loop. ``loop``: the loop to run (default
+    :func:`~skymule.sim.compiled.compiled_loop`; the tests also run
     :func:`~skymule.sim.compiled.slot_loop` as plain Python, with or without numba)."""
-
     n_flights, n_sensors = len(engine.missions), engine.n_sensors
-    t_max = int(engine.n_slots.max())
-    served = np.full((n_flights, t_max), NO_SENSOR, np.int64)
-    downloaded = np.zeros((n_flights, t_max))
-    hovering = np.zeros((n_flights, t_max), bool)
-    sample = np.zeros((n_flights, t_max), np.int64)
-    remaining = np.zeros((n_flights, t_max, n_sensors)) if engine.detail else np.zeros((0, 0, 0))
-    n_run = np.zeros(n_flights, np.int64)
+    remaining = engine._remaining_log if engine.detail else np.zeros((0, 0, 0))
     end_sample = np.zeros(n_flights, np.int64)
     left = np.zeros((n_flights, n_sensors))
     faults = compiled_faults(engine)
-    chosen = None if faults is None else np.full((n_flights, t_max), NO_SENSOR, np.int64)
     (compiled.compiled_loop() if loop is None else loop)(
-        *compiled_inputs(engine, rule), True, engine.detail, served, downloaded, hovering,
-        sample, remaining, n_run, end_sample, left, False, *compiled.no_totals(n_sensors),
-        faults, chosen,
+        *compiled_inputs(engine, rule), True, engine.detail, engine._served, engine._downloaded,
+        engine._hovering, engine._sample_log, remaining, engine.n_run, end_sample, left, False,
+        *compiled.no_totals(n_sensors), faults, engine._chosen,
     )  # fmt: skip
-    width = int(n_run.max()) if n_run.size else 0
-    snr = rate = kept = None
-    if engine.detail:
-        kept = remaining[:, :width]
-        snr, rate = engine._detail_signal(np.ascontiguousarray(sample[:, :width]), width)
-    return flights_record(
-        engine.missions,
-        policies,
-        n_run=n_run,
-        left_bit=left,
-        served=np.ascontiguousarray(served[:, :width]),
-        downloaded_bit=np.ascontiguousarray(downloaded[:, :width]),
-        hovering=np.ascontiguousarray(hovering[:, :width]),
-        track_position_m=engine.tables.position_m,
-        track_samples=engine.tables.n_samples,
-        track_id=engine.tables.track_id,
-        sample=np.ascontiguousarray(sample[:, :width]),
-        end_sample=end_sample,
-        snr_db=snr,
-        rate_bps=rate,
-        remaining_bit=kept,
-        chosen=None if chosen is None else np.ascontiguousarray(chosen[:, :width]),
-        affected=affected_slots([m.faults for m in engine.missions], width),
-    )
+    engine.sample[:] = end_sample
+    engine.remaining[:] = left.T
+    return engine.record(policies)

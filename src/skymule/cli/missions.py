@@ -351,10 +351,9 @@ def _sweep_interrupted(out: Path, spec: Any, again: list[str]) -> None:
     import shlex
 
     from skymule.experiments import store
-    from skymule.experiments.run import plan
 
     try:
-        kept, total = len(store.done_ids(out)), len(plan(spec))
+        kept, total = store.scan(out).count, len(spec)
         what = f"kept {kept} of {total} missions in {out / store.PARTS}"
     except Exception:  # a half-written part must not hide the resume hint
         what = f"finished chunks are kept in {out}"

@@ -3,9 +3,12 @@
 * ``inprocess``: runs each task when it is submitted (debugging, tests, tiny sweeps);
 * ``process``: a local process pool (default: all cores); its workers exit on their own when
   the sweep process dies (even by ``kill -9``), see :func:`exit_with_parent`;
-* ``dask-local``: a ``dask.distributed.LocalCluster`` on this machine;
+* ``dask-local``: a ``dask.distributed.LocalCluster`` on this machine (its workers write
+  their own parts, like the process pool's);
 * ``dask``: an existing Dask scheduler (``--scheduler tcp://HOST:PORT``; dask-jobqueue
-  clusters on SLURM/PBS expose one too).
+  clusters on SLURM/PBS expose one too). Its workers may be on other hosts: they send each
+  part back as bytes, and policy modules given as ``module:Class`` are uploaded to them
+  (:func:`ship_modules`).
 
 Dask is an optional extra (``pip install 'skymule[dask]'``) and is imported only when asked for.
 """
@@ -13,13 +16,17 @@ Dask is an optional extra (``pip install 'skymule[dask]'``) and is imported only
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import multiprocessing
 import os
+import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
+import zipfile
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from contextlib import AbstractContextManager, contextmanager
+from pathlib import Path
 from typing import Any
 
 from skymule.errors import SkymuleError
@@ -101,6 +108,96 @@ def _process(
         yield executor
 
 
+class DaskExecutor(Executor):
+    """A Dask client as an Executor that also knows its cluster.
+
+    ``local``: the workers run on this machine (a ``LocalCluster``) and see its files.
+    """
+
+    def __init__(self, client: Any, local: bool) -> None:
+        self.client = client
+        self.local = local
+        self._executor: Executor = client.get_executor(pure=False)
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future:
+        return self._executor.submit(fn, *args, **kwargs)
+
+    def slots(self) -> int:
+        """Threads over all the cluster's workers now (at least 1)."""
+        return max(1, sum(self.client.nthreads().values()))
+
+
+def executor_slots(executor: Executor, workers: int | None) -> int:
+    """Tasks the executor runs at once: a Dask cluster's threads, else ``workers`` (all
+    cores by default)."""
+    if isinstance(executor, DaskExecutor):
+        return executor.slots()
+    return workers or default_workers()
+
+
+def sees_local_files(executor: Executor) -> bool:
+    """True when the executor's workers run on this machine (and can write the sweep folder)."""
+    return not isinstance(executor, DaskExecutor) or executor.local
+
+
+def share(executor: Executor, value: Any) -> Any:
+    """``value`` as the executor's tasks best receive it: a Dask cluster gets it once (scattered
+    to every worker) and each task a reference; a process pool pickles it with each task."""
+    if isinstance(executor, DaskExecutor):
+        return executor.client.scatter(value, broadcast=True, hash=False)
+    return value
+
+
+def _module_file(module: str) -> Path | None:
+    """The file (a module) or folder (a package) ``module`` is imported from here, when it
+    is the user's own code (not part of an installed distribution)."""
+    top = module.split(".")[0]
+    cwd = str(Path.cwd())
+    added = cwd not in sys.path
+    if added:  # policies are looked up in the current folder too (skymule.policies)
+        sys.path.append(cwd)
+    try:
+        found = importlib.util.find_spec(top)
+    except (ImportError, ValueError):
+        found = None
+    finally:
+        if added:
+            sys.path.remove(cwd)
+    if found is None or not found.origin or found.origin in ("built-in", "frozen"):
+        return None
+    origin = Path(found.origin)
+    if any(part in ("site-packages", "dist-packages") for part in origin.parts):
+        return None  # installed: the workers need the same installation
+    return origin.parent if found.submodule_search_locations else origin
+
+
+def ship_modules(executor: Executor, modules: Sequence[str], scratch: Path) -> list[Path]:
+    """Upload the user's policy modules to a remote Dask cluster's workers
+    (``client.upload_file``: a module file as is, a package as a zip); returns what was sent.
+
+    Workers of the other executors import them from this machine's files as the sweep
+    process does.
+    """
+    if not isinstance(executor, DaskExecutor) or executor.local:
+        return []
+    sent = []
+    for module in sorted(set(modules)):
+        source = _module_file(module)
+        if source is None:
+            continue
+        if source.is_dir():
+            archive = scratch / f"{source.name}.zip"
+            with zipfile.ZipFile(archive, "w") as bundle:
+                for file in sorted(source.rglob("*.py")):
+                    bundle.write(file, Path(source.name) / file.relative_to(source))
+            source = archive
+        # a .py lands in the workers' folder, which is on their path; a zip is put on the
+        # path by loading it
+        executor.client.upload_file(str(source), load=source.suffix == ".zip")
+        sent.append(source)
+    return sent
+
+
 def _distributed() -> Any:
     try:
         import distributed
@@ -147,7 +244,7 @@ def _dask_local(
     distributed = _distributed()
     cluster = _start_local_cluster(distributed, workers or default_workers())
     with cluster, distributed.Client(cluster, timeout=f"{DASK_START_TIMEOUT_S}s") as client:
-        yield client.get_executor()
+        yield DaskExecutor(client, local=True)
 
 
 @contextmanager
@@ -162,7 +259,7 @@ def _dask(
     except (OSError, TimeoutError) as exc:
         raise SkymuleError(f"--scheduler {scheduler!r}: cannot connect ({exc})") from None
     with client:
-        yield client.get_executor()
+        yield DaskExecutor(client, local=False)
 
 
 ExecutorFactory = Callable[

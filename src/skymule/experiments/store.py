@@ -296,8 +296,9 @@ def scan(out: Path, *, set_aside: bool = False) -> Done:
 
 # --- consolidating: results.parquet and summary.csv, streamed -------------------------
 
-#: Rows per bucket of the merge, and per row group of results.parquet (~20 MB of Arrow).
-BUCKET_ROWS = 1 << 16
+#: Rows per bucket of the merge, and per row group of results.parquet (~5 MB of Arrow: the
+#: merge holds a few copies of one bucket, so this bounds its memory).
+BUCKET_ROWS = 1 << 14
 
 
 @dataclass(frozen=True)

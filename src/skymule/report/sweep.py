@@ -55,7 +55,6 @@ from skymule.report.style import (
 )
 from skymule.report.sweep_query import (
     DOTS,
-    ECDF_POINTS,
     EXACT_VALUES,
     ResultsQuery,
     finite,
@@ -214,15 +213,16 @@ def default_baseline(policies: list[str]) -> str:
     return "greedy" if "greedy" in policies else sorted(policies)[0]
 
 
-def _ecdf_of(query: ResultsQuery, table: str, column: str, n: int) -> tuple[np.ndarray, ...]:
-    """The ECDF of a column of a temporary table: every value, or quantiles of many."""
+def _ecdf_of(
+    query: ResultsQuery, table: str, column: str, n: int, least: float, largest: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The ECDF of a column of a temporary table: every value, or a fine histogram of many."""
     if n <= EXACT_VALUES:
         found = query.rows(f"SELECT {column} FROM {table} WHERE {column} IS NOT NULL")
         x = np.sort(np.array([v for (v,) in found], float))
         return x, np.arange(1, x.size + 1) / max(x.size, 1)
-    probs = np.linspace(0.0, 1.0, ECDF_POINTS)
-    ((found,),) = query.rows(f"SELECT quantile_cont({column}, {probs.tolist()}) FROM {table}")
-    return np.array(found, float), probs
+    source = f"SELECT {column} AS x FROM {table} WHERE {column} IS NOT NULL"
+    return query.histogram_ecdf(source, least, largest)
 
 
 def paired_gains(
@@ -262,14 +262,14 @@ def paired_gains(
     )
     for i, name in others:
         g = f"g{i}"
-        ((n, mean, std, median, wins, losses),) = query.rows(
+        ((n, mean, std, median, wins, losses, least, largest),) = query.rows(
             f"SELECT count({g}), avg({g}), stddev_samp({g}), quantile_cont({g}, 0.5), "
-            f"avg(CAST({g} > {TIE_MBIT!r} AS DOUBLE)), avg(CAST({g} < {-TIE_MBIT!r} AS DOUBLE)) "
-            "FROM gains"
+            f"avg(CAST({g} > {TIE_MBIT!r} AS DOUBLE)), avg(CAST({g} < {-TIE_MBIT!r} AS DOUBLE)), "
+            f"min({g}), max({g}) FROM gains"
         )
         if not n:
             continue
-        x, y = _ecdf_of(query, "gains", g, int(n))
+        x, y = _ecdf_of(query, "gains", g, int(n), least, largest)
         nan = float("nan")
         gains.append(
             Gain(

@@ -9,8 +9,10 @@ group-by over 5,000,000 parameter sets, 11 s CPU and 599 MiB (pyarrow's in-memor
 and join: 49 s CPU, 3.5 GiB).
 
 Quantiles are exact (``quantile_cont``: numpy's linear interpolation); an empirical CDF of
-more than ``EXACT_VALUES`` values is drawn through ``ECDF_POINTS`` quantiles, and the strip of
-dots shows a reservoir sample of ``DOTS`` missions per policy.
+more than ``EXACT_VALUES`` values is drawn from a histogram of ``ECDF_BINS`` equal bins
+between its least and largest value (exact at each bin's upper edge; 2,000 quantiles instead
+cost ten times the CPU of the whole rest of the report), and the strip of dots shows a
+reservoir sample of ``DOTS`` missions per policy.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ import pyarrow as pa
 
 #: Values per policy up to which an ECDF is drawn through every value (else quantiles).
 EXACT_VALUES = 20_000
-ECDF_POINTS = 2_001
+ECDF_BINS = 2_000
 #: Missions per policy drawn as dots in the strip (all of them up to this many).
 DOTS = 3_000
 #: Memory DuckDB may use before it spills to disk.
@@ -135,11 +137,11 @@ class ResultsQuery:
         """Per policy: box statistics (as matplotlib's ``boxplot``), ECDF and dots."""
         x, policy = finite(quoted(metric)), f"CAST({quoted(policy_column)} AS VARCHAR)"
         found = self.rows(
-            f"SELECT p, count(x), avg(x), quantile_cont(x, [0.25, 0.5, 0.75]) FROM "
-            f"(SELECT {policy} AS p, {x} AS x FROM results) WHERE x IS NOT NULL GROUP BY p"
+            f"SELECT p, count(x), avg(x), quantile_cont(x, [0.25, 0.5, 0.75]), min(x), max(x) "
+            f"FROM (SELECT {policy} AS p, {x} AS x FROM results) WHERE x IS NOT NULL GROUP BY p"
         )
         out = {}
-        for p, n, mean, (q1, med, q3) in found:
+        for p, n, mean, (q1, med, q3), least, largest in found:
             where = f"{policy} = ?"
             low, high = q1 - 1.5 * (q3 - q1), q3 + 1.5 * (q3 - q1)
             ((whislo, whishi),) = self.rows(
@@ -155,15 +157,31 @@ class ResultsQuery:
                 ecdf_y = np.arange(1, n + 1) / n
                 dots = ecdf_x if n <= DOTS else self.sample(metric, where, p)
             else:
-                probs = np.linspace(0.0, 1.0, ECDF_POINTS)
-                sql = (
-                    f"SELECT quantile_cont(x, {probs.tolist()}) FROM (SELECT {x} AS x FROM "
-                    f"results WHERE {where}) WHERE x IS NOT NULL"
+                source = (
+                    f"SELECT x FROM (SELECT {x} AS x FROM results WHERE {where}) "
+                    "WHERE x IS NOT NULL"
                 )
-                ecdf_x, ecdf_y = np.array(self.rows(sql, p)[0][0], float), probs
+                ecdf_x, ecdf_y = self.histogram_ecdf(source, least, largest, p)
                 dots = self.sample(metric, where, p)
             out[str(p)] = Distribution(int(n), float(mean), box, ecdf_x, ecdf_y, dots)
         return out
+
+    def histogram_ecdf(
+        self, source: str, least: float, largest: float, *params: Any
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The ECDF of column ``x`` of the query ``source`` at the upper edges of
+        ``ECDF_BINS`` equal bins from ``least`` to ``largest`` (one pass, one small group-by)."""
+        if not largest > least:
+            return np.array([least], float), np.array([1.0])
+        width = (largest - least) / ECDF_BINS
+        found = self.rows(
+            f"SELECT LEAST(CAST(floor((x - {float(least)!r}) / {width!r}) AS BIGINT), "
+            f"{ECDF_BINS - 1}) AS b, count(*) FROM ({source}) GROUP BY b ORDER BY b",
+            *params,
+        )
+        bins = np.array([b for b, _ in found], float)
+        counts = np.cumsum([c for _, c in found])
+        return least + (bins + 1) * width, counts / counts[-1]
 
     def sample(self, metric: str, where: str, *params: Any) -> np.ndarray:
         """Up to ``DOTS`` finite values of ``metric`` in the rows ``where`` holds, at random."""

@@ -18,12 +18,18 @@ Options:
   --tiny              benchmarks at their tiny size (SKYMULE_BENCH_TINY=1): not measurements,
                       for testing this script
   --readme PATH       the file to rewrite (default: README.md next to scripts/)
+  --saved FILE[,FILE] sweep-scale table: also parse these saved outputs of
+                      `bench_sweep.py --missions ...` (runs too long to repeat here)
 
 Tables, what they run and roughly how long on the 2-core machine they were written on:
   presets       skymule compare {paper-sim-fixed, aadm-default} --policies greedy,hgad   ~3 s
   autonomous    skymule compare paper-sim-autonomous                                     ~2 s
   sources       skymule compare paper-sim-fixed --sources fspl,two-ray,al-hourani,...    ~3 s
   sweep-example skymule sweep examples/sweep-paper.toml (1,000 missions)                 ~10 s
+  sweep-scale   benchmarks/bench_sweep.py --missions 20000,200000 (inprocess) and
+                --missions 100000 (inprocess, process, dask-local)                       ~5 min
+                (--saved FILE[,FILE] adds rows from saved outputs of longer runs, e.g.
+                --missions 10000000 --report; rows not re-run keep their text)
   speed         benchmarks/bench_{engine,sweep,channel,bound,autonomous,planner}.py     ~15 min
                 (SPEED_BENCHES; sweeps and planner against the v0.1 tag in the same run;
                 the 100,000-mission sweep only with --all: +10 min)
@@ -59,6 +65,7 @@ class Context:
     tiny: bool
     slow: bool
     benches: frozenset[str] = frozenset()  # speed table: only these benchmarks (empty: all)
+    saved: tuple[Path, ...] = ()  # sweep-scale table: saved bench_sweep.py --missions outputs
 
     def run(self, *command: str) -> tuple[str, float]:
         """Run ``command`` from the repository root; (stdout, wall seconds). Fails loudly."""
@@ -161,6 +168,60 @@ def sweep_example_table(ctx: Context, old: list[str]) -> list[str]:
     ]
     header = ["missions", "wall time [s]", "greedy [Mbit] (mean ± 95% CI)", "hgad [Mbit]"]
     return markdown(header, list("rrrr"), [[f"{missions:,}", f"{seconds:.1f}", *cells]])
+
+
+SCALE_RUNS = (
+    ("--missions", "20000,200000", "--executors", "inprocess"),
+    ("--missions", "100000", "--executors", "inprocess,process,dask-local"),
+)
+"""The ``bench_sweep.py`` scale runs the sweep-scale table re-measures (~5 min)."""
+
+SCALE_LINE = (
+    r"scale (\S+)\s+([\d,]+) missions: wall\s+([\d.]+) s, CPU\s+([\d.]+) s \(\s*(\d+) "
+    r"us/mission,\s+[\d.]+ s in main\), peak RSS\s+(\d+) MiB \(load ([\d.]+)\)"
+)
+REPORT_LINE = (
+    r"report\s+([\d,]+) missions: wall\s+([\d.]+) s, CPU\s+([\d.]+) s, peak RSS\s+(\d+) MiB "
+    r"\(target: under 60 s; load ([\d.]+)\)"
+)
+
+
+def scale_rows(out: str) -> dict[tuple[str, str], list[str]]:
+    """Table rows by (missions, executor) from ``bench_sweep.py --missions`` output."""
+    rows = {}
+    for executor, n, wall, cpu, us, mib, load in re.findall(SCALE_LINE, out):
+        key = (f"{int(_f(n)):,}", executor)
+        rows[key] = [*key, f"{_f(wall):.1f}", f"{_f(cpu):.1f}", us, mib, load]
+    for n, wall, cpu, mib, load in re.findall(REPORT_LINE, out):
+        key = (f"{int(_f(n)):,}", "`skymule report` of it")
+        rows[key] = [*key, f"{_f(wall):.1f}", f"{_f(cpu):.1f}", "", mib, load]
+    return rows
+
+
+SCALE_HEADER = ["missions", "executor", "wall [s]", "CPU [s]", "CPU per mission [µs]"]
+
+
+def sweep_scale_table(ctx: Context, old: list[str]) -> list[str]:
+    """Sweeps of 20,000 to 10,000,000 missions per executor; rows measured now replace the
+    rows of the same size and executor, the others keep their text."""
+    rows: dict[tuple[str, str], list[str]] = {}
+    for line in old[2:]:
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) == len(SCALE_HEADER) + 2:
+            rows[cells[0], cells[1]] = cells
+    runs = (
+        [("--missions", "40", "--executors", "inprocess", "--report")] if ctx.tiny else SCALE_RUNS
+    )
+    for args in runs:
+        rows.update(scale_rows(ctx.bench("bench_sweep.py", *args)))
+    for path in ctx.saved:
+        found = scale_rows(path.read_text())
+        if not found:
+            raise SystemExit(f"--saved {path}: no bench_sweep.py --missions lines in it")
+        rows.update(found)
+    order = sorted(rows, key=lambda k: (int(k[0].replace(",", "")), k[1].startswith("`"), k[1]))
+    header = [*SCALE_HEADER, "peak RSS [MiB]", "load"]
+    return markdown(header, list("rlrrrrr"), [rows[k] for k in order])
 
 
 def _numbers(pattern: str, text: str) -> list[tuple[str, ...]]:
@@ -487,6 +548,7 @@ TABLES: dict[str, Callable[[Context, list[str]], list[str]]] = {
     "autonomous": autonomous_table,
     "sources": sources_table,
     "sweep-example": sweep_example_table,
+    "sweep-scale": sweep_scale_table,
     "speed": speed_table,
     "suite": suite_table,
 }
@@ -521,6 +583,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--tiny", action="store_true")
     parser.add_argument("--benches", default="")
     parser.add_argument("--readme", type=Path, default=ROOT / "README.md")
+    parser.add_argument("--saved", default="")
     args = parser.parse_args(argv)
     names = [n.strip() for n in args.only.split(",") if n.strip()]
     unknown = [n for n in names if n not in TABLES]
@@ -533,7 +596,8 @@ def main(argv: list[str] | None = None) -> int:
         unknown_benches = sorted(benches - set(SPEED_BENCHES))
         if unknown_benches:
             parser.error(f"--benches {unknown_benches[0]}: allowed: {', '.join(SPEED_BENCHES)}")
-        ctx = Context(Path(scratch), args.tiny, args.all, benches)
+        saved = tuple(Path(p.strip()) for p in args.saved.split(",") if p.strip())
+        ctx = Context(Path(scratch), args.tiny, args.all, benches, saved)
         for name in names:
             start = time.perf_counter()
             text = rewrite(text, name, lambda old, n=name: TABLES[n](ctx, old))

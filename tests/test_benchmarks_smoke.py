@@ -70,3 +70,20 @@ def test_benchmark_runs_at_tiny_size(
         _, parse = README_TABLES["SPEED_BENCHES"][name]
         cells = parse(out)
         assert cells and all(cells.values()), f"{name}: README speed cells {cells}"
+
+
+def test_the_sweep_scale_mode_runs_and_fills_the_readme_rows(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``bench_sweep.py --missions N --report`` (the 10-million-mission benchmark at a tiny
+    size): wall, CPU and peak RSS per executor and the report's, parsed into the README's
+    sweep-scale rows."""
+    monkeypatch.syspath_prepend(str(BENCHMARKS))
+    script = str(BENCHMARKS / "bench_sweep.py")
+    monkeypatch.setattr(
+        sys, "argv", [script, "--missions", "40", "--executors", "inprocess", "--report"]
+    )
+    runpy.run_path(script, run_name="__main__")
+    rows = README_TABLES["scale_rows"](capsys.readouterr().out)
+    assert set(rows) == {("40", "inprocess"), ("40", "`skymule report` of it")}
+    assert all(cell for cell in rows["40", "inprocess"])

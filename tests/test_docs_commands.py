@@ -49,6 +49,9 @@ NOT_RUN_PREFIXES = {
     "skymule aadm controller": "a server that runs until stopped (tests/test_aadm_controller.py)",
     "skymule aadm comm": "the comm stand-in serves its peer until stopped (test_aadm_agent.py)",
     "skymule aadm agent": "needs the controller of the line above running (test_aadm_agent.py)",
+    "dask scheduler": "a server until stopped; test_sweep_scale.py runs a sweep through the "
+    "scheduler address of a cluster of worker processes",
+    "dask worker": "joins the scheduler of the line above until stopped (test_sweep_scale.py)",
 }
 """Commands shown as terminals side by side: tested by the AADM tests instead."""
 

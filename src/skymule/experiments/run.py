@@ -242,7 +242,7 @@ def _run_items(items: Sequence[_Item]) -> pd.DataFrame:
 
 def policy_modules(spec: SweepSpec) -> list[str]:
     """The modules of the ``module:Class`` policies a sweep runs (base and ``policy.name``)."""
-    from skymule.policies import LEARNED_PREFIX
+    from skymule.policies.registry import LEARNED_PREFIX
 
     names = [spec.base.policy.name]
     for axis in spec.discrete:

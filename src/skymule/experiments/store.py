@@ -322,7 +322,8 @@ def _index_range(meta: pq.FileMetaData) -> tuple[int, int] | None:
 
 def _survey(out: Path) -> tuple[list[_Part], pa.Schema]:
     """Which buckets each part feeds and the schema of all parts (footers, mostly)."""
-    parts, schemas = [], {}
+    parts: list[_Part] = []
+    schemas: dict[str, pa.Schema] = {}
     for path in part_paths(out):
         meta = pq.read_metadata(path)
         if meta.num_rows == 0:

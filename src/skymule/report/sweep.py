@@ -419,7 +419,8 @@ def _bins(query: ResultsQuery, parameter: SweptParameter) -> tuple[str, np.ndarr
         centres = np.array([v for (v,) in found], float)
         cases = " ".join(f"WHEN {x} = {float(v)!r} THEN {i}" for i, v in enumerate(centres))
         return f"CASE {cases} END", centres
-    edges = np.unique(query.quantiles(parameter.expression, np.linspace(0, 1, BINS + 1)))
+    probs = [b / BINS for b in range(BINS + 1)]
+    edges: np.ndarray = np.unique(np.array(query.quantiles(parameter.expression, probs)))
     above = " + ".join(f"CAST({x} >= {float(e)!r} AS INTEGER)" for e in edges)
     last = edges.size - 2
     bin_sql = f"CASE WHEN {x} IS NOT NULL THEN LEAST(GREATEST({above} - 1, 0), {last}) END"

@@ -185,3 +185,37 @@ def test_broken_and_foreign_folders_get_one_line(tmp_path: Path) -> None:
     done = run_cli("report", empty)
     assert done.returncode == 2 and "not a run folder" in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1
+
+
+def test_large_ecdfs_and_dots_come_from_a_histogram_and_a_sample(tmp_path: Path) -> None:
+    """Past EXACT_VALUES a policy's ECDF is read at the upper edges of equal bins (the
+    fraction of values at or below each edge, exactly) and its dots are a sample of DOTS."""
+    from skymule.report import sweep_query
+    from skymule.report.sweep import read_results
+
+    folder = synthetic(tmp_path / "big", ["greedy", "hgad"], paired=True)
+    rng = np.random.default_rng(3)
+    values = rng.lognormal(5.0, 1.0, 50_000)
+    frame = pd.DataFrame(
+        {
+            "mission_index": np.arange(values.size),
+            "policy": np.where(np.arange(values.size) % 2 == 0, "greedy", "hgad"),
+            "total_downloaded_mbit": values,
+        }
+    )
+    frame.to_parquet(folder / "results.parquet", index=False)
+    results = read_results(folder)
+    with sweep_query.results_query(results.path, results.schema) as query:
+        found = query.distribution("total_downloaded_mbit", "policy")
+    for policy, dist in found.items():
+        mine = frame.loc[frame["policy"] == policy, "total_downloaded_mbit"].to_numpy()
+        assert dist.n == mine.size > sweep_query.EXACT_VALUES
+        assert dist.ecdf_x.size <= sweep_query.ECDF_BINS and dist.ecdf_y[-1] == 1.0
+        at_or_below = (mine[None, :] <= dist.ecdf_x[:-1, None]).mean(axis=1)
+        np.testing.assert_allclose(dist.ecdf_y[:-1], at_or_below, atol=1 / mine.size)
+        assert dist.dots.size == sweep_query.DOTS and np.isin(dist.dots, mine).all()
+        q1, med, q3 = np.percentile(mine, [25, 50, 75])
+        assert (dist.box["q1"], dist.box["med"], dist.box["q3"]) == pytest.approx((q1, med, q3))
+        inside = mine[(mine >= q1 - 1.5 * (q3 - q1)) & (mine <= q3 + 1.5 * (q3 - q1))]
+        assert (dist.box["whislo"], dist.box["whishi"]) == (inside.min(), inside.max())
+        assert dist.mean == pytest.approx(mine.mean(), rel=1e-12)

@@ -60,6 +60,7 @@ from skymule.report.sweep_query import (
     finite,
     literal,
     quoted,
+    results_query,
 )
 
 POLICY_COLUMN = "policy"
@@ -569,7 +570,7 @@ def build_sweep_report(folder: Path, pdf: bool = True, baseline: str | None = No
     """
     results = read_results(folder)
     summary, source = read_summary(folder, results)
-    with ResultsQuery(results.path, results.schema) as query:
+    with results_query(results.path, results.schema) as query:
         policies = query.distinct(POLICY_COLUMN)
         if baseline is None:
             baseline = default_baseline(policies)

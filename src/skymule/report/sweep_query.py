@@ -19,10 +19,10 @@ from __future__ import annotations
 
 import os
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from types import TracebackType
 from typing import Any
 
 import numpy as np
@@ -74,8 +74,18 @@ class Moments:
     std: float
 
 
+@contextmanager
+def results_query(path: Path, schema: pa.Schema) -> Iterator[ResultsQuery]:
+    """Queries over ``path`` while in the block (DuckDB and its spill folder closed after)."""
+    query = ResultsQuery(path, schema)
+    try:
+        yield query
+    finally:
+        query.close()
+
+
 class ResultsQuery:
-    """Queries over one ``results.parquet``; a context manager (closes DuckDB)."""
+    """Queries over one ``results.parquet`` (see :func:`results_query`)."""
 
     def __init__(self, path: Path, schema: pa.Schema) -> None:
         import duckdb
@@ -95,15 +105,7 @@ class ResultsQuery:
             f"read_parquet({literal(str(path))}, file_row_number = true)"
         )
 
-    def __enter__(self) -> ResultsQuery:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
+    def close(self) -> None:
         self.con.close()
         self._scratch.cleanup()
 

@@ -178,7 +178,7 @@ SCALE_RUNS = (
 
 SCALE_LINE = (
     r"scale (\S+)\s+([\d,]+) missions: wall\s+([\d.]+) s, CPU\s+([\d.]+) s \(\s*(\d+) "
-    r"us/mission,\s+[\d.]+ s in main\), peak RSS\s+(\d+) MiB \(load ([\d.]+)\)"
+    r"us/mission,\s+([\d.]+) s in main\), peak RSS\s+(\d+) MiB \(load ([\d.]+)\)"
 )
 REPORT_LINE = (
     r"report\s+([\d,]+) missions: wall\s+([\d.]+) s, CPU\s+([\d.]+) s, peak RSS\s+(\d+) MiB "
@@ -189,16 +189,23 @@ REPORT_LINE = (
 def scale_rows(out: str) -> dict[tuple[str, str], list[str]]:
     """Table rows by (missions, executor) from ``bench_sweep.py --missions`` output."""
     rows = {}
-    for executor, n, wall, cpu, us, mib, load in re.findall(SCALE_LINE, out):
+    for executor, n, wall, cpu, us, main, mib, load in re.findall(SCALE_LINE, out):
         key = (f"{int(_f(n)):,}", executor)
-        rows[key] = [*key, f"{_f(wall):.1f}", f"{_f(cpu):.1f}", us, mib, load]
+        rows[key] = [*key, f"{_f(wall):.1f}", f"{_f(cpu):.1f}", f"{_f(main):.1f}", us, mib, load]
     for n, wall, cpu, mib, load in re.findall(REPORT_LINE, out):
         key = (f"{int(_f(n)):,}", "`skymule report` of it")
-        rows[key] = [*key, f"{_f(wall):.1f}", f"{_f(cpu):.1f}", "", mib, load]
+        rows[key] = [*key, f"{_f(wall):.1f}", f"{_f(cpu):.1f}", "", "", mib, load]
     return rows
 
 
-SCALE_HEADER = ["missions", "executor", "wall [s]", "CPU [s]", "CPU per mission [µs]"]
+SCALE_HEADER = [
+    "missions",
+    "executor",
+    "wall [s]",
+    "CPU [s]",
+    "of which the sweep process [s]",
+    "CPU per mission [µs]",
+]
 
 
 def sweep_scale_table(ctx: Context, old: list[str]) -> list[str]:
@@ -213,7 +220,9 @@ def sweep_scale_table(ctx: Context, old: list[str]) -> list[str]:
         [("--missions", "40", "--executors", "inprocess", "--report")] if ctx.tiny else SCALE_RUNS
     )
     for args in runs:
-        rows.update(scale_rows(ctx.bench("bench_sweep.py", *args)))
+        out = ctx.bench("bench_sweep.py", *args)
+        print(out, file=sys.stderr)  # the targets' lines too, for the record
+        rows.update(scale_rows(out))
     for path in ctx.saved:
         found = scale_rows(path.read_text())
         if not found:
@@ -221,7 +230,7 @@ def sweep_scale_table(ctx: Context, old: list[str]) -> list[str]:
         rows.update(found)
     order = sorted(rows, key=lambda k: (int(k[0].replace(",", "")), k[1].startswith("`"), k[1]))
     header = [*SCALE_HEADER, "peak RSS [MiB]", "load"]
-    return markdown(header, list("rlrrrrr"), [rows[k] for k in order])
+    return markdown(header, list("rlrrrrrr"), [rows[k] for k in order])
 
 
 def _numbers(pattern: str, text: str) -> list[tuple[str, ...]]:

@@ -18,8 +18,9 @@ Options:
   --tiny              benchmarks at their tiny size (SKYMULE_BENCH_TINY=1): not measurements,
                       for testing this script
   --readme PATH       the file to rewrite (default: README.md next to scripts/)
-  --saved FILE[,FILE] sweep-scale table: also parse these saved outputs of
+  --saved FILE[,FILE] sweep-scale table: parse these saved outputs of
                       `bench_sweep.py --missions ...` (runs too long to repeat here)
+                      instead of re-running its default sizes
 
 Tables, what they run and roughly how long on the 2-core machine they were written on:
   presets       skymule compare {paper-sim-fixed, aadm-default} --policies greedy,hgad   ~3 s
@@ -28,8 +29,8 @@ Tables, what they run and roughly how long on the 2-core machine they were writt
   sweep-example skymule sweep examples/sweep-paper.toml (1,000 missions)                 ~10 s
   sweep-scale   benchmarks/bench_sweep.py --missions 20000,200000 (inprocess) and
                 --missions 100000 (inprocess, process, dask-local)                       ~5 min
-                (--saved FILE[,FILE] adds rows from saved outputs of longer runs, e.g.
-                --missions 10000000 --report; rows not re-run keep their text)
+                (--saved FILE[,FILE]: only the rows of saved outputs of longer runs,
+                e.g. --missions 10000000 --report; rows not re-run keep their text)
   speed         benchmarks/bench_{engine,sweep,channel,bound,autonomous,planner}.py     ~15 min
                 (SPEED_BENCHES; sweeps and planner against the v0.1 tag in the same run;
                 the 100,000-mission sweep only with --all: +10 min)
@@ -219,7 +220,7 @@ def sweep_scale_table(ctx: Context, old: list[str]) -> list[str]:
     runs = (
         [("--missions", "40", "--executors", "inprocess", "--report")] if ctx.tiny else SCALE_RUNS
     )
-    for args in runs:
+    for args in () if ctx.saved else runs:
         out = ctx.bench("bench_sweep.py", *args)
         print(out, file=sys.stderr)  # the targets' lines too, for the record
         rows.update(scale_rows(out))

@@ -310,19 +310,21 @@ def test_agent_retries_then_returns_to_launch(small: Path) -> None:
     vehicle = kinematic_vehicle(agent)
     core = ControllerCore(mission)
     _lost_after(core, 8)
-    with serve_controller(core) as server:
-        with pytest.raises(SkymuleError, match=r"gave up after 2 retries, returned to launch"):
-            fly_tcp(
-                agent,
-                vehicle,
-                server.host,
-                server.port,
-                server.telemetry_port,
-                pace_s=0.0,
-                altitude_m=30.0,
-                retries=2,
-                retry_wait_s=0.0,
-            )
+    with (
+        serve_controller(core) as server,
+        pytest.raises(SkymuleError, match=r"gave up after 2 retries, returned to launch"),
+    ):
+        fly_tcp(
+            agent,
+            vehicle,
+            server.host,
+            server.port,
+            server.telemetry_port,
+            pace_s=0.0,
+            altitude_m=30.0,
+            retries=2,
+            retry_wait_s=0.0,
+        )
     assert not vehicle.armed  # landed, not left hovering
     assert np.hypot(*vehicle.position_m()[:2]) <= 0.5 and core.served_polls == 8
 

@@ -49,6 +49,7 @@ NOT_RUN_PREFIXES = {
     "skymule aadm controller": "a server that runs until stopped (tests/test_aadm_controller.py)",
     "skymule aadm comm": "the comm stand-in serves its peer until stopped (test_aadm_agent.py)",
     "skymule aadm agent": "needs the controller of the line above running (test_aadm_agent.py)",
+    "skymule aadm towers": "serves the tower ports until stopped (tests/test_aadm_testbed.py)",
 }
 """Commands shown as terminals side by side: tested by the AADM tests instead."""
 

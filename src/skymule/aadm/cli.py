@@ -154,7 +154,7 @@ def agent(
     vehicle: Annotated[str, typer.Option("--vehicle", help="kinematic or mavsdk.")] = "kinematic",
     mavsdk_address: Annotated[
         str, typer.Option("--mavsdk-address", help="MAVSDK system address.")
-    ] = "udp://:14540",
+    ] = "udpin://0.0.0.0:14540",
     poll_s: Annotated[
         float | None,
         typer.Option(
@@ -187,23 +187,28 @@ def agent(
     craft = _make_vehicle(vehicle, the_agent, mavsdk_address)
     pace = poll_s if poll_s is not None else (0.0 if vehicle == "kinematic" else 1.0)
     climb = takeoff_altitude_m(spec, mission) if altitude is None else altitude
-    if files_dir is not None:
-        if not files_dir.is_dir():
-            raise SkymuleError(f"--files {files_dir}: no such folder")
-        record = run_file_agent(the_agent, craft, files_dir, pace_s=pace, altitude_m=climb)
-    else:
-        record = fly_tcp(
-            the_agent,
-            craft,
-            host,
-            port,
-            telemetry_port,
-            pace_s=pace,
-            altitude_m=climb,
-            retries=retries,
-        )
-        if record.score_line:
-            _say(f"controller: {record.score_line}")
+    try:
+        if files_dir is not None:
+            if not files_dir.is_dir():
+                raise SkymuleError(f"--files {files_dir}: no such folder")
+            record = run_file_agent(the_agent, craft, files_dir, pace_s=pace, altitude_m=climb)
+        else:
+            record = fly_tcp(
+                the_agent,
+                craft,
+                host,
+                port,
+                telemetry_port,
+                pace_s=pace,
+                altitude_m=climb,
+                retries=retries,
+            )
+            if record.score_line:
+                _say(f"controller: {record.score_line}")
+    finally:
+        close = getattr(craft, "close", None)
+        if callable(close):
+            close()
     _say(
         f"{record.polls} polls; landed {record.end_distance_to(the_agent.home_xy()):.1f} m "
         "from the launch point"

@@ -306,3 +306,31 @@ def test_send_telemetry_adds_a_newline_the_controller_tolerates(
     reply = send_telemetry("127.0.0.1", running.telemetry_port, at(mission, UP))
     assert reply == protocol.NOT_STARTED
     assert "vol:" in raw_poll(running.port)[0]
+
+
+def test_the_uav_is_served_right_beside_fifty_slow_clients(
+    mission: Mission, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # 50 clients that trickle one byte at a time hold connections; the UAV's polls are served
+    # and credited as without them, and the slow ones are dropped at the message deadline
+    monkeypatch.setattr(net, "MESSAGE_DEADLINE_S", 1.5)
+    core = ControllerCore(mission)
+    quiet = ControllerCore(mission)
+    slow: list[socket.socket] = []
+    with serve_controller(core) as server, serve_controller(quiet) as alone:
+        try:
+            for _ in range(50):
+                sock = socket.create_connection(("127.0.0.1", server.port), timeout=10)
+                sock.sendall(b"s")
+                slow.append(sock)
+            for target in (server, alone):
+                tell(target, at(mission, UP))
+                for number in (1, 2, 3, 4, 4):
+                    raw_poll(target.port, str(number).encode())
+            time.sleep(2.0)
+            assert all(net.receive_all(sock, 5.0) == b"" for sock in slow)  # dropped
+        finally:
+            for sock in slow:
+                sock.close()
+    assert core.served_polls == quiet.served_polls == 5
+    np.testing.assert_array_equal(core.received_mbit(), quiet.received_mbit())

@@ -27,8 +27,9 @@ MESSAGE_DEADLINE_S = 10.0
 #: A message that may go on (a telemetry line, a tower id that could have more digits) is
 #: whole once the sender is quiet this long [s].
 QUIET_S = 0.05
-#: Connections a server handles at once; more are closed on arrival.
-MAX_CONNECTIONS = 16
+#: Connections a server handles at once; more are closed on arrival. Room for a few dozen
+#: slow clients beside the UAV (each is dropped at the message deadline).
+MAX_CONNECTIONS = 64
 #: The most bytes one message may have.
 MESSAGE_LIMIT = 1024
 
@@ -94,6 +95,7 @@ class CappedServer(socketserver.ThreadingTCPServer):
 
     daemon_threads = True
     allow_reuse_address = True
+    request_queue_size = 128  # a burst of connections waits for accept instead of SYN retries
 
     def __init__(
         self,

@@ -55,6 +55,7 @@ from skymule.aadm.score import (
     poll_download_bit,
 )
 from skymule.errors import SkymuleError
+from skymule.geo import LocalFrame
 from skymule.units import BITS_PER_MBIT
 from skymule.world import Mission
 
@@ -89,6 +90,20 @@ class SignalFeed:
         assert mission.track is not None
         sample = min(poll, mission.track.n_samples - 1)
         return mission.track.snr_db[sample], mission.track.position_m[sample]
+
+
+def telemetry_position(
+    message: protocol.Telemetry, frame: LocalFrame, previous: np.ndarray | None
+) -> np.ndarray:
+    """(3,) the UAV's position [m] in the local frame after one telemetry message (fields it
+    did not send keep their previous value; at first, the launch point on the ground)."""
+    old = np.zeros(3) if previous is None else previous
+    x_m, y_m = float(old[0]), float(old[1])
+    if message.lat_deg is not None and message.lon_deg is not None:
+        local = frame.to_local(message.lat_deg, message.lon_deg)
+        x_m, y_m = float(local[0]), float(local[1])
+    z_m = float(old[2]) if message.alt_m is None else message.alt_m
+    return np.array([x_m, y_m, z_m])
 
 
 class ControllerCore:
@@ -173,13 +188,7 @@ class ControllerCore:
             return protocol.NOTHING_NEW
 
     def _take(self, message: protocol.Telemetry) -> None:
-        old = self._position if self._position is not None else np.zeros(3)
-        x_m, y_m = float(old[0]), float(old[1])
-        if message.lat_deg is not None and message.lon_deg is not None:
-            local = self.mission.frame.to_local(message.lat_deg, message.lon_deg)
-            x_m, y_m = float(local[0]), float(local[1])
-        z_m = float(old[2]) if message.alt_m is None else message.alt_m
-        self._position = np.array([x_m, y_m, z_m])
+        self._position = telemetry_position(message, self.mission.frame, self._position)
         if message.armed is not None:
             self._armed = message.armed
             self._note_arm(message.armed)

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from skymule.aadm import net, protocol
-from skymule.aadm.controller import PositionSource, SignalFeed
+from skymule.aadm.controller import PositionSource, SignalFeed, telemetry_position
 from skymule.errors import SkymuleError
 from skymule.world import BITS_PER_MBIT, Mission
 
@@ -57,13 +57,7 @@ class TowerRadio:
         """Take the UAV's position from one telemetry line (one-line SkymuleError if bad)."""
         message = protocol.parse_telemetry(text)
         with self._lock:
-            old = self._position if self._position is not None else np.zeros(3)
-            x_m, y_m = float(old[0]), float(old[1])
-            if message.lat_deg is not None and message.lon_deg is not None:
-                local = self.mission.frame.to_local(message.lat_deg, message.lon_deg)
-                x_m, y_m = float(local[0]), float(local[1])
-            z_m = float(old[2]) if message.alt_m is None else message.alt_m
-            self._position = np.array([x_m, y_m, z_m])
+            self._position = telemetry_position(message, self.mission.frame, self._position)
 
     def answer(self, index: int) -> str:
         """Tower ``index``'s reply: its SNR of the UAV now and the rate of its last answer."""

@@ -30,8 +30,8 @@ from skymule.aadm.towers import (
     serve_towers,
 )
 from skymule.errors import SkymuleError
-from skymule.runner import simulate
 from skymule.scenario import load_scenario
+from skymule.tasks.simulate import simulate
 from skymule.world import build_mission
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -31,7 +31,8 @@ import numpy as np
 from skymule.aadm import net, protocol
 from skymule.aadm.controller import PositionSource, SignalFeed, telemetry_position
 from skymule.errors import SkymuleError
-from skymule.world import BITS_PER_MBIT, Mission
+from skymule.units import BITS_PER_MBIT
+from skymule.world import Mission
 
 log = logging.getLogger("skymule.aadm.towers")
 

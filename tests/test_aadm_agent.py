@@ -282,8 +282,9 @@ def test_two_process_flight_equals_aadm_fly(policy: str, tmp_path: Path) -> None
             *("--telemetry-port", str(server.telemetry_port)),
         )
     assert done.returncode == 0, done.stderr
-    assert core.served_polls == len(fly_polls := fly.flight_per_poll_bit) > 0
-    assert core.per_poll_bit == fly_polls  # poll by poll, to the bit
+    fly_polls = fly.flight_per_poll_bit
+    assert core.served_polls == len(fly_polls) > 0, done.stderr
+    assert core.per_poll_bit == fly_polls, done.stderr  # poll by poll, to the bit
     assert core.score() == fly.flight_score
 
 
@@ -328,6 +329,38 @@ def test_agent_retries_then_returns_to_launch(small: Path) -> None:
         )
     assert not vehicle.armed  # landed, not left hovering
     assert np.hypot(*vehicle.position_m()[:2]) <= 0.5 and core.served_polls == 8
+
+
+def test_a_report_lost_after_the_controller_counted_the_poll(small: Path) -> None:
+    # the controller credits poll 12, then the connection breaks before the report: the agent
+    # tries again naming the same tower (its policy is not asked twice for one slot) and
+    # takes the controller's totals from the next reply
+    from skymule.aadm.agent import fly_tcp
+    from skymule.aadm.loopback import kinematic_vehicle
+    from skymule.policies import make_policy
+
+    scenario = load_scenario(str(small))
+    mission = build_mission(scenario)
+    agent = AadmAgent(mission, make_policy(scenario.policy))
+    core = ControllerCore(mission)
+    account = core.choose
+
+    def choose(text: str, snapshot: object) -> str:
+        report = account(text, snapshot)  # type: ignore[arg-type]
+        if core.served_polls == 12 and not lost:
+            lost.append(report)
+            raise OSError("link lost before the report")
+        return report
+
+    lost: list[str] = []
+    core.choose = choose  # type: ignore[method-assign,assignment]
+    with serve_controller(core) as server:
+        address = (server.host, server.port, server.telemetry_port)
+        record = fly_tcp(agent, kinematic_vehicle(agent), *address, pace_s=0.0, retry_wait_s=0.0)
+    assert lost and record.share_poll is not None
+    np.testing.assert_allclose(core.received_mbit(), [60.0, 40.0])
+    # one decision a slot: the poll tried again did not ask the policy (or the pilot) again
+    assert len(record.towers) == record.polls
 
 
 def test_a_restarted_agent_rejoins_the_session(small: Path) -> None:

@@ -224,6 +224,16 @@ class Ledger:
         got = np.zeros_like(volumes) if downloaded_mbit is None else downloaded_mbit
         return cls(volumes, np.maximum(volumes - np.asarray(got, float) * BITS_PER_MBIT, 0.0))
 
+    def sync(self, downloaded_mbit: np.ndarray) -> None:
+        """Take the ``download:`` reply's totals where the ledger is off by more than their
+        2 decimals (a report lost with a failed poll that the controller still counted)."""
+        reported = np.asarray(downloaded_mbit, float) * BITS_PER_MBIT
+        kept = self.volumes_bit - self.remaining_bit
+        off = np.abs(kept - reported) > 0.0051 * BITS_PER_MBIT
+        self.remaining_bit = np.where(
+            off, np.maximum(self.volumes_bit - reported, 0.0), self.remaining_bit
+        )
+
     def credit(self, report: protocol.Report, snr_db: np.ndarray, slot_s: float) -> None:
         if not report.served or report.tower is None or not 1 <= report.tower <= len(snr_db):
             return
@@ -342,16 +352,22 @@ def fly_tcp(
     wait_s = poll_s if pace_s is None else pace_s
     n_towers = agent.n_towers
     book: list[Ledger] = []
+    decided: list[int] = []  # this slot's tower, once the policy chose it
 
     def choose(reply: Reply) -> int:
+        if decided:  # a poll tried again: the same tower, the policy is not asked twice
+            return decided[0]
         try:
-            return decide(reply)
+            decided.append(decide(reply))
         except SkymuleError as exc:  # the policy's own error: no retry, but land first
             raise _AgentFailed(exc) from exc
+        return decided[0]
 
     def decide(reply: Reply) -> int:
         if reply.kind == "vol" and reply.values is not None and not book:
             book.append(Ledger.start(reply.values))
+        elif reply.kind == "download" and book and reply.values is not None:
+            book[0].sync(reply.values)
         elif reply.kind == "download" and not book:  # rejoining a running session
             book.append(Ledger.start(agent.mission.buffers_bit / BITS_PER_MBIT, reply.values))
             pilot.record.rejoined = True
@@ -406,6 +422,7 @@ def fly_tcp(
             time.sleep(retry_wait_s)
             continue
         pilot.record.reports.append(report)
+        decided.clear()
         if pilot.advance(poll_s):
             if telemetry_port is not None:  # the controller sees the disarm: session over
                 try:

@@ -63,8 +63,12 @@ def run_comm(
     polls = 0
     while polls < max_polls and not should_stop():
         started = time.monotonic()
-        reply, _ = poll_once(host, port, choose, n_towers)
-        if reply.kind == "error":
+        try:
+            reply, _ = poll_once(host, port, choose, n_towers)
+        except (TimeoutError, SkymuleError) as exc:  # as the challenge's script: poll again
+            log.warning("poll failed: %s", exc)
+            reply = None
+        if reply is not None and reply.kind == "error":
             raise SkymuleError(f"controller {host}:{port} refused the poll: {reply.text}")
         polls += 1
         time.sleep(max(0.0, poll_s - (time.monotonic() - started)))

@@ -450,8 +450,10 @@ def poll_once(
         if reply.kind == "error":
             return reply, ""
         sock.sendall(str(choose(reply)).encode())
-        report = net.receive_all(sock, timeout_s)
-        return reply, report.decode("utf-8", "replace").strip()
+        report = net.receive_all(sock, timeout_s).decode("utf-8", "replace").strip()
+        if not report:  # the controller always answers the tower id: the link broke
+            raise SkymuleError(f"controller {host}:{port} closed the connection without a report")
+        return reply, report
 
 
 def send_telemetry(host: str, port: int, message: str, timeout_s: float = 5.0) -> str:

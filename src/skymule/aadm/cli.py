@@ -20,6 +20,7 @@ import typer
 from skymule.aadm.protocol import FIRST_TOWER_PORT, TELEMETRY_PORT, TOWERS_TELEMETRY_PORT, UAV_PORT
 from skymule.aadm.score import AADM_POLL_S, AADM_WINDOW_S
 from skymule.errors import SkymuleError
+from skymule.trust import TRUST_HELP, trust_option
 
 #: Seconds a running session may go without a poll before the controller calls it lost.
 AGENT_TIMEOUT_S = 30.0
@@ -40,6 +41,9 @@ aadm_app = typer.Typer(
 
 ScenarioArg = Annotated[str, typer.Argument(help="Scenario TOML path or preset name.")]
 HostOpt = Annotated[str, typer.Option("--host", help="Controller address.")]
+TrustOption = Annotated[
+    list[Path] | None, typer.Option("--trust-model", help=TRUST_HELP, callback=trust_option)
+]
 
 
 def _say(text: str) -> None:
@@ -169,6 +173,7 @@ def agent(
     retries: Annotated[
         int, typer.Option("--retries", help="Failed polls tried again before returning home.")
     ] = POLL_RETRIES,
+    trust_model: TrustOption = None,
 ) -> None:
     """Run a skymule policy as the UAV-side agent (the challenge's TCP bytes, or its files)."""
     from skymule.aadm.agent import AadmAgent, fly_tcp, run_file_agent
@@ -297,6 +302,7 @@ def fly(
         float, typer.Option("--poll-s", help="Wall seconds between polls (0: flat out).")
     ] = 0.01,
     log: Annotated[Path | None, typer.Option("--log", help="Download log to write.")] = None,
+    trust_model: TrustOption = None,
 ) -> None:
     """Offline AADM flight on loopback (controller + agent + kinematic vehicle) vs skymule run."""
     from skymule.aadm.loopback import fly_loopback

@@ -43,9 +43,13 @@ def main(argv: list[str] | None = None) -> None:
     """
     from typer.exceptions import Abort, TyperException
 
+    from skymule.trust import trusting
+
     try:
-        # standalone_mode=False: Ctrl-C reaches the handler below instead of click's
-        code = app(args=argv, standalone_mode=False)
+        # standalone_mode=False: Ctrl-C reaches the handler below instead of click's;
+        # trusting(): a --trust-model holds for this one command
+        with trusting():
+            code = app(args=argv, standalone_mode=False)
     except Abort:
         print("skymule: interrupted", file=sys.stderr)
         sys.exit(130)

@@ -10,6 +10,7 @@ import typer
 
 import skymule.cli.output as output
 from skymule.cli.folders import guard_analysis
+from skymule.cli.missions import TrustOption
 from skymule.cli.tables import print_table
 
 
@@ -106,6 +107,7 @@ def analyze(
     force: Annotated[
         bool, typer.Option("--force", help="Write into --out even if it holds something else.")
     ] = False,
+    trust_model: TrustOption = None,
 ) -> None:
     """Replay a recorded flight under several policies and write a compare folder + report."""
     from skymule.cli.missions import summary_columns

@@ -12,6 +12,7 @@ import skymule.cli.output as output
 from skymule.cli.folders import guard_bound, guard_compare, guard_run, guard_sweep
 from skymule.cli.output import print_json
 from skymule.cli.tables import fmt, print_table
+from skymule.trust import TRUST_HELP, trust_option
 
 if TYPE_CHECKING:
     from skymule.scenario import Scenario
@@ -32,6 +33,12 @@ JsonOption = Annotated[
 ForceOption = Annotated[
     bool, typer.Option("--force", help="Write into --out even if it holds something else.")
 ]
+
+TrustOption = Annotated[
+    list[Path] | None,
+    typer.Option("--trust-model", help=TRUST_HELP, callback=trust_option),
+]
+"""--trust-model PATH: for this command (:func:`skymule.cli.main` restores it) and its workers."""
 GAP_COLUMNS = ("gap_to_bound_mbit", "gap_to_bound_frac")
 
 
@@ -73,6 +80,7 @@ def run(
     overrides: SetOption = None,
     json_out: JsonOption = False,
     force: ForceOption = False,
+    trust_model: TrustOption = None,
 ) -> None:
     """Run one mission and print its summary."""
     from skymule.tasks.simulate import simulate
@@ -125,6 +133,7 @@ def compare(
     overrides: SetOption = None,
     json_out: JsonOption = False,
     force: ForceOption = False,
+    trust_model: TrustOption = None,
 ) -> None:
     """Run one scenario under several policies on identical signal draws."""
     from skymule.policies import check_policies
@@ -287,14 +296,17 @@ def sweep(
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress bar.")] = False,
     overrides: SetOption = None,
     force: ForceOption = False,
+    trust_model: TrustOption = None,
 ) -> None:
     """Run many missions (resumable); results.parquet and summary.csv in --out."""
     from skymule.experiments.run import run_sweep
     from skymule.experiments.sweep import load_sweep
+    from skymule.policies import check_policies
 
     spec = load_sweep(sweep_file)
     if overrides:
         spec = _sweep_with_overrides(spec, overrides)
+    check_policies(spec.policy_names, f"{sweep_file}: policy.name")  # before any worker starts
     guard_sweep(out, sweep_file, force)
     try:
         outcome = run_sweep(
@@ -312,6 +324,7 @@ def sweep(
         again += ["--scheduler", scheduler] if scheduler else []
         again += ["--chunk-size", str(chunk_size)] if chunk_size != 500 else []
         again += [f"--set={o}" for o in overrides or []]
+        again += [f"--trust-model={p}" for p in trust_model or []]
         _sweep_interrupted(out, spec, again)
     rows = [
         {

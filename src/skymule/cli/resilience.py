@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 import skymule.cli.output as output
-from skymule.cli.missions import ScenarioArg, SetOption, _names, load
+from skymule.cli.missions import ScenarioArg, SetOption, TrustOption, _names, load
 from skymule.cli.tables import print_table
 from skymule.errors import SkymuleError
 
@@ -37,6 +37,7 @@ def resilience(
         int, typer.Option("--missions", help="Paired missions per level (seeds seed..seed+N-1).")
     ] = 20,
     overrides: SetOption = None,
+    trust_model: TrustOption = None,
 ) -> None:
     """Every policy over increasing fault intensity, paired draws: Mbit (mean, 95 % CI)."""
     from skymule.policies import check_policies

@@ -99,6 +99,14 @@ class SweepSpec:
     def drawn(self) -> tuple[Axis, ...]:
         return tuple(a for a in self.axes if a.dist is not None)
 
+    @property
+    def policy_names(self) -> list[str]:
+        """The policies the sweep runs: the ``policy.name`` axis, else the base's policy."""
+        for axis in self.axes:
+            if axis.key == "policy.name" and axis.values is not None:
+                return [str(v) for v in axis.values]
+        return [self.base.policy.name]
+
     def __len__(self) -> int:
         paired = math.prod(len(a.values or ()) for a in self.discrete if a.paired)
         if self.sample is not None:

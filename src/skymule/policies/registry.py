@@ -20,6 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from skymule.errors import SkymuleError
 from skymule.registry import Registry
+from skymule.trust import check_trusted
 
 
 class PolicySpec(Protocol):
@@ -142,13 +143,25 @@ def unknown_policies(names: list[str]) -> list[str]:
     return unknown
 
 
+def check_learned(name: str) -> None:
+    """A learned model ``rl:PATH`` that is about to run: the file exists and the user trusts
+    it (:mod:`skymule.trust`); nothing of it is read."""
+    path = Path(name[len(LEARNED_PREFIX) :])
+    if not path.is_file():
+        raise SkymuleError(f"policy {name!r}: no such model file")
+    check_trusted(name, path)
+
+
 def check_policies(names: list[str], option: str = "--policies") -> list[str]:
-    """``names`` if every one resolves; else the first problem as one line."""
+    """``names``, which are about to run, if every one resolves (and every learned model is
+    trusted); else the first problem as one line."""
     if not names:
         raise SkymuleError(f"{option} is empty; allowed: {', '.join(POLICIES)}")
     for name in names:
         try:
             policy_params_model(name)
+            if name.startswith(LEARNED_PREFIX):
+                check_learned(name)
         except SkymuleError as exc:
             raise SkymuleError(f"{option}: {exc}") from None
     return names

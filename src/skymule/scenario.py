@@ -24,7 +24,7 @@ from skymule.errors import ScenarioError, SkymuleError
 from skymule.faults.specs import SINGLE_KINDS, fault_params
 from skymule.io.textfiles import read_text
 from skymule.overrides import apply_override
-from skymule.policies.registry import POLICIES, policy_params_model
+from skymule.policies.registry import POLICIES, NoParams, check_policy_name, policy_params_model
 from skymule.radio.pathloss import PATHLOSS_MODELS
 from skymule.registry import Registry, did_you_mean, unknown_name_message
 
@@ -201,20 +201,32 @@ class PolicySpec(_Spec):
 
     @model_validator(mode="after")
     def _check_params(self) -> PolicySpec:
+        # a plug-in's module is not imported to check a file (it may never run: an override,
+        # `bound`): its name is checked here, its parameters when it is made
         try:
-            self.policy_params()
-        except SkymuleError as exc:  # unknown name, plug-in that does not import
+            check_policy_name(self.name)
+        except SkymuleError as exc:
             raise _component_error(str(exc)) from None
+        if self.name in POLICIES:
+            self._validated(POLICIES.meta(self.name, "params", NoParams))
         return self
 
+    def _validated(self, model: type[BaseModel]) -> BaseModel:
+        return validate_params(model, self.params, _policy_param_names(), f"policy {self.name!r}")
+
     def policy_params(self) -> BaseModel | None:
-        """The policy's validated parameters, or None for a plug-in without a ``Params`` model."""
+        """The policy's validated parameters, or None for a plug-in without a ``Params`` model.
+
+        For a plug-in this imports its module (call it for a policy that runs); a problem is
+        one :class:`SkymuleError` line.
+        """
         from_policy = policy_params_model(self.name)
         if from_policy is None:
             return None
-        return validate_params(
-            from_policy, self.params, _policy_param_names(), f"policy {self.name!r}"
-        )
+        try:
+            return self._validated(from_policy)
+        except PydanticCustomError as exc:
+            raise SkymuleError(f"policy.{exc.message()}") from None
 
     def param(self, name: str) -> Any:
         """One parameter of the policy (its default when not given).

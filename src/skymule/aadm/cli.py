@@ -310,7 +310,12 @@ def fly(
 
     if poll_s < 0:
         raise SkymuleError(f"--poll-s {poll_s:g}: must be >= 0")
-    result = fly_loopback(load_scenario(scenario), policy, poll_s=poll_s, log_path=log)
+    spec = load_scenario(scenario)
+    if policy is None:
+        from skymule.cli.missions import announce_imports
+
+        announce_imports([spec.policy.name], scenario)
+    result = fly_loopback(spec, policy, poll_s=poll_s, log_path=log)
     _say(f"{result.policy}: {result.polls} polls, volumes shared at poll {result.share_poll}")
     _say(f"{'':14}{'flight':>12}{'skymule run':>14}{'difference':>12}")
     for index, name in enumerate(result.sensor_names):

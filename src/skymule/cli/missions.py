@@ -54,6 +54,20 @@ def load(scenario: str, overrides: list[str] | None) -> Scenario:
     return load_scenario(scenario, overrides or ())
 
 
+def announce_imports(names: list[str], source: str | Path) -> None:
+    """One stderr line per plug-in module that policies named in a file make the command
+    import (names typed on the command line need no notice)."""
+    from skymule.policies.registry import plugin_module
+
+    for name in dict.fromkeys(names):
+        module = plugin_module(name)
+        if module is not None:
+            print(
+                f"skymule: importing module {module} for policy {name!r} (named in {source})",
+                file=sys.stderr,
+            )
+
+
 def per_sensor_rows(summary: dict[str, Any]) -> list[dict[str, Any]]:
     rows: list[dict[str, Any]] = [
         {"sensor": name, "buffer_mbit": buffer, "downloaded_mbit": down}
@@ -91,11 +105,15 @@ def run(
 
         if out is not None:
             guard_run(out, spec.name, policy or spec.policy.name, force)
+        if policy is None:
+            announce_imports(fleet_policy_names(spec), scenario)
         return run_fleet_command(spec, policy, out, json_out)
     if policy is not None:
         spec = spec.with_policy(policy)
     if out is not None:
         guard_run(out, spec.name, spec.policy.name, force)
+    if policy is None:
+        announce_imports([spec.policy.name], scenario)
     result = simulate(spec)
     if out is not None:
         result.write(out)
@@ -110,6 +128,11 @@ def run(
     print_table(output.console, "summary", [result.summary], summary_columns())
     if out is not None:
         output.say(f"wrote {out}/summary.json, slots.csv, scenario.json")
+
+
+def fleet_policy_names(spec: Scenario) -> list[str]:
+    """The policies a fleet scenario's UAVs fly: each UAV's own, else the scenario's."""
+    return [(uav.policy or spec.policy).name for uav in spec.uavs or ()]
 
 
 def _names(text: str) -> list[str]:
@@ -308,6 +331,7 @@ def sweep(
         spec = _sweep_with_overrides(spec, overrides)
     check_policies(spec.policy_names, f"{sweep_file}: policy.name")  # before any worker starts
     guard_sweep(out, sweep_file, force)
+    announce_imports(spec.policy_names, sweep_file)
     try:
         outcome = run_sweep(
             spec,

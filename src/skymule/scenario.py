@@ -12,19 +12,33 @@ from __future__ import annotations
 
 import functools
 import tomllib
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    model_validator,
+)
 from pydantic_core import ErrorDetails, PydanticCustomError
 
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.faults.specs import SINGLE_KINDS, fault_params
 from skymule.io.textfiles import read_text
 from skymule.overrides import apply_override
-from skymule.policies.registry import POLICIES, NoParams, check_policy_name, policy_params_model
+from skymule.policies.registry import (
+    LEARNED_PREFIX,
+    POLICIES,
+    NoParams,
+    check_policy_name,
+    is_plugin,
+    policy_params_model,
+)
 from skymule.radio.pathloss import PATHLOSS_MODELS
 from skymule.registry import Registry, did_you_mean, unknown_name_message
 
@@ -192,7 +206,9 @@ class PolicySpec(_Spec):
 
     HGAD's ``hover_threshold`` and ``max_hover_s`` may also be written directly in
     ``[policy]`` (older files) and then override ``params``; parameters of *other*
-    registered policies are kept and ignored, so one file can run under several policies."""
+    registered policies are kept and ignored, so one file can run under several policies.
+    When a command runs other policies than the file's (``--policy``, ``--policies``, a sweep's
+    ``policy.name`` axis), each gets the keys it declares (:func:`route_policy_params`)."""
 
     @model_validator(mode="before")
     @classmethod
@@ -200,7 +216,7 @@ class PolicySpec(_Spec):
         return _lift_flat_params(data, _policy_param_names())
 
     @model_validator(mode="after")
-    def _check_params(self) -> PolicySpec:
+    def _check_params(self, info: ValidationInfo) -> PolicySpec:
         # a plug-in's module is not imported to check a file (it may never run: an override,
         # `bound`): its name is checked here, its parameters when it is made
         try:
@@ -208,11 +224,18 @@ class PolicySpec(_Spec):
         except SkymuleError as exc:
             raise _component_error(str(exc)) from None
         if self.name in POLICIES:
-            self._validated(POLICIES.meta(self.name, "params", NoParams))
+            # the policies the command runs (validation context), else this one: a key may be
+            # a plug-in's among them, which only running it can tell (route_policy_params)
+            running = (info.context or {}).get(RUNNING, (self.name,))
+            keys_known = not any(is_plugin(name) for name in running)
+            self._validated(POLICIES.meta(self.name, "params", NoParams), keys_known)
         return self
 
-    def _validated(self, model: type[BaseModel]) -> BaseModel:
-        return validate_params(model, self.params, _policy_param_names(), f"policy {self.name!r}")
+    def _validated(self, model: type[BaseModel], keys_known: bool = True) -> BaseModel:
+        shared = _policy_param_names()
+        if not keys_known:  # only this policy's own values are checked here
+            shared = shared.union(self.params)
+        return validate_params(model, self.params, shared, f"policy {self.name!r}")
 
     def policy_params(self) -> BaseModel | None:
         """The policy's validated parameters, or None for a plug-in without a ``Params`` model.
@@ -306,6 +329,63 @@ def _param(validated: BaseModel, name: str, owner: str) -> Any:
     if name not in type(validated).model_fields:
         raise SkymuleError(f"{owner} has no parameter {name!r}")
     return getattr(validated, name)
+
+
+RUNNING = "running"
+"""Validation-context key: the policy names a command runs (``load_scenario(policies=...)``)."""
+
+
+def policy_param_names(name: str) -> frozenset[str] | None:
+    """The parameters policy ``name`` declares (None: a plug-in without ``Params``, which takes
+    the whole table). A plug-in's module is imported: call it for a policy that runs."""
+    if name.startswith(LEARNED_PREFIX):
+        return frozenset()
+    try:
+        model = policy_params_model(name)
+    except SkymuleError as exc:
+        raise ScenarioError(str(exc)) from None
+    return None if model is None else frozenset(model.model_fields)
+
+
+def policy_shares(
+    keys: Iterable[str], names: Sequence[str], owner: str | None = None
+) -> list[frozenset[str] | None]:
+    """The ``[policy.params]`` keys each of ``names`` keeps (None: all of them), for the
+    policies that run (a plug-in among them is imported).
+
+    A policy keeps the keys it declares and those of the registered policies (kept and
+    ignored, as ever); a plug-in without ``Params`` keeps the whole table. A key that none of
+    ``names`` nor any registered policy declares is one line with a "did you mean", unless
+    ``owner`` (the file's own policy) is a plug-in that does not run: its keys cannot be known
+    without importing it, which the override makes pointless.
+    """
+    registered = _policy_param_names()
+    declared = [policy_param_names(name) for name in names]
+    fields: set[str] = set()
+    for own in declared:
+        fields.update(own or ())
+    owner_unknown = owner is not None and is_plugin(owner) and owner not in names
+    if not owner_unknown and all(own is not None for own in declared):
+        unknown = [key for key in keys if key not in fields and key not in registered]
+        if unknown:
+            who = "policy" if len(names) == 1 else "policies"
+            its = "its" if len(names) == 1 else "their"
+            raise ScenarioError(
+                f"policy.params.{unknown[0]}: unknown parameter of {who} "
+                f"{', '.join(map(repr, names))}; {its} parameters: "
+                f"{', '.join(sorted(fields)) or 'none'}{did_you_mean(unknown[0], sorted(fields))}"
+            )
+    return [None if own is None else own | registered for own in declared]
+
+
+def route_policy_params(
+    params: dict[str, Any], names: Sequence[str], owner: str | None = None
+) -> list[dict[str, Any]]:
+    """Each of ``names``' share of one ``[policy.params]`` table (:func:`policy_shares`)."""
+    return [
+        dict(params) if keep is None else {k: v for k, v in params.items() if k in keep}
+        for keep in policy_shares(params, names, owner)
+    ]
 
 
 def _pathloss_param_names() -> frozenset[str]:
@@ -427,22 +507,23 @@ class Scenario(_Spec):
         return path if path.is_absolute() else Path(self.base_dir) / path
 
     def with_policy(self, name: str) -> Scenario:
-        """This scenario under another policy (its parameters carried over where they fit)."""
-        params = self.policy.params
-        if name != self.policy.name:
+        """This scenario under policy ``name`` (its parameters carried over where they fit)."""
+        return self.with_policies([name])[0]
+
+    def with_policies(self, names: Sequence[str]) -> list[Scenario]:
+        """This scenario under each of ``names``, which are about to run (a plug-in among them
+        is imported): ``[policy.params]`` is shared out by :func:`route_policy_params`."""
+        shares = route_policy_params(self.policy.params, names, self.policy.name)
+        scenarios = []
+        for name, params in zip(names, shares, strict=True):
             try:
-                model = policy_params_model(name)
-            except SkymuleError as exc:
-                raise ScenarioError(str(exc)) from None
-            if model is not None:  # carry over only what the other policy declares
-                params = {k: v for k, v in params.items() if k in model.model_fields}
-        try:
-            policy = PolicySpec.model_validate({"name": name, "params": params})
-        except ValidationError as exc:
-            message = _first_error(exc)["msg"]
-            where = "policy." if message.startswith("params.") else ""
-            raise ScenarioError(f"{where}{message}") from None
-        return self.model_copy(update={"policy": policy})
+                policy = PolicySpec.model_validate({"name": name, "params": params})
+            except ValidationError as exc:
+                message = _first_error(exc)["msg"]
+                where = "policy." if message.startswith("params.") else ""
+                raise ScenarioError(f"{where}{message}") from None
+            scenarios.append(self.model_copy(update={"policy": policy}))
+        return scenarios
 
     def to_toml_dict(self) -> dict[str, Any]:
         return self.model_dump(mode="json", exclude_none=True)
@@ -520,9 +601,14 @@ def format_validation_error(source: str, error: ValidationError) -> str:
     return f"{source}: {where or 'scenario'}{shown}: {message}"
 
 
-def scenario_from_dict(data: dict[str, Any], source: str, base_dir: Path) -> Scenario:
+def scenario_from_dict(
+    data: dict[str, Any], source: str, base_dir: Path, *, policies: Sequence[str] | None = None
+) -> Scenario:
+    """The validated scenario of a TOML/JSON table; ``policies``: the ones the caller will run
+    instead of the file's own (their parameters may sit in ``[policy.params]``)."""
+    context = None if policies is None else {RUNNING: tuple(policies)}
     try:
-        return Scenario.model_validate({**data, "base_dir": str(base_dir)})
+        return Scenario.model_validate({**data, "base_dir": str(base_dir)}, context=context)
     except ValidationError as exc:
         raise ScenarioError(format_validation_error(source, exc)) from None
 
@@ -542,11 +628,15 @@ def preset_names() -> list[str]:
     return presets().names()
 
 
-def load_scenario(spec: str | Path, overrides: Sequence[str] = ()) -> Scenario:
+def load_scenario(
+    spec: str | Path, overrides: Sequence[str] = (), *, policies: Sequence[str] | None = None
+) -> Scenario:
     """Load a scenario from a TOML path or a built-in preset name.
 
     ``overrides`` are ``key=value`` strings (``--set``): a dotted scenario key such as
-    ``sensors[2].buffer_mbit`` and a TOML value, applied before validation.
+    ``sensors[2].buffer_mbit`` and a TOML value, applied before validation. ``policies``: the
+    policies the caller runs instead of the file's own (``--policy``, ``--policies``); a key of
+    ``[policy.params]`` may then be any of theirs (:meth:`Scenario.with_policies` shares it out).
     """
     path = Path(spec)
     if not path.exists():
@@ -561,7 +651,7 @@ def load_scenario(spec: str | Path, overrides: Sequence[str] = ()) -> Scenario:
     data = _toml(text, source)
     for override in overrides:
         data = apply_override(data, override)
-    return scenario_from_dict(data, source, base_dir)
+    return scenario_from_dict(data, source, base_dir, policies=policies)
 
 
 def _toml(text: str, source: str) -> dict[str, Any]:

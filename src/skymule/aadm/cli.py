@@ -186,7 +186,7 @@ def agent(
         raise SkymuleError(f"--poll-s {poll_s:g}: must be >= 0")
     if retries < 0:
         raise SkymuleError(f"--retries {retries}: must be >= 0")
-    spec = load_scenario(scenario).with_policy(policy)
+    spec = load_scenario(scenario, policies=[policy]).with_policy(policy)
     mission = build_mission(spec)
     the_agent = AadmAgent(mission, make_policy(spec.policy))
     craft = _make_vehicle(vehicle, the_agent, mavsdk_address)
@@ -310,7 +310,7 @@ def fly(
 
     if poll_s < 0:
         raise SkymuleError(f"--poll-s {poll_s:g}: must be >= 0")
-    spec = load_scenario(scenario)
+    spec = load_scenario(scenario, policies=None if policy is None else [policy])
     if policy is None:
         from skymule.cli.missions import announce_imports
 

@@ -48,10 +48,12 @@ def summary_columns() -> tuple[str, ...]:
     return ("policy", *HEADLINE_METRICS)
 
 
-def load(scenario: str, overrides: list[str] | None) -> Scenario:
+def load(scenario: str, overrides: list[str] | None, policies: list[str] | None = None) -> Scenario:
+    """The scenario with ``--set`` applied; ``policies``: those the command runs instead of the
+    file's own (``[policy.params]`` may hold any of their parameters)."""
     from skymule.scenario import load_scenario
 
-    return load_scenario(scenario, overrides or ())
+    return load_scenario(scenario, overrides or (), policies=policies)
 
 
 def announce_imports(names: list[str], source: str | Path) -> None:
@@ -99,7 +101,7 @@ def run(
     """Run one mission and print its summary."""
     from skymule.tasks.simulate import simulate
 
-    spec = load(scenario, overrides)
+    spec = load(scenario, overrides, None if policy is None else [policy])
     if spec.uavs:  # several UAVs (docs/fleet.md)
         from skymule.cli.fleet import run_fleet_command
 
@@ -167,7 +169,7 @@ def compare(
         write_compare,
     )
 
-    base = load(scenario, overrides)
+    base = load(scenario, overrides, _names(policies))
     if sources is None and base.uavs:  # several UAVs (docs/fleet.md)
         from skymule.cli.fleet import check_policy_names, compare_fleet_command
 
@@ -350,16 +352,18 @@ def sweep(
         again += [f"--set={o}" for o in overrides or []]
         again += [f"--trust-model={p}" for p in trust_model or []]
         _sweep_interrupted(out, spec, again)
+    levels = [c for c in spec.level_columns if c in outcome.summary.columns]
     rows = [
         {
             "policy": row["policy"],
+            **{c: row[c] for c in levels},
             "missions": row["missions"],
             **{m: f"{fmt(row[f'{m}_mean'])} ± {fmt(row[f'{m}_ci95'])}" for m in SWEEP_METRICS},
         }
         for row in outcome.summary.to_dict("records")
     ]
     title = f"{sweep_file.name}: {outcome.n_missions} missions (mean ± 95% CI)"
-    print_table(output.console, title, rows, ("policy", "missions", *SWEEP_METRICS))
+    print_table(output.console, title, rows, ("policy", *levels, "missions", *SWEEP_METRICS))
     output.say(
         f"ran {outcome.n_run} of {outcome.n_missions} missions in {outcome.seconds:.1f} s; "
         f"wrote {out}/results.parquet and {out}/summary.csv"
@@ -377,7 +381,8 @@ def _sweep_with_overrides(spec: Any, overrides: list[str]) -> Any:
     data = spec.base.to_toml_dict()
     for override in overrides:
         data = apply_override(data, override)
-    base = scenario_from_dict(data, f"{spec.source} (--set)", Path(spec.base.base_dir))
+    source = f"{spec.source} (--set)"
+    base = scenario_from_dict(data, source, Path(spec.base.base_dir), policies=spec.policy_names)
     # the folder's sweep identity covers the overrides: resuming needs the same --set
     digest = hashlib.sha256("\0".join([spec.digest, *overrides]).encode()).hexdigest()
     return replace(spec, base=base, digest=digest)

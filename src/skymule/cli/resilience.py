@@ -49,7 +49,7 @@ def resilience(
         raise SkymuleError(f"--missions = {missions}; allowed: an integer >= 1")
     if out.exists() and not out.is_dir():
         raise SkymuleError(f"--out {out}: exists and is not a folder")
-    base = load(scenario, overrides)
+    base = load(scenario, overrides, names)
     if base.uavs:
         raise SkymuleError("resilience runs one UAV; this scenario has [[uavs]]")
     frame = table(run_study(base, fault, values, names, missions))

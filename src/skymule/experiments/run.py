@@ -357,7 +357,7 @@ def run_sweep(
             while pending:
                 n_run += _collect(out, pending, advance)
         results = store.consolidate(out, seen)
-        summary = store.summary_table(results)
+        summary = store.summary_table(results, spec.level_columns)
         store.write_summary(out, summary)
     return SweepOutcome(results, summary, len(seen), n_run, time.perf_counter() - start)
 

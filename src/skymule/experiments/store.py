@@ -22,7 +22,7 @@ import os
 import socket
 import time
 import uuid
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -257,12 +257,16 @@ def ci95_half_width(values: np.ndarray) -> float:
     return float(stdtrit(values.size - 1, 0.975) * values.std(ddof=1) / np.sqrt(values.size))
 
 
-def summary_table(results: pd.DataFrame) -> pd.DataFrame:
-    """Per policy: number of missions, and mean and 95% CI half-width of each metric."""
+def summary_table(results: pd.DataFrame, levels: Sequence[str] = ()) -> pd.DataFrame:
+    """Per policy and combination of the ``levels`` columns (the swept treatments, see
+    :attr:`skymule.experiments.sweep.SweepSpec.level_columns`): number of missions, and mean
+    and 95% CI half-width of each metric."""
     metrics = [m for m in SUMMARY_METRICS if m in results.columns]
+    keys = ["policy", *(c for c in levels if c in results.columns)]
     rows = []
-    for policy, group in results.groupby("policy", sort=True):
-        row: dict[str, object] = {"policy": policy, "missions": len(group)}
+    for level, group in results.groupby(keys, sort=True, dropna=False):
+        row: dict[str, object] = dict(zip(keys, level, strict=True))
+        row["missions"] = len(group)
         for metric in metrics:
             values = group[metric].to_numpy(float)
             row[f"{metric}_mean"] = float(np.nanmean(values)) if values.size else float("nan")

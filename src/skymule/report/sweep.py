@@ -5,11 +5,12 @@ Reads ``results.parquet`` (one row per mission: parameters + summary metrics) an
 
 * summary: the per-policy table of ``summary.csv`` (recomputed from the rows if it is absent);
 * distributions of total downloaded data and of completion per policy (box + strip, ECDF);
-* paired comparison: missions with the same parameters except the policy ones (``policy.*``)
+* paired comparison: missions with the same parameters except the policy (``policy.name``)
   form a pair set; the ECDF of each policy's per-mission gain over a baseline, its mean with a
   95% CI (Student t) and the fractions of missions won, lost and tied;
-* swept parameters: mean metric vs up to two swept numeric parameters, per policy, with 95%
-  CI bands (discrete axes per value, drawn ones in quantile bins).
+* swept parameters: mean metric vs every swept numeric list/range parameter (a policy's own
+  ``policy.params.*`` included) and, up to two figures in all, the drawn ones, per policy, with
+  95% CI bands (discrete axes per value, drawn ones in quantile bins).
 
 Figures go to ``SWEEPDIR/figures/sweep-*.png|pdf`` and are embedded as base64 PNGs.
 """
@@ -48,7 +49,7 @@ from skymule.report.style import (
 )
 
 POLICY_COLUMN = "policy"
-POLICY_PREFIX = "policy."
+POLICY_NAME = "policy.name"
 GAIN_METRIC = "total_downloaded_mbit"
 #: |gain| at or below this [Mbit] (one bit) counts as a tie.
 TIE_MBIT = 1e-6
@@ -189,7 +190,13 @@ def read_summary(folder: Path, results: pd.DataFrame) -> tuple[pd.DataFrame, str
         if wanted <= set(table.columns):
             table["policy"] = table["policy"].astype(str)
             return table, SUMMARY
-    return compute_summary(results), f"{RESULTS} (no complete {SUMMARY})"
+    levels = [
+        c
+        for c in parameter_columns(results)
+        if c not in (POLICY_NAME, "seed") and not c.endswith(".seed")
+        and results[c].nunique() <= MAX_DISCRETE  # list axes; drawn ones vary per mission
+    ]  # fmt: skip
+    return compute_summary(results, levels), f"{RESULTS} (no complete {SUMMARY})"
 
 
 def default_baseline(policies: list[str]) -> str:
@@ -203,7 +210,7 @@ def paired_gains(
     policies = sorted(results[POLICY_COLUMN].unique())
     if len(policies) < 2:
         return None
-    keys = [p for p in params if not p.startswith(POLICY_PREFIX) and p != POLICY_COLUMN]
+    keys = [p for p in params if p not in (POLICY_NAME, POLICY_COLUMN)]
     frame = results[[*keys, POLICY_COLUMN, metric]].copy()
     if keys:
         # one hashable key per row (NaN-safe, type-stable) for the pair sets
@@ -224,14 +231,15 @@ def paired_gains(
 
 
 def swept_parameters(results: pd.DataFrame, params: list[str]) -> list[SweptParameter]:
-    """Up to two numeric parameters that vary: discrete axes first, then drawn ones.
+    """The numeric parameters that vary: every discrete one (a policy's parameters too), then
+    drawn ones while there are fewer than :data:`MAX_PARAMETER_FIGURES`.
 
     Seeds are replicate indices, not treatments, and are left out; ``sensors[i].field``
     columns form one parameter (their sum for buffers, else their mean).
     """
     groups: dict[str, list[str]] = {}
     for col in params:
-        if col.startswith(POLICY_PREFIX) or col == "seed" or col.endswith(".seed"):
+        if col == POLICY_NAME or col == "seed" or col.endswith(".seed"):
             continue
         series = results[col]
         if not pd.api.types.is_numeric_dtype(series) or pd.api.types.is_bool_dtype(series):
@@ -255,8 +263,9 @@ def swept_parameters(results: pd.DataFrame, params: list[str]) -> list[SweptPara
         distinct = np.unique(x[np.isfinite(x)])
         if distinct.size > 1:
             found.append(SweptParameter(label, x, bool(distinct.size <= MAX_DISCRETE)))
-    found.sort(key=lambda p: not p.discrete)  # stable: file order within each kind
-    return found[:MAX_PARAMETER_FIGURES]
+    discrete = [p for p in found if p.discrete]
+    drawn = [p for p in found if not p.discrete]
+    return discrete + drawn[: max(0, MAX_PARAMETER_FIGURES - len(discrete))]
 
 
 def policy_colours(policies: list[str]) -> dict[str, str]:
@@ -365,21 +374,49 @@ def _num(value: float, template: str) -> str:
     return "-" if not np.isfinite(value) else template.format(value)
 
 
+def summary_levels(summary: pd.DataFrame) -> list[str]:
+    """The swept treatments of ``summary.csv``: its columns between policy and missions."""
+    columns = list(summary.columns)
+    if columns[:1] != ["policy"] or "missions" not in columns:
+        return []
+    return columns[1 : columns.index("missions")]
+
+
 def summary_html(summary: pd.DataFrame, source: str) -> str:
     metrics = [m for m in METRIC_LABELS if f"{m}_mean" in summary.columns]
+    levels = summary_levels(summary)
     rows = []
     for _, row in summary.iterrows():
-        cells = [html.escape(str(row["policy"])), str(int(row["missions"]))]
+        cells = [html.escape(str(row["policy"]))]
+        cells += [html.escape(_level(row[c])) for c in levels]
+        cells.append(str(int(row["missions"])))
         for metric in metrics:
             fmt = METRIC_LABELS[metric][1]
             mean, half = float(row[f"{metric}_mean"]), float(row[f"{metric}_ci95"])
             cells.append(f"{_num(mean, fmt)} ± {_num(half, fmt)}")
         rows.append(cells)
-    header = ["policy", "missions", *(METRIC_LABELS[m][0] for m in metrics)]
+    header = [
+        "policy",
+        *(_column_label(c) for c in levels),
+        "missions",
+        *(METRIC_LABELS[m][0] for m in metrics),
+    ]
+    per = "per policy" + (" and swept value" if levels else "")
     return (
-        f"<p>Mean ± 95% CI half-width (Student t) per policy, from <code>{html.escape(source)}"
+        f"<p>Mean ± 95% CI half-width (Student t) {per}, from <code>{html.escape(source)}"
         "</code>.</p>" + table_html(header, rows, "sweep-summary-table")
     )
+
+
+def _column_label(column: str) -> str:
+    """A parameter column in words (``sensors[1].buffer_mbit`` -> ``sensor 2 buffer [Mbit]``)."""
+    match = re.fullmatch(r"sensors\[(\d+)\]\..*", column)
+    words = parameter_label(column)
+    return f"sensor {int(match.group(1)) + 1} {words}" if match else words
+
+
+def _level(value: object) -> str:
+    return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def gain_html(paired: Paired) -> str:

@@ -167,7 +167,11 @@ def _run_all(
     scenario: Scenario, policies: Sequence[str], source: str | None, mission: Mission | None
 ) -> list[CompareRun]:
     shared = build_mission(scenario) if mission is None else mission
-    return [CompareRun(source, p, simulate(scenario, p, mission=shared)) for p in policies]
+    variants = scenario.with_policies(policies)  # each policy gets its own parameters
+    return [
+        CompareRun(source, name, simulate(variant, mission=shared))
+        for name, variant in zip(policies, variants, strict=True)
+    ]
 
 
 def compare_policies(

@@ -133,8 +133,8 @@ def run_study(
         for m in range(missions):
             single = leveled(scenario, kind, level, m)
             mission = build_mission(single)
-            for name in policies:
-                summary = simulate(single, policy=name, mission=mission).summary
+            for name, variant in zip(policies, single.with_policies(policies), strict=True):
+                summary = simulate(variant, mission=mission).summary
                 rows.append(
                     {
                         "level": level,

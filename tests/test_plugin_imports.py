@@ -76,9 +76,8 @@ def test_commands_that_do_not_run_the_plugin_never_import_it(
 ) -> None:
     module, marker = plugin
     scenario = _scenario(tmp_path, f"{module}:Quiet", "[policy.params]\npatience = 3\n")
-    _scenario(tmp_path, f"{module}:Quiet", name="plain")
-    sweep = tmp_path / "sweep.toml"
-    sweep.write_text('base = "plain.toml"\n[axes]\npolicy.name = ["greedy", "hgad"]\n')
+    sweep = tmp_path / "sweep.toml"  # the base holds the plug-in's parameter: kept, unused
+    sweep.write_text('base = "shared.toml"\n[axes]\npolicy.name = ["greedy", "hgad"]\n')
     load_scenario(scenario)
     load_sweep(sweep)
     for args in (

@@ -34,6 +34,9 @@ app.command("score-radiomap")(files.score_radiomap_command)
 
 __all__ = ["app", "main"]
 
+INTERRUPTED = "skymule: interrupted; every file is left whole (the previous one, or none)"
+"""The one line a Ctrl-C prints (outputs are written atomically: :mod:`skymule.io.atomic`)."""
+
 
 def main(argv: list[str] | None = None) -> None:
     """Entry point: run the app, turning user mistakes into one line and exit status 2.
@@ -51,7 +54,7 @@ def main(argv: list[str] | None = None) -> None:
         with trusting():
             code = app(args=argv, standalone_mode=False)
     except Abort:
-        print("skymule: interrupted", file=sys.stderr)
+        print(INTERRUPTED, file=sys.stderr)
         sys.exit(130)
     except TyperException as exc:  # usage errors: click's usage line and message
         show = getattr(exc, "show", None)
@@ -69,7 +72,9 @@ def main(argv: list[str] | None = None) -> None:
         print(f"skymule: error: {where}{exc.strerror or exc}", file=sys.stderr)
         sys.exit(2)
     except KeyboardInterrupt:
-        print("skymule: interrupted", file=sys.stderr)
+        print(INTERRUPTED, file=sys.stderr)
         sys.exit(130)
+    if code == 130:  # typer turns a Ctrl-C inside a command into this exit code, silently
+        print(INTERRUPTED, file=sys.stderr)
     if isinstance(code, int) and code != 0:
         sys.exit(code)

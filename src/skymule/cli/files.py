@@ -42,20 +42,10 @@ def plot(
             output.say(f"wrote {path}")
 
 
-def remove_stale_pdfs(folder: Path) -> list[Path]:
-    """Delete ``folder/figures/*.pdf`` (a ``--no-pdf`` report must not keep or list old ones)."""
-    removed = sorted((folder / "figures").glob("*.pdf"))
-    for path in removed:
-        path.unlink()
-    return removed
-
-
 def _report(folder: Path, pdf: bool, baseline: str | None = None) -> Path:
     from skymule.report.build import build_report
 
-    if not pdf:
-        remove_stale_pdfs(folder)
-    return build_report(folder, pdf=pdf, baseline=baseline)
+    return build_report(folder, pdf=pdf, baseline=baseline)  # --no-pdf drops old PDFs
 
 
 def report(

@@ -11,6 +11,7 @@ import skymule.cli.output as output
 from skymule.cli.missions import ScenarioArg, SetOption, TrustOption, _names, load
 from skymule.cli.tables import print_table
 from skymule.errors import SkymuleError
+from skymule.io import atomic
 
 COLUMNS = (
     "policy", "level", "missions", "mbit_mean", "mbit_ci95", "aadm_score_mean", "bound_mbit_mean"
@@ -54,7 +55,7 @@ def resilience(
         raise SkymuleError("resilience runs one UAV; this scenario has [[uavs]]")
     frame = table(run_study(base, fault, values, names, missions))
     out.mkdir(parents=True, exist_ok=True)
-    frame.to_csv(out / "resilience.csv", index=False)
+    atomic.write_with(out / "resilience.csv", lambda tmp: frame.to_csv(tmp, index=False))
     plot(frame, fault, out / "resilience.png")
     rows = [{str(k): v for k, v in row.items()} for row in frame.to_dict("records")]
     print_table(output.console, f"{base.name}: {fault}", rows, COLUMNS)

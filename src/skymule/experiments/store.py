@@ -33,6 +33,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from skymule.errors import SkymuleError
+from skymule.io import atomic
 from skymule.metrics.summary import HEADLINE_METRICS
 
 PARTS = "results"
@@ -157,35 +158,19 @@ def claim(out: Path, digest: str, source: str) -> None:
             "cannot be resumed; use a new --out folder"
         )
     record = {"sweep_sha256": digest, "id_scheme": ID_SCHEME, "source": source}
-    _atomic_text(json.dumps(record, indent=1) + "\n", meta)
+    atomic.write_text(meta, json.dumps(record, indent=1) + "\n")
 
 
 # --- parts -----------------------------------------------------------------------------
 
 
-def _temporary(path: Path) -> Path:
-    """A temporary name next to ``path`` that no other writer (process or host) uses."""
-    return path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex}.tmp")
-
-
-def _atomic_text(text: str, path: Path) -> None:
-    tmp = _temporary(path)
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
 def _atomic_parquet(table: pa.Table | pd.DataFrame, path: Path) -> None:
-    tmp = _temporary(path)
-    try:
+    # synced before the rename: a resume trusts that a part in place is complete on disk
+    with atomic.atomic_path(path, sync=True) as tmp:
         if isinstance(table, pd.DataFrame):
             table.to_parquet(tmp, index=False)
         else:
             pq.write_table(table, tmp)
-        with open(tmp, "rb") as handle:
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def write_part(out: Path, frame: pd.DataFrame) -> Path:
@@ -276,8 +261,4 @@ def summary_table(results: pd.DataFrame, levels: Sequence[str] = ()) -> pd.DataF
 
 
 def write_summary(out: Path, summary: pd.DataFrame) -> Path:
-    path = out / SUMMARY
-    tmp = _temporary(path)
-    summary.to_csv(tmp, index=False)
-    os.replace(tmp, path)
-    return path
+    return atomic.write_with(out / SUMMARY, lambda tmp: summary.to_csv(tmp, index=False))

@@ -12,7 +12,6 @@ a figure drawn from part of the slots.
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +20,7 @@ import pandas as pd
 
 from skymule.errors import SkymuleError
 from skymule.geo import LocalFrame
+from skymule.io import atomic
 from skymule.io.runschema import check_slots, validate_scenario_json, validate_summary
 from skymule.io.textfiles import read_text
 from skymule.metrics.flights import NO_SENSOR, MissionLog
@@ -67,21 +67,15 @@ def slots_frame(log: MissionLog, frame: LocalFrame) -> pd.DataFrame:
     return pd.DataFrame(columns)
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    # write-then-rename: a run killed mid-write never leaves a truncated file behind
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
 def write_run(
     out_dir: Path, summary: dict[str, Any], slots: pd.DataFrame, scenario: dict[str, Any]
 ) -> None:
-    """Write a run folder (creating it)."""
+    """Write a run folder (creating it); each file whole or not at all, summary.json last (a
+    folder is a run folder once it has summary.json and slots.csv)."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    _atomic_write(out_dir / SLOTS_FILE, slots.to_csv(index=False, float_format="%.10g"))
-    _atomic_write(out_dir / SCENARIO_FILE, json.dumps(scenario, indent=2))
-    _atomic_write(out_dir / SUMMARY_FILE, json.dumps(summary, indent=2))
+    atomic.write_text(out_dir / SLOTS_FILE, slots.to_csv(index=False, float_format="%.10g"))
+    atomic.write_text(out_dir / SCENARIO_FILE, json.dumps(scenario, indent=2))
+    atomic.write_text(out_dir / SUMMARY_FILE, json.dumps(summary, indent=2))
 
 
 def is_run_dir(path: Path) -> bool:

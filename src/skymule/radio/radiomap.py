@@ -37,6 +37,7 @@ import numpy as np
 
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.geo import LocalFrame
+from skymule.io import atomic
 from skymule.radio.kriging import (
     MAX_KRIGING_POINTS,
     Variogram,
@@ -251,7 +252,7 @@ class RadioMap:
         }
 
     def write(self, path: Path) -> None:
-        path.write_text(json.dumps(self.to_dict()))
+        atomic.write_text(path, json.dumps(self.to_dict()))
 
 
 def read_radiomap(path: Path) -> RadioMap:

@@ -29,6 +29,7 @@ from matplotlib.axes import Axes
 from skymule.errors import SkymuleError
 from skymule.experiments.store import RESULTS, SUMMARY, SUMMARY_METRICS, ci95_half_width
 from skymule.experiments.store import summary_table as compute_summary
+from skymule.io import atomic
 from skymule.report.html import (
     FIGURES_DIR,
     REPORT_DPI,
@@ -483,8 +484,11 @@ def parameters_html(results: pd.DataFrame, params: list[str]) -> str:
     return table_html(["parameter", "distinct values", "values"], rows, "parameter-table")
 
 
-def build_sweep_report(folder: Path, pdf: bool = True, baseline: str | None = None) -> Path:
-    """Write ``folder/report.html`` and ``folder/figures/sweep-*.png|pdf``; returns the HTML."""
+def build_sweep_report(
+    folder: Path, pdf: bool = True, baseline: str | None = None, out: Path | None = None
+) -> Path:
+    """Write ``report.html`` and ``figures/sweep-*.png|pdf`` of a sweep folder into ``out``
+    (default: ``folder``); returns the HTML."""
     results = read_results(folder)
     params = parameter_columns(results)
     summary, source = read_summary(folder, results)
@@ -496,7 +500,7 @@ def build_sweep_report(folder: Path, pdf: bool = True, baseline: str | None = No
             f"--baseline {baseline}: not a policy of {folder / RESULTS}; "
             f"allowed: {', '.join(policies)}"
         )
-    figures = folder / FIGURES_DIR
+    figures = (out or folder) / FIGURES_DIR
     sections: list[tuple[str, str, str]] = [("summary", "Summary", summary_html(summary, source))]
     dist = figure_html(
         "sweep-download",
@@ -556,6 +560,4 @@ def build_sweep_report(folder: Path, pdf: bool = True, baseline: str | None = No
         f"{len(results)} missions, policies: {html.escape(', '.join(policies))}).</p>"
     )
     page = page_html(title, intro, sections)
-    out = folder / REPORT_FILE
-    out.write_text(page, encoding="utf-8")
-    return out
+    return atomic.write_text((out or folder) / REPORT_FILE, page)

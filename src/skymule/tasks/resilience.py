@@ -24,6 +24,7 @@ import numpy as np
 import pandas as pd
 
 from skymule.errors import SkymuleError
+from skymule.io import atomic
 from skymule.scenario import Scenario, scenario_from_dict
 from skymule.units import BITS_PER_MBIT
 
@@ -218,6 +219,6 @@ def plot(frame: pd.DataFrame, kind: str, path: Path) -> None:
         ax.set_ylabel("downloaded [Mbit] (mean, 95 % CI)")
         ax.legend()
         fig.tight_layout()
-        fig.savefig(path, dpi=120)
+        atomic.write_with(path, lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
     finally:
         plt.close(fig)

@@ -4,9 +4,11 @@ A run folder holds ``summary.json``, ``slots.csv`` (one row a slot) and ``scenar
 (the validated scenario, so a result always travels with what produced it).
 
 Reading validates all three against one schema (:mod:`skymule.io.runschema`: pydantic for the
-JSON files, column/type/length checks for the slot table), so a damaged or hand-edited folder
-is one line naming the file, the row/column and what is allowed, never a traceback and never
-a figure drawn from part of the slots.
+JSON files, column/type/length checks for the slot table) and then against each other (totals,
+slot sums, buffers, sensors), so a damaged or hand-edited folder is one line naming the file,
+the row/column and what is allowed, never a traceback and never a figure drawn from part of
+the slots. Every reader (``plot``, ``report``, ``export``, the fleet report) goes through
+:func:`read_run`.
 """
 
 from __future__ import annotations
@@ -21,7 +23,12 @@ import pandas as pd
 from skymule.errors import SkymuleError
 from skymule.geo import LocalFrame
 from skymule.io import atomic
-from skymule.io.runschema import check_slots, validate_scenario_json, validate_summary
+from skymule.io.runschema import (
+    check_run_whole,
+    check_slots,
+    validate_scenario_json,
+    validate_summary,
+)
 from skymule.io.textfiles import read_text
 from skymule.metrics.flights import NO_SENSOR, MissionLog
 from skymule.metrics.summary import power_w, speed_mps, step_lengths_m
@@ -126,7 +133,7 @@ def read_run(run_dir: Path) -> tuple[dict[str, Any], pd.DataFrame]:
             f"{slots_path}: cannot read ({str(exc).strip().splitlines()[0]})"
         ) from None
     slots = check_slots(slots, summary, str(slots_path))
-    read_run_scenario(run_dir)
+    check_run_whole(summary, slots, read_run_scenario(run_dir), run_dir)
     return summary, slots
 
 

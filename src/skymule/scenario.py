@@ -11,13 +11,16 @@ path is accepted.
 from __future__ import annotations
 
 import functools
+import math
 import tomllib
 from collections.abc import Iterable, Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import (
+    AfterValidator,
     BaseModel,
     ConfigDict,
     Field,
@@ -30,6 +33,17 @@ from pydantic_core import ErrorDetails, PydanticCustomError
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.faults.specs import SINGLE_KINDS, fault_params
 from skymule.io.textfiles import read_text
+from skymule.limits import (
+    ALTITUDE_LIMIT,
+    COORDINATE_LIMIT,
+    MAX_ALTITUDE_M,
+    MAX_BUFFER_MBIT,
+    MAX_COORDINATE_M,
+    MAX_DURATION_S,
+    MAX_SPEED_MPS,
+    SPEED_LIMIT,
+    waypoint_problem,
+)
 from skymule.overrides import apply_override
 from skymule.policies.registry import (
     LEARNED_PREFIX,
@@ -44,14 +58,43 @@ from skymule.registry import Registry, did_you_mean, unknown_name_message
 
 PositiveFloat = Annotated[float, Field(gt=0)]
 
-MAX_BUFFER_MBIT = 1e12
-"""Largest sensor buffer [Mbit] (10^18 bit): sums over sensors and slots stay far from overflow."""
-MAX_DURATION_S = 1e7
-"""Longest mission [s] (about 116 days): one row a slot must still fit in memory."""
-MAX_COORDINATE_M = 1e7
-"""Largest |x|, |y| or height [m] in the local frame (the Earth's radius is 6.4e6 m)."""
+
+def _at_most(limit: float, words: str) -> AfterValidator:
+    def check(value: float) -> float:
+        if value > limit:
+            raise ValueError(words)
+        return value
+
+    return AfterValidator(check)
+
 
 Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE_M, le=MAX_COORDINATE_M)]
+Speed = Annotated[float, Field(gt=0), _at_most(MAX_SPEED_MPS, SPEED_LIMIT)]
+"""A UAV speed [m/s], within :data:`skymule.limits.MAX_SPEED_MPS`."""
+Altitude = Annotated[float, Field(gt=0), _at_most(MAX_ALTITUDE_M, ALTITUDE_LIMIT)]
+"""A flight altitude above take-off [m], within :data:`skymule.limits.MAX_ALTITUDE_M`."""
+Distance = Annotated[float, Field(gt=0), _at_most(MAX_COORDINATE_M, COORDINATE_LIMIT)]
+
+
+def _check_point(value: LatLon | list[float] | None) -> LatLon | list[float] | None:
+    """A home point: lat/lon (bounded by its model) or ``[x_m, y_m]`` within the local frame."""
+    if isinstance(value, list):
+        if len(value) != 2:
+            raise ValueError("give [x_m, y_m] (two numbers) or a {lat, lon} table")
+        for number in value:
+            if not math.isfinite(number) or abs(number) > MAX_COORDINATE_M:
+                raise ValueError(f"{number!r}: {COORDINATE_LIMIT}")
+    return value
+
+
+def _check_waypoints(value: list[list[float]] | str | None) -> list[list[float]] | str | None:
+    if isinstance(value, list):
+        if any(len(point) != 3 for point in value):
+            raise ValueError("every waypoint must be [x_m, y_m, z_m]")
+        problem = waypoint_problem(np.asarray(value, float))
+        if problem is not None:
+            raise ValueError(problem)
+    return value
 
 
 class _Spec(BaseModel):
@@ -185,17 +228,17 @@ class SignalSpec(_Spec):
 
 class TrajectorySpec(_Spec):
     mode: Literal["fixed", "autonomous"] = "fixed"
-    waypoints: list[list[float]] | str | None = None
+    waypoints: Annotated[list[list[float]] | str | None, AfterValidator(_check_waypoints)] = None
     """Fixed path: [[x, y, z], ...] metres, or a CSV path (x_m,y_m,z_m or lat,lon,alt)."""
-    speed_mps: PositiveFloat = 10.0
+    speed_mps: Speed = 10.0
     """Nominal speed along a fixed path [m/s]."""
-    home: LatLon | list[float] | None = None
+    home: Annotated[LatLon | list[float] | None, AfterValidator(_check_point)] = None
     """Autonomous: home point, lat/lon or [x, y] metres (default: the site origin)."""
-    altitude_m: PositiveFloat = 30.0
+    altitude_m: Altitude = 30.0
     """Autonomous: flight altitude [m]."""
-    max_speed_mps: PositiveFloat = 10.0
+    max_speed_mps: Speed = 10.0
     return_home: bool = True
-    visit_radius_m: PositiveFloat = 50.0
+    visit_radius_m: Distance = 50.0
 
 
 class PolicySpec(_Spec):
@@ -421,13 +464,13 @@ class UavSpec(_Spec):
     """One UAV of a fleet (``[[uavs]]``); unset fields come from ``[trajectory]``/``[policy]``."""
 
     name: Annotated[str, Field(min_length=1)]
-    home: LatLon | list[float] | None = None
+    home: Annotated[LatLon | list[float] | None, AfterValidator(_check_point)] = None
     """Home point, lat/lon or [x, y] metres (default: ``trajectory.home``)."""
-    altitude_m: PositiveFloat | None = None
+    altitude_m: Altitude | None = None
     """Autonomous flight altitude [m] (default: ``trajectory.altitude_m``)."""
-    max_speed_mps: PositiveFloat | None = None
+    max_speed_mps: Speed | None = None
     """Speed cap (autonomous) or speed along the path (fixed) [m/s]."""
-    waypoints: list[list[float]] | str | None = None
+    waypoints: Annotated[list[list[float]] | str | None, AfterValidator(_check_waypoints)] = None
     """Fixed path of this UAV (as ``trajectory.waypoints``)."""
     policy: PolicySpec | None = None
     """This UAV's own policy (default: the scenario's ``[policy]``)."""

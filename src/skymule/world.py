@@ -21,6 +21,7 @@ from skymule.flight.navigation import Navigator, hover_point
 from skymule.flight.paths import Track, path_length_m, read_waypoints_csv, sample_path
 from skymule.geo import LocalFrame, covers, sensor_positions_m
 from skymule.io.qgc_plan import is_plan, plan_waypoints_m, scenario_fence
+from skymule.limits import waypoint_problem
 from skymule.radio.channel import mission_fading_db, signal_source
 from skymule.radio.rates import RateTable, rate_bps, resolve_rate_table
 from skymule.radio.sources import SignalSource
@@ -266,6 +267,9 @@ def _waypoints(scenario: Scenario, frame: LocalFrame) -> np.ndarray:
         raise ScenarioError(
             f"trajectory.waypoints has {len(waypoints)} point(s); a fixed path needs at least 2"
         )
+    problem = waypoint_problem(waypoints)
+    if problem is not None:  # a CSV or .plan file: the inline list was checked on loading
+        raise ScenarioError(f"trajectory.waypoints ({spec}): {problem}")
     return waypoints
 
 

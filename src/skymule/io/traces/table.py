@@ -125,12 +125,15 @@ def numbers(
     return values
 
 
-def check_range(label: str, table: Table, col: int, values: np.ndarray, limit: float) -> None:
+def check_range(
+    label: str, table: Table, col: int, values: np.ndarray, limit: float, unit: str = "degrees"
+) -> None:
+    """Every value of a column within [-limit, limit] ``unit``; else one line naming the row."""
     bad = np.abs(values) > limit
     if bad.any():
         r = int(np.argmax(bad))
         raise TraceError(
             f"{label}: row {table.lines[r]}, column {quote(table.header[col])}: "
             f"{quote(table.cells[r, col])} is out of range "
-            f"(allowed: -{limit:g} to {limit:g} degrees)"
+            f"(allowed: -{limit:g} to {limit:g} {unit})"
         )

@@ -13,8 +13,10 @@ Dask is an optional extra (``pip install 'skymule[dask]'``) and is imported only
 from __future__ import annotations
 
 import importlib
+import logging
 import multiprocessing
 import os
+import signal
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -131,13 +133,45 @@ def _start_local_cluster(distributed: Any, workers: int) -> Any:
         "host": "127.0.0.1",
         "dashboard_address": "127.0.0.1:0",
         "scheduler_kwargs": {"dashboard": False},
+        # its workers' warnings (a task cancelled by Ctrl-C...) are noise in a command line;
+        # errors still show
+        "silence_logs": logging.ERROR,
     }
     timeout = f"{DASK_START_TIMEOUT_S}s"
-    with dask.config.set({"distributed.comm.timeouts.connect": timeout}):
+    with dask.config.set({"distributed.comm.timeouts.connect": timeout}), _workers_deaf_to_ctrl_c():
         try:
             return distributed.LocalCluster(**options)
         except (RuntimeError, OSError, TimeoutError):
             return distributed.LocalCluster(**options)  # once more: a busy machine, not a bug
+
+
+@contextmanager
+def _workers_deaf_to_ctrl_c() -> Iterator[None]:
+    """Start local Dask workers ignoring SIGINT, so a Ctrl-C in the terminal (sent to the
+    whole process group) stops the sweep process alone, which closes the cluster; otherwise
+    every worker process prints its own KeyboardInterrupt traceback. An ignored SIGINT is
+    the one setting a spawned process inherits (a handler or a blocked mask is reset at
+    exec); the sweep process ignores it too while its workers start (a few seconds)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextmanager
+def _quiet_when_interrupted() -> Iterator[None]:
+    """On Ctrl-C, silence Dask's loggers before the cluster or client is closed: closing an
+    interrupted one logs connection errors (CommClosedError, CancelledError) with tracebacks,
+    where the command prints one line and the resume command."""
+    try:
+        yield
+    except KeyboardInterrupt:
+        logging.getLogger("distributed").setLevel(logging.CRITICAL + 1)
+        raise
 
 
 @contextmanager
@@ -146,7 +180,11 @@ def _dask_local(
 ) -> Iterator[Executor]:
     distributed = _distributed()
     cluster = _start_local_cluster(distributed, workers or default_workers())
-    with cluster, distributed.Client(cluster, timeout=f"{DASK_START_TIMEOUT_S}s") as client:
+    with (
+        cluster,
+        distributed.Client(cluster, timeout=f"{DASK_START_TIMEOUT_S}s") as client,
+        _quiet_when_interrupted(),
+    ):
         yield client.get_executor()
 
 
@@ -161,7 +199,7 @@ def _dask(
         client = distributed.Client(scheduler, timeout="20s")
     except (OSError, TimeoutError) as exc:
         raise SkymuleError(f"--scheduler {scheduler!r}: cannot connect ({exc})") from None
-    with client:
+    with client, _quiet_when_interrupted():
         yield client.get_executor()
 
 

@@ -19,7 +19,7 @@ from typing import Any
 
 import pytest
 
-from conftest import run_cli
+from conftest import run_cli, tiny_scenario
 from skymule.errors import SkymuleError
 from skymule.policies import make_policy
 from skymule.scenario import PolicySpec
@@ -108,22 +108,11 @@ def _importable(name: str) -> bool:
     return importlib.util.find_spec(name) is not None
 
 
-def _scenario(folder: Path, policy: str) -> Path:
-    path = folder / "shared.toml"
-    path.write_text(
-        'name = "shared"\n[mission]\nduration_s = 20\n'
-        '[[sensors]]\nname = "A"\nx_m = 50.0\ny_m = 0.0\nbuffer_mbit = 5\n'
-        "[trajectory]\nwaypoints = [[0, 0, 30], [100, 0, 30]]\n"
-        f"[policy]\nname = {json.dumps(policy)}\n"
-    )
-    return path
-
-
 def test_every_command_refuses_an_untrusted_model_in_one_line(
     tmp_path: Path, unpickling_sb3: None
 ) -> None:
     model, marker = evil_zip(tmp_path)
-    scenario = _scenario(tmp_path, f"rl:{model}")
+    scenario = tiny_scenario(tmp_path, f"rl:{model}")
     sweep = tmp_path / "sweep.toml"
     sweep.write_text(
         f'base = "{scenario.name}"\n[axes]\npolicy.name = ["greedy", "rl:{model}"]\nseed = [0]\n'
@@ -147,7 +136,7 @@ def test_an_override_never_touches_the_model_and_the_opt_in_reaches_the_loader(
     tmp_path: Path, unpickling_sb3: None
 ) -> None:
     model, marker = evil_zip(tmp_path)
-    scenario = _scenario(tmp_path, f"rl:{model}")
+    scenario = tiny_scenario(tmp_path, f"rl:{model}")
     assert run_cli("run", scenario, "--policy", "greedy").returncode == 0
     assert run_cli("bound", scenario).returncode == 0
     assert not marker.exists()

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import run_cli
+from conftest import run_cli, tiny_scenario
 from skymule.errors import SkymuleError
 from skymule.experiments.sweep import load_sweep
 from skymule.scenario import load_scenario
@@ -60,22 +60,11 @@ def plugin(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> tuple[str, Path]:
     sys.modules.pop(module, None)
 
 
-def _scenario(folder: Path, policy: str, params: str = "", name: str = "shared") -> Path:
-    path = folder / f"{name}.toml"
-    path.write_text(
-        'name = "shared"\n[mission]\nduration_s = 20\n'
-        '[[sensors]]\nname = "A"\nx_m = 50.0\ny_m = 0.0\nbuffer_mbit = 5\n'
-        "[trajectory]\nwaypoints = [[0, 0, 30], [100, 0, 30]]\n"
-        f'[policy]\nname = "{policy}"\n{params}'
-    )
-    return path
-
-
 def test_commands_that_do_not_run_the_plugin_never_import_it(
     tmp_path: Path, plugin: tuple[str, Path]
 ) -> None:
     module, marker = plugin
-    scenario = _scenario(tmp_path, f"{module}:Quiet", "[policy.params]\npatience = 3\n")
+    scenario = tiny_scenario(tmp_path, f"{module}:Quiet", "[policy.params]\npatience = 3\n")
     sweep = tmp_path / "sweep.toml"  # the base holds the plug-in's parameter: kept, unused
     sweep.write_text('base = "shared.toml"\n[axes]\npolicy.name = ["greedy", "hgad"]\n')
     load_scenario(scenario)
@@ -96,7 +85,7 @@ def test_the_run_that_uses_it_says_which_module_it_imports(
     tmp_path: Path, plugin: tuple[str, Path]
 ) -> None:
     module, marker = plugin
-    scenario = _scenario(tmp_path, f"{module}:Quiet")
+    scenario = tiny_scenario(tmp_path, f"{module}:Quiet")
     result = run_cli("run", scenario)
     assert result.returncode == 0, result.stderr
     notice = [line for line in result.stderr.splitlines() if module in line]
@@ -110,7 +99,7 @@ def test_the_run_that_uses_it_says_which_module_it_imports(
 
 def test_a_sweep_of_the_plugin_announces_it_once(tmp_path: Path, plugin: tuple[str, Path]) -> None:
     module, marker = plugin
-    _scenario(tmp_path, "greedy")
+    tiny_scenario(tmp_path, "greedy")
     sweep = tmp_path / "sweep.toml"
     sweep.write_text(
         f'base = "shared.toml"\n[axes]\npolicy.name = ["greedy", "{module}:Quiet"]\nseed = [0, 1]\n'
@@ -125,7 +114,7 @@ def test_plugin_parameters_are_checked_when_it_is_made(
     tmp_path: Path, plugin: tuple[str, Path]
 ) -> None:
     module, marker = plugin
-    scenario = _scenario(tmp_path, f"{module}:Quiet", "[policy.params]\npatiense = 3\n")
+    scenario = tiny_scenario(tmp_path, f"{module}:Quiet", "[policy.params]\npatiense = 3\n")
     load_scenario(scenario)  # checking the file imports nothing, so cannot know the key
     assert not marker.exists()
     result = run_cli("run", scenario)
@@ -144,7 +133,7 @@ def test_a_malformed_import_path_is_refused_without_importing() -> None:
 
 def test_this_s_prints_no_zen_unless_it_runs(tmp_path: Path) -> None:
     """The audit's case, in a fresh interpreter: ``this`` prints the Zen of Python on import."""
-    scenario = _scenario(tmp_path, "this:s")
+    scenario = tiny_scenario(tmp_path, "this:s")
     code = "from skymule.cli import main; main()"
     done = subprocess.run(
         [sys.executable, "-c", code, "run", str(scenario), "--policy", "greedy"],

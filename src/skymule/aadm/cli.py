@@ -262,8 +262,8 @@ def towers(
     ] = None,
 ) -> None:
     """Answer as the AADM towers (00,<snr>,<rate>) so the challenge's own controller runs."""
-    from skymule.aadm.files import write_atomic
     from skymule.aadm.towers import TowerRadio, experiment_env, serve_towers
+    from skymule.io import atomic
     from skymule.scenario import load_scenario
     from skymule.world import build_mission
 
@@ -280,7 +280,7 @@ def towers(
             _say(f"listening on {host}:{port} (tower {name})")
         _say(f"listening on {host}:{served.telemetry_port} (telemetry)")
         if write_env is not None:
-            write_atomic(write_env, experiment_env(n_towers, host))
+            atomic.write_text(write_env, experiment_env(n_towers, host))
             _say(f"wrote {write_env}")
         stopped.wait()
 

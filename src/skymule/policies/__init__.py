@@ -170,15 +170,17 @@ def batch_policy(specs: Sequence[PolicySpec]) -> BatchPolicy:
     """
     groups: dict[Any, list[int]] = {}
     params: list[Any] = []
-    cache: dict[int, Any] = {}  # sweeps repeat a few spec objects many times
+    # sweeps repeat a few spec objects many times: (parameters, group key) once per object
+    cache: dict[int, tuple[Any, Any]] = {}
     for index, spec in enumerate(specs):
         if id(spec) not in cache:
             learned = spec.name.startswith(LEARNED_PREFIX)
-            cache[id(spec)] = None if learned else spec.policy_params()
-        params.append(cache[id(spec)])
-        batched = ":" not in spec.name and POLICIES.meta(spec.name, "batch", None) is not None
-        own = repr(params[-1]) if params[-1] is not None else id(spec)
-        key: Any = spec.name if batched else (spec.name, own)
+            validated = None if learned else spec.policy_params()
+            batched = ":" not in spec.name and POLICIES.meta(spec.name, "batch", None) is not None
+            own = repr(validated) if validated is not None else id(spec)
+            cache[id(spec)] = (validated, spec.name if batched else (spec.name, own))
+        validated, key = cache[id(spec)]
+        params.append(validated)
         groups.setdefault(key, []).append(index)
     parts: list[tuple[BatchPolicy, Any]] = []
     for key, cols in groups.items():

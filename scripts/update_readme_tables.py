@@ -25,7 +25,7 @@ Tables, what they run and roughly how long on the 2-core machine they were writt
   sources       skymule compare paper-sim-fixed --sources fspl,two-ray,al-hourani,...    ~3 s
   sweep-example skymule sweep examples/sweep-paper.toml (1,000 missions)                 ~10 s
   speed         benchmarks/bench_{engine,sweep,channel,bound,autonomous,planner}.py     ~15 min
-                (SPEED_BENCHES; sweeps and planner against the v0.1 tag in the same run;
+                (SPEED_BENCHES; sweeps and planner against PREVIOUS_REV in the same run;
                 the 100,000-mission sweep only with --all: +10 min)
   suite         python -m pytest -q (only with --all)                                     ~3 min
 Rows that are not re-run keep their current text.
@@ -174,18 +174,15 @@ def _f(text: str) -> float:
     return float(text.replace(",", ""))
 
 
-BASELINE_REV = "v0.1"
-"""The release the speed rows' "previous implementation" figures are measured against (the
-code before the one-engine-core rewrite), run in the same benchmark run."""
-
-
 def _m(text: str) -> float:
     return _f(text) / 1e6
 
 
 PREVIOUS_REV = "4ddfba8"
-"""The last revision with the scalar reference engines: ``bench_autonomous.py`` times its
-autonomous reference engine in the same run (``--reference-rev``)."""
+"""The last revision before the one engine (scalar reference engines beside fused batched
+ones): the speed rows' "previous" figures (``bench_autonomous.py --reference-rev``,
+``bench_sweep.py --old-rev``, ``bench_planner.py --before``) are measured against it in the
+same benchmark run. (Revisions, not tags: a fresh clone has no tags.)"""
 
 
 def engine_cells(out: str) -> dict[str, str]:
@@ -265,7 +262,7 @@ def policies_cells(out: str) -> dict[str, str]:
 
 
 def sweep_cells(out: str) -> dict[str, str]:
-    """Sweep rows from ``bench_sweep.py --old-rev BASELINE_REV`` (100k only with --all)."""
+    """Sweep rows from ``bench_sweep.py --old-rev PREVIOUS_REV`` (100k only with --all)."""
     line = r"(\S+)\s+(\d+) missions:\s+([\d.]+) s CPU .*?(\d+) us CPU/mission, peak\s+(\d+) MiB"
     cases = {
         case: (int(n), _f(cpu), int(us), int(mib)) for case, n, cpu, us, mib in _numbers(line, out)
@@ -274,7 +271,7 @@ def sweep_cells(out: str) -> dict[str, str]:
     previous = dict(re.findall(r"(\S+)\s+\d+ missions:.*\| previous\s+([\d.]+) s CPU", out))
     cells = {}
     _, cpu, us, mib = cases["sample-10k"]
-    old = f"previous implementation ({BASELINE_REV}) in the same run: "
+    old = f"previous implementation ({PREVIOUS_REV}) in the same run: "
     if "sample-10k" in previous:
         old += f"{_f(previous['sample-10k']):.1f} s, **×{_f(previous['sample-10k']) / cpu:.1f}**"
     cells["^sweep, 10,000 missions"] = (
@@ -397,7 +394,7 @@ def planner_cells(out: str) -> dict[str, str]:
     ((plain,),) = _numbers(r"no numba\): ([\d.]+)", out)
     return {
         "^planner": (
-            f"{_f(now):.1f} missions per CPU-s ({BASELINE_REV} in the same run: {_f(before):.1f}, "
+            f"{_f(now):.1f} missions per CPU-s ({PREVIOUS_REV} in the same run: {_f(before):.1f}, "
             f"×{_f(now) / _f(before):.1f}; {_f(plain):.1f} without numba); identical plans in "
             f"{same} of {total} missions"
         )
@@ -406,12 +403,12 @@ def planner_cells(out: str) -> dict[str, str]:
 
 SPEED_BENCHES: dict[str, tuple[tuple[str, ...], Callable[[str], dict[str, str]]]] = {
     "bench_engine.py": ((), engine_cells),
-    "bench_sweep.py": (("--old-rev", BASELINE_REV), sweep_cells),
+    "bench_sweep.py": (("--old-rev", PREVIOUS_REV), sweep_cells),
     "bench_channel.py": ((), channel_cells),
     "bench_bound.py": ((), bound_cells),
     "bench_autonomous.py": (("--reference-rev", PREVIOUS_REV), autonomous_cells),
     "bench_policies.py": ((), policies_cells),
-    "bench_planner.py": (("--speed", "20", "--before", BASELINE_REV), planner_cells),
+    "bench_planner.py": (("--speed", "20", "--before", PREVIOUS_REV), planner_cells),
 }
 """Benchmark -> (its arguments for the README, the parser of its output into speed cells).
 ``tests/test_benchmarks_smoke.py`` feeds each parser the tiny run's output, so none rots."""
@@ -426,7 +423,7 @@ def speed_rows(ctx: Context) -> dict[str, str]:
         if name == "bench_sweep.py" and not ctx.slow:
             args = (*args, "--quick")
         if ctx.tiny and name == "bench_planner.py":
-            args = ("--speed", "2", "--before", BASELINE_REV)
+            args = ("--speed", "2", "--before", PREVIOUS_REV)
         cells.update(parse(ctx.bench(name, *args)))
     return cells
 

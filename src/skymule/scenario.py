@@ -230,6 +230,10 @@ class TrajectorySpec(_Spec):
     mode: Literal["fixed", "autonomous"] = "fixed"
     waypoints: Annotated[list[list[float]] | str | None, AfterValidator(_check_waypoints)] = None
     """Fixed path: [[x, y, z], ...] metres, or a CSV path (x_m,y_m,z_m or lat,lon,alt)."""
+    flight: Annotated[str, Field(min_length=1)] | None = None
+    """Fixed path: a recorded flight (any trace format: AADM merged log, digital-twin export)
+    whose positions over time are flown, resampled to the slots by time; its SNR columns are
+    ignored (the signal source gives the SNR). Instead of ``waypoints``."""
     speed_mps: Speed = 10.0
     """Nominal speed along a fixed path [m/s]."""
     home: Annotated[LatLon | list[float] | None, AfterValidator(_check_point)] = None
@@ -239,6 +243,17 @@ class TrajectorySpec(_Spec):
     max_speed_mps: Speed = 10.0
     return_home: bool = True
     visit_radius_m: Distance = 50.0
+
+    @model_validator(mode="after")
+    def _one_path(self) -> TrajectorySpec:
+        if self.flight is not None and self.waypoints is not None:
+            raise ValueError("give either waypoints or flight (a recorded flight), not both")
+        if self.flight is not None and self.mode != "fixed":
+            raise ValueError(
+                "flight flies a recorded path: it needs mode = 'fixed' (an autonomous UAV "
+                "chooses its own path)"
+            )
+        return self
 
 
 class PolicySpec(_Spec):

@@ -138,24 +138,44 @@ def fit_radiomap_command(
     drop_below: Annotated[
         float, typer.Option("--drop-below", help="SNR below this [dB] is a deep drop.")
     ] = -40.0,
+    method: Annotated[
+        str,
+        typer.Option(
+            "--method",
+            help="kriging (log-distance + kriged residual), log-distance, gp (kriging with "
+            "maximum-likelihood parameters) or neural (a learned twin).",
+        ),
+    ] = "kriging",
+    prior: Annotated[
+        str | None,
+        typer.Option(
+            "--prior",
+            help="neural: learn the residual over this twin (map .json, flight .csv, scenario).",
+        ),
+    ] = None,
+    seed: Annotated[int, typer.Option("--seed", help="neural: seed of the networks.")] = 0,
     json_out: Annotated[bool, typer.Option("--json", help="Print the fit as JSON.")] = False,
 ) -> None:
-    """Fit a radio map (log-distance + kriged residual) per sensor to recorded flights."""
+    """Fit a radio map per sensor to recorded flights (a signal source like any map)."""
     from skymule.cli.missions import _working
     from skymule.tasks.radiomaps import RadioMapFit, fit_radiomap_files, parse_origin
 
-    with _working("fitting the radio map"):
+    with _working(f"fitting the radio map ({method})"):
         fit = fit_radiomap_files(
             traces,
             scenario=scenario,
             origin=parse_origin(origin) if origin else None,
             drop_below_db=drop_below,
+            method=method,
+            prior=prior,
+            seed=seed,
         )
     fit.fitted.write(out)
     if json_out:
-        print(json.dumps({"map": str(out), "sensors": fit.rows}, indent=2))
+        print(json.dumps({"map": str(out), "method": method, "sensors": fit.rows}, indent=2))
         return
-    title = "radio map fit (cv: held-out trace segments; baseline: fspl)"
+    held_out = "last segment of each trace" if method == "neural" else "held-out trace segments"
+    title = f"radio map fit, {method} (cv: {held_out}; baseline: fspl)"
     print_table(output.console, title, fit.rows, RadioMapFit.COLUMNS)
     output.say(f"wrote {out}")
 

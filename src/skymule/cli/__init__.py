@@ -31,6 +31,7 @@ app.command()(files.export)
 app.command()(files.analyze)
 app.command("fit-radiomap")(files.fit_radiomap_command)
 app.command("score-radiomap")(files.score_radiomap_command)
+app.command("sim2real")(files.sim2real_command)
 
 __all__ = ["app", "main"]
 

@@ -197,3 +197,58 @@ def score_radiomap_command(
     rows = [{"sensor": n, **{k: v[n] for k, v in scores.items()}} for n in names]
     title = f"{source} vs {trace} (predicted - measured)"
     print_table(output.console, title, rows, ("sensor", *scores))
+
+
+def sim2real_command(
+    scenario: Annotated[
+        str, typer.Argument(help="Scenario or preset: sensors, buffers, link budget, policies.")
+    ],
+    real_trace: Annotated[Path, typer.Argument(help="The real flight (merged log / DT export).")],
+    twin: Annotated[
+        list[str],
+        typer.Option(
+            "--twin",
+            help="A twin: radio map (.json), recorded flight (.csv, fitted on the fly) or "
+            "scenario/preset (its model). Repeat for several.",
+        ),
+    ],
+    policies: Annotated[
+        str, typer.Option("--policies", help="Comma-separated fixed-path policies.")
+    ] = "greedy,hgad",
+    json_out: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
+    out: Annotated[
+        Path | None, typer.Option("--out", help="Folder for the figures and report.html.")
+    ] = None,
+    pdf: Annotated[bool, typer.Option("--pdf/--no-pdf", help="Also write vector PDFs.")] = True,
+    force: Annotated[
+        bool, typer.Option("--force", help="Write into --out even if it holds something else.")
+    ] = False,
+) -> None:
+    """How wrong each twin is on a real flight: SNR per sensor and each policy's Mbit."""
+    from skymule.cli.folders import guard_sim2real
+    from skymule.cli.missions import _working
+    from skymule.tasks.sim2real import policy_rows, sim2real, snr_rows, write_sim2real
+
+    if out is not None:
+        guard_sim2real(out, force)
+    names = [p.strip() for p in policies.split(",") if p.strip()]
+    with _working("flying the real path under each twin"):
+        result = sim2real(scenario, real_trace, twin, names)
+    if out is not None:
+        write_sim2real(result, out)
+        report_path = _report(out, pdf)
+    if json_out:
+        output.print_json(result.to_json())
+    else:
+        title = f"{real_trace.name}: SNR, predicted - measured (coverage_95: inside +-1.96 sigma)"
+        rows = snr_rows(result)
+        columns = ("twin", "sensor", "rmse_db", "bias_db", "mae_db", "rate_rmse_mbps")
+        print_table(output.console, title, rows, (*columns, "coverage_95"))
+        print_table(
+            output.console,
+            f"{real_trace.name}: Mbit replaying the real flight vs the twin along its path",
+            policy_rows(result),
+            ("twin", "policy", "real_mbit", "twin_mbit", "error"),
+        )
+    if out is not None and not json_out:
+        output.say(f"wrote {out}/sim2real.json, {out}/sim2real_snr.csv, {report_path}")

@@ -1,5 +1,5 @@
-"""``skymule report DIR``: the report of whatever folder DIR is (run, compare or sweep; one
-UAV or several), written whole or not at all."""
+"""``skymule report DIR``: the report of whatever folder DIR is (run, compare, sweep or
+sim2real; one UAV or several), written whole or not at all."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from skymule.io.runs import is_run_dir
 from skymule.report.fleet_html import build_fleet_report
 from skymule.report.fleet_inputs import holds_fleet_runs
 from skymule.report.html import FIGURES_DIR, REPORT_FILE, build_run_report
+from skymule.report.sim2real import build_sim2real_report, is_sim2real_dir
 from skymule.report.sweep import build_sweep_report, is_sweep_dir
 
 
@@ -19,9 +20,10 @@ def build_report(folder: Path, pdf: bool = True, baseline: str | None = None) ->
     ``pdf=False`` skips the vector PDFs (faster; the HTML only embeds the PNGs) and removes
     the PDFs an earlier report left. A sweep folder (``results.parquet``) gets the sweep
     report (:mod:`skymule.report.sweep`), with ``baseline`` as the policy the paired gains are
-    taken over. A run of several UAVs, or a compare folder of such runs, gets the fleet report
-    (:mod:`skymule.report.fleet_html`); a compare folder mixing fleet and single-UAV runs is
-    one line.
+    taken over. A ``skymule sim2real --out`` folder gets its Sim-to-real report
+    (:mod:`skymule.report.sim2real`). A run of several UAVs, or a compare folder of such
+    runs, gets the fleet report (:mod:`skymule.report.fleet_html`); a compare folder mixing
+    fleet and single-UAV runs is one line.
 
     The page and its figures are drawn into a hidden staging folder inside ``folder`` and
     moved into place together at the end (:func:`skymule.io.atomic.commit_staged`): a report
@@ -38,6 +40,8 @@ def build_report(folder: Path, pdf: bool = True, baseline: str | None = None) ->
 
 
 def _build(folder: Path, pdf: bool, baseline: str | None, out: Path | None) -> Path:
+    if is_sim2real_dir(folder):
+        return build_sim2real_report(folder, pdf=pdf, out=out)
     if is_sweep_dir(folder) and not is_run_dir(folder):
         return build_sweep_report(folder, pdf=pdf, baseline=baseline, out=out)
     if holds_fleet_runs(folder):

@@ -61,7 +61,14 @@ from skymule.radio.kriging import (
     pairwise_m,
     thin_indices,
 )
-from skymule.radio.learned import FEATURES, PRIOR_FEATURE, Ensemble, fit_ensemble, link_features
+from skymule.radio.learned import (
+    FEATURES,
+    PRIOR_FEATURE,
+    Ensemble,
+    choose_penalty,
+    fit_ensemble,
+    link_features,
+)
 from skymule.radio.pathloss import MIN_DISTANCE_M
 
 DEEP_DROP_DB = -40.0
@@ -225,22 +232,30 @@ def _fit_core(
     name: str,
     positions: np.ndarray,
     snr: np.ndarray,
+    segment: np.ndarray,
     sensor_m: np.ndarray,
     variogram: Variogram | None,
     options: FitOptions,
     prior_db: np.ndarray | None,
 ) -> SensorMap:
-    """The map of one sensor fitted to valid samples (``variogram`` kept when given)."""
+    """The map of one sensor fitted to valid samples (``variogram`` kept when given).
+
+    ``neural`` chooses its weight decay on the last segment of each trace (``segment``).
+    """
     intercept, exponent = fit_trend(distance_m(positions, sensor_m), snr)
     trend = trend_db(positions, sensor_m, intercept, exponent)
     ensemble = None
     base = trend
+    stats: dict[str, float] = {}
     if options.method == "neural":
         features = link_features(positions, sensor_m, prior_db)
         names = (*FEATURES, PRIOR_FEATURE) if prior_db is not None else FEATURES
         start = trend if prior_db is None else prior_db
-        ensemble = fit_ensemble(features, snr - start, names, seed=options.seed)
+        validation = segment == segment.max()
+        penalty = choose_penalty(features, snr - start, validation, seed=options.seed)
+        ensemble = fit_ensemble(features, snr - start, names, seed=options.seed, penalty=penalty)
         base = start + ensemble.mean_db(features)
+        stats["l2_penalty"] = penalty
     residual = snr - base
     if options.method == "log-distance":
         no_field = Variogram(0.0, 1.0, float(np.mean(residual**2)))
@@ -253,7 +268,7 @@ def _fit_core(
             variogram = fit_variogram_ml(positions[keep], residual[keep], variogram)
     weights = kriging_weights(positions[keep], residual[keep], variogram)
     return SensorMap(
-        name, sensor_m, intercept, exponent, variogram, positions[keep], weights, {}, ensemble
+        name, sensor_m, intercept, exponent, variogram, positions[keep], weights, stats, ensemble
     )
 
 
@@ -287,7 +302,7 @@ def fit_sensor_map(
     positions, snr, segment = samples.positions_m[ok], samples.snr_db[ok], samples.segment[ok]
     prior = None if prior_snr_db is None else np.asarray(prior_snr_db, float)[ok]
     sensor = np.asarray(sensor_m, float)
-    fitted = _fit_core(name, positions, snr, sensor, None, options, prior)
+    fitted = _fit_core(name, positions, snr, segment, sensor, None, options, prior)
     errors: dict[str, list[np.ndarray]] = {"map": [], "trend": [], "baseline": []}
     folds = np.unique(segment)
     for fold in folds[-1:] if options.method == "neural" else folds:
@@ -296,14 +311,16 @@ def fit_sensor_map(
             continue
         train_prior = None if prior is None else prior[~test]
         held = _fit_core(
-            name, positions[~test], snr[~test], sensor, fitted.variogram, options, train_prior
-        )
+            name, positions[~test], snr[~test], segment[~test], sensor, fitted.variogram,
+            options, train_prior,
+        )  # fmt: skip
         errors["trend"].append(held.trend_db(positions[test]) - snr[test])
         test_prior = None if prior is None else prior[test]
         errors["map"].append(held.snr_db(positions[test], test_prior) - snr[test])
         if baseline_snr_db is not None:
             errors["baseline"].append(baseline_snr_db[ok][test] - snr[test])
     stats = {
+        **fitted.stats,
         "n_used": float(n_used),
         "n_missing": float(n_missing),
         "n_deep_drops": float(n_deep),

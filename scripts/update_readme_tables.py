@@ -24,6 +24,7 @@ Tables, what they run and roughly how long on the 2-core machine they were writt
   autonomous    skymule compare paper-sim-autonomous                                     ~2 s
   sources       skymule compare paper-sim-fixed --sources fspl,two-ray,al-hourani,...    ~3 s
   sweep-example skymule sweep examples/sweep-paper.toml (1,000 missions)                 ~10 s
+  sim2real      benchmarks/bench_sim2real.py (3 synthetic worlds, every map, two splits)  ~15 min
   speed         benchmarks/bench_{engine,sweep,channel,bound,autonomous,planner}.py     ~15 min
                 (SPEED_BENCHES; sweeps and planner against PREVIOUS_REV in the same run;
                 the 100,000-mission sweep only with --all: +10 min)
@@ -479,11 +480,44 @@ def suite_table(ctx: Context, old: list[str]) -> list[str]:
     )
 
 
+SIM2REAL_LINE = re.compile(
+    r"^  (?P<map>\S.*?\S)\s{2,}(?P<split>(?:time|flight) \(.*?\))\s+(?P<rmse>[\d.]+)\s+"
+    r"(?P<over>[+-][\d.]+)\s+(?P<bias>[+-][\d.]+)\s+(?P<cover>\d+%|n/a)\s+(?P<greedy>\S+)\s+"
+    r"(?P<hgad>\S+)\s+(?P<fit>[\d.]+)$",
+    re.M,
+)
+
+
+def sim2real_rows(out: str) -> list[list[str]]:
+    """The rows of the "mean over N worlds" block of ``bench_sim2real.py``."""
+    mean = out.split("mean over", 1)
+    if len(mean) < 2:
+        raise SystemExit(f"bench_sim2real.py printed no mean block:\n{out[-3000:]}")
+    block = mean[1].split("\nlearned twin", 1)[0]
+    rows = [
+        [m["map"], m["split"], m["rmse"], m["over"], m["bias"], m["cover"],
+         m["greedy"], m["hgad"], m["fit"]]
+        for m in SIM2REAL_LINE.finditer(block)
+    ]  # fmt: skip
+    if not rows:
+        raise SystemExit(f"bench_sim2real.py: no rows in the mean block:\n{block}")
+    return rows
+
+
+def sim2real_table(ctx: Context, old: list[str]) -> list[str]:
+    """Maps and learned twins against a held-out "real" flight, mean over synthetic worlds."""
+    rows = sim2real_rows(ctx.bench("bench_sim2real.py"))
+    header = ["map", "held out", "SNR RMSE [dB]", "over the noise floor [dB]", "bias [dB]"]
+    header += ["in the 95% interval", "Greedy Mbit error", "HGAD Mbit error", "fit CPU [s]"]
+    return markdown(header, list("llrrrrrrr"), rows)
+
+
 TABLES: dict[str, Callable[[Context, list[str]], list[str]]] = {
     "presets": presets_table,
     "autonomous": autonomous_table,
     "sources": sources_table,
     "sweep-example": sweep_example_table,
+    "sim2real": sim2real_table,
     "speed": speed_table,
     "suite": suite_table,
 }

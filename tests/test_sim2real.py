@@ -94,16 +94,9 @@ def test_learned_map_round_trips_as_numbers(tmp_path: Path) -> None:
     """The map file holds weights as JSON numbers (no pickle) and predicts the same bits."""
     rng = np.random.default_rng(2)
     positions = _path(120)
-    prior_map = RadioMap(
-        ORIGIN,
-        (
-            fit_sensor_map(
-                "LW1", TOWER, SensorSamples(positions, _free_space(positions), np.arange(120) // 24),
-                options=FitOptions("log-distance"),
-            ),
-        ),
-        "log-distance",
-    )  # fmt: skip
+    twin_samples = SensorSamples(positions, _free_space(positions), np.arange(120) // 24)
+    twin = fit_sensor_map("LW1", TOWER, twin_samples, options=FitOptions("log-distance"))
+    prior_map = RadioMap(ORIGIN, (twin,), "log-distance")
     prior = MapPrior(prior_map, np.zeros(3), "twin.json")
     measured = _free_space(positions) + _sector_loss(positions) + rng.standard_normal(120)
     samples = [SensorSamples(positions, measured, np.arange(120) // 24)]

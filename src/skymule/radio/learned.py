@@ -19,9 +19,9 @@ The network is a multilayer perceptron (tanh hidden layers, linear output) fitte
 (scipy) on the mean squared error plus an L2 penalty on the weights, inputs and target
 standardised. ``ENSEMBLE_SIZE`` networks from independent seeded initialisations form a deep
 ensemble (Lakshminarayanan, Pritzel & Blundell, NeurIPS 2017): their mean is the prediction,
-their spread the model (epistemic) uncertainty; the noise (aleatoric) variance is the
-cross-validated residual variance, so the exported sigma per point is
-sqrt(spread^2 + noise^2). Everything is seeded: the same data give the same weights.
+their spread the model (epistemic) uncertainty, which the map adds to the kriging posterior
+variance of what is left (:meth:`skymule.radio.radiomap.SensorMap.sigma_db`). Everything is
+seeded: the same data give the same weights.
 
 Weights are plain arrays (written to the map JSON as numbers, read back without running any
 code from the file).
@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.optimize
@@ -117,8 +118,6 @@ class Ensemble:
         input_mean, input_scale: (F,) standardisation of the inputs.
         target_mean, target_scale: standardisation of the residual [dB].
         networks: the members.
-        noise_db: the residual's noise standard deviation [dB] (cross-validated), added to
-            the members' spread in :meth:`sigma_db`.
     """
 
     features: tuple[str, ...]
@@ -127,7 +126,6 @@ class Ensemble:
     target_mean: float
     target_scale: float
     networks: tuple[Network, ...]
-    noise_db: float = 0.0
 
     def members_db(self, features: np.ndarray) -> np.ndarray:
         """(M, P) each member's residual [dB] at feature rows (P, F)."""
@@ -140,19 +138,13 @@ class Ensemble:
         """(P,) ensemble mean residual [dB]."""
         return self.members_db(features).mean(axis=0)
 
-    def sigma_db(self, features: np.ndarray) -> np.ndarray:
-        """(P,) predictive standard deviation [dB]: members' spread and noise, in quadrature."""
-        spread = self.members_db(features).std(axis=0)
-        return np.sqrt(spread**2 + self.noise_db**2)
-
-    def to_dict(self) -> dict[str, object]:
+    def to_dict(self) -> dict[str, Any]:
         return {
             "features": list(self.features),
             "input_mean": self.input_mean.tolist(),
             "input_scale": self.input_scale.tolist(),
             "target_mean": self.target_mean,
             "target_scale": self.target_scale,
-            "noise_db": self.noise_db,
             "networks": [
                 [{"weights": w.tolist(), "bias": b.tolist()} for w, b in net.layers]
                 for net in self.networks
@@ -160,10 +152,8 @@ class Ensemble:
         }
 
     @staticmethod
-    def from_dict(data: dict[str, object]) -> Ensemble:
+    def from_dict(data: dict[str, Any]) -> Ensemble:
         """The ensemble :meth:`to_dict` wrote (KeyError/TypeError/ValueError if malformed)."""
-        networks = data["networks"]
-        assert isinstance(networks, list)
         nets = tuple(
             Network(
                 tuple(
@@ -171,17 +161,16 @@ class Ensemble:
                     for layer in net
                 )
             )
-            for net in networks
+            for net in data["networks"]
         )
-        features = tuple(str(f) for f in data["features"])  # type: ignore[attr-defined]
+        features = tuple(str(f) for f in data["features"])
         ensemble = Ensemble(
             features=features,
             input_mean=np.asarray(data["input_mean"], float),
             input_scale=np.asarray(data["input_scale"], float),
-            target_mean=float(data["target_mean"]),  # type: ignore[arg-type]
-            target_scale=float(data["target_scale"]),  # type: ignore[arg-type]
+            target_mean=float(data["target_mean"]),
+            target_scale=float(data["target_scale"]),
             networks=nets,
-            noise_db=float(data.get("noise_db", 0.0)),  # type: ignore[attr-defined]
         )
         _check_shapes(ensemble)
         return ensemble

@@ -340,7 +340,8 @@ def _rmse(error: np.ndarray) -> float:
 class Prior(Protocol):
     """What a learned map calibrates: a signal source for named sensors, stored in the map."""
 
-    label: str
+    @property
+    def label(self) -> str: ...
 
     def source(self, names: Sequence[str]) -> Any: ...
 
@@ -532,25 +533,21 @@ class RadioMapSource:
     offset_m: np.ndarray
     prior: Any = None
 
-    def _local(self, positions_m: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    def _per_sensor(self, positions_m: np.ndarray, what: str) -> np.ndarray:
+        """(P, N) ``SensorMap.<what>`` of every sensor, with the prior's SNR when there is one."""
         positions = np.atleast_2d(np.asarray(positions_m, float)) + self.offset_m
         prior = None if self.prior is None else np.asarray(self.prior.snr_db(positions))
-        return positions, prior
-
-    def snr_db(self, positions_m: np.ndarray) -> np.ndarray:
-        positions, prior = self._local(positions_m)
         return np.column_stack(
-            [m.snr_db(positions, None if prior is None else prior[:, j])
+            [getattr(m, what)(positions, None if prior is None else prior[:, j])
              for j, m in enumerate(self.maps)]
         )  # fmt: skip
+
+    def snr_db(self, positions_m: np.ndarray) -> np.ndarray:
+        return self._per_sensor(positions_m, "snr_db")
 
     def sigma_db(self, positions_m: np.ndarray) -> np.ndarray:
         """(P, N) predictive standard deviation [dB] (:meth:`SensorMap.sigma_db`)."""
-        positions, prior = self._local(positions_m)
-        return np.column_stack(
-            [m.sigma_db(positions, None if prior is None else prior[:, j])
-             for j, m in enumerate(self.maps)]
-        )  # fmt: skip
+        return self._per_sensor(positions_m, "sigma_db")
 
 
 # ---------------------------------------------------------------------------

@@ -111,14 +111,11 @@ def resolve_prior(
     own = {s.name.upper(): s for s in scenario.sensors if s.has_position}
     own_m = sensor_positions_m(scenario.sensors, frame) if own else np.zeros((0, 3))
     index = {s.name.upper(): i for i, s in enumerate(scenario.sensors)}
-    positions = {
-        name.upper(): tuple(
-            float(v) for v in (own_m[index[name.upper()]] if name.upper() in own else sensor_m[j])
-        )
-        for j, name in enumerate(names)
-    }
-    radio = scenario.radio.model_dump(mode="json")
-    return ModelPrior(radio, positions, spec)  # type: ignore[arg-type]
+    positions: dict[str, tuple[float, float, float]] = {}
+    for j, name in enumerate(names):
+        xyz = own_m[index[name.upper()]] if name.upper() in own else sensor_m[j]
+        positions[name.upper()] = (float(xyz[0]), float(xyz[1]), float(xyz[2]))
+    return ModelPrior(scenario.radio.model_dump(mode="json"), positions, spec)
 
 
 def fit_radiomap_files(
@@ -174,7 +171,7 @@ def fit_radiomap_files(
         frame,
         drop_below_db=drop_below_db,
         baseline=baseline,
-        options=FitOptions(method, seed),  # type: ignore[arg-type]
+        options=FitOptions(method, seed),
         prior=None if prior is None else resolve_prior(prior, names, sensor_m, frame),
     )
     rows = [

@@ -97,13 +97,15 @@ def _flown(base: Scenario, real: Path) -> Scenario:
 
 
 def real_variant(base: Scenario, real: Path) -> Scenario:
-    """The real flight replayed: its recorded SNR slot by slot (sample-and-hold in time)."""
+    """The real flight replayed: its recorded SNR slot by slot (sample-and-hold in time),
+    without the scenario's simulated fading (a recorded SNR has its own)."""
     flown = _flown(base, real)
     signal = flown.signal.model_copy(
         update={"source": "trace", "trace": str(real.resolve()), "map": None, "traces": None}
     )
     trajectory = flown.trajectory.model_copy(update={"flight": None})
-    return flown.model_copy(update={"signal": signal, "trajectory": trajectory})
+    radio = flown.radio.model_copy(update={"fading": "none"})
+    return flown.model_copy(update={"signal": signal, "trajectory": trajectory, "radio": radio})
 
 
 def twin_variant(base: Scenario, real: Path, twin: str) -> Scenario:
@@ -268,7 +270,7 @@ def snr_rows(result: Sim2Real) -> list[dict[str, Any]]:
     rows = []
     for t in result.twins:
         for sensor in t.scores["rmse_db"]:
-            row = {"twin": t.twin, "sensor": sensor}
+            row: dict[str, Any] = {"twin": t.twin, "sensor": sensor}
             row |= {key: values[sensor] for key, values in t.scores.items()}
             if t.coverage is not None:
                 row["coverage_95"] = t.coverage[sensor]

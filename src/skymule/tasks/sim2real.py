@@ -239,13 +239,13 @@ def _samples(
 
 def write_sim2real(result: Sim2Real, out: Path) -> list[Path]:
     """Write ``out/sim2real.json`` and ``out/sim2real_snr.csv`` (atomically); their paths."""
-    from skymule.io.textfiles import write_text_atomic
+    from skymule.io import atomic
 
     out.mkdir(parents=True, exist_ok=True)
     document = out / RESULT_JSON
     samples = out / SAMPLES_CSV
-    write_text_atomic(samples, result.samples.to_csv(index=False, float_format="%.6g"))
-    write_text_atomic(document, json.dumps(_finite(result.to_json()), indent=2) + "\n")
+    atomic.write_text(samples, result.samples.to_csv(index=False, float_format="%.6g"))
+    atomic.write_text(document, json.dumps(_finite(result.to_json()), indent=2) + "\n")
     return [document, samples]
 
 

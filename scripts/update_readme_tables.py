@@ -31,8 +31,9 @@ Tables, what they run and roughly how long on the 2-core machine they were writt
                 --missions 100000 (inprocess, process, dask-local)                       ~5 min
                 (--saved FILE[,FILE]: only the rows of saved outputs of longer runs,
                 e.g. --missions 10000000 --report; rows not re-run keep their text)
+  sim2real      benchmarks/bench_sim2real.py (3 synthetic worlds, every map, two splits)  ~15 min
   speed         benchmarks/bench_{engine,sweep,channel,bound,autonomous,planner}.py     ~15 min
-                (SPEED_BENCHES; sweeps and planner against the v0.1 tag in the same run;
+                (SPEED_BENCHES; sweeps and planner against PREVIOUS_REV in the same run;
                 the 100,000-mission sweep only with --all: +10 min)
   suite         python -m pytest -q (only with --all)                                     ~3 min
 Rows that are not re-run keep their current text.
@@ -245,18 +246,15 @@ def _f(text: str) -> float:
     return float(text.replace(",", ""))
 
 
-BASELINE_REV = "v0.1"
-"""The release the speed rows' "previous implementation" figures are measured against (the
-code before the one-engine-core rewrite), run in the same benchmark run."""
-
-
 def _m(text: str) -> float:
     return _f(text) / 1e6
 
 
 PREVIOUS_REV = "4ddfba8"
-"""The last revision with the scalar reference engines: ``bench_autonomous.py`` times its
-autonomous reference engine in the same run (``--reference-rev``)."""
+"""The last revision before the one engine (scalar reference engines beside fused batched
+ones): the speed rows' "previous" figures (``bench_autonomous.py --reference-rev``,
+``bench_sweep.py --old-rev``, ``bench_planner.py --before``) are measured against it in the
+same benchmark run. (Revisions, not tags: a fresh clone has no tags.)"""
 
 
 def engine_cells(out: str) -> dict[str, str]:
@@ -336,7 +334,7 @@ def policies_cells(out: str) -> dict[str, str]:
 
 
 def sweep_cells(out: str) -> dict[str, str]:
-    """Sweep rows from ``bench_sweep.py --old-rev BASELINE_REV`` (100k only with --all)."""
+    """Sweep rows from ``bench_sweep.py --old-rev PREVIOUS_REV`` (100k only with --all)."""
     line = r"(\S+)\s+(\d+) missions:\s+([\d.]+) s CPU .*?(\d+) us CPU/mission, peak\s+(\d+) MiB"
     cases = {
         case: (int(n), _f(cpu), int(us), int(mib)) for case, n, cpu, us, mib in _numbers(line, out)
@@ -345,7 +343,7 @@ def sweep_cells(out: str) -> dict[str, str]:
     previous = dict(re.findall(r"(\S+)\s+\d+ missions:.*\| previous\s+([\d.]+) s CPU", out))
     cells = {}
     _, cpu, us, mib = cases["sample-10k"]
-    old = f"previous implementation ({BASELINE_REV}) in the same run: "
+    old = f"previous implementation ({PREVIOUS_REV}) in the same run: "
     if "sample-10k" in previous:
         old += f"{_f(previous['sample-10k']):.1f} s, **×{_f(previous['sample-10k']) / cpu:.1f}**"
     cells["^sweep, 10,000 missions"] = (
@@ -468,7 +466,7 @@ def planner_cells(out: str) -> dict[str, str]:
     ((plain,),) = _numbers(r"no numba\): ([\d.]+)", out)
     return {
         "^planner": (
-            f"{_f(now):.1f} missions per CPU-s ({BASELINE_REV} in the same run: {_f(before):.1f}, "
+            f"{_f(now):.1f} missions per CPU-s ({PREVIOUS_REV} in the same run: {_f(before):.1f}, "
             f"×{_f(now) / _f(before):.1f}; {_f(plain):.1f} without numba); identical plans in "
             f"{same} of {total} missions"
         )
@@ -477,12 +475,12 @@ def planner_cells(out: str) -> dict[str, str]:
 
 SPEED_BENCHES: dict[str, tuple[tuple[str, ...], Callable[[str], dict[str, str]]]] = {
     "bench_engine.py": ((), engine_cells),
-    "bench_sweep.py": (("--old-rev", BASELINE_REV), sweep_cells),
+    "bench_sweep.py": (("--old-rev", PREVIOUS_REV), sweep_cells),
     "bench_channel.py": ((), channel_cells),
     "bench_bound.py": ((), bound_cells),
     "bench_autonomous.py": (("--reference-rev", PREVIOUS_REV), autonomous_cells),
     "bench_policies.py": ((), policies_cells),
-    "bench_planner.py": (("--speed", "20", "--before", BASELINE_REV), planner_cells),
+    "bench_planner.py": (("--speed", "20", "--before", PREVIOUS_REV), planner_cells),
 }
 """Benchmark -> (its arguments for the README, the parser of its output into speed cells).
 ``tests/test_benchmarks_smoke.py`` feeds each parser the tiny run's output, so none rots."""
@@ -497,7 +495,7 @@ def speed_rows(ctx: Context) -> dict[str, str]:
         if name == "bench_sweep.py" and not ctx.slow:
             args = (*args, "--quick")
         if ctx.tiny and name == "bench_planner.py":
-            args = ("--speed", "2", "--before", BASELINE_REV)
+            args = ("--speed", "2", "--before", PREVIOUS_REV)
         cells.update(parse(ctx.bench(name, *args)))
     return cells
 
@@ -553,12 +551,45 @@ def suite_table(ctx: Context, old: list[str]) -> list[str]:
     )
 
 
+SIM2REAL_LINE = re.compile(
+    r"^  (?P<map>\S.*?\S)\s{2,}(?P<split>(?:time|flight) \(.*?\))\s+(?P<rmse>[\d.]+)\s+"
+    r"(?P<over>[+-][\d.]+)\s+(?P<bias>[+-][\d.]+)\s+(?P<cover>\d+%|n/a)\s+(?P<greedy>\S+)\s+"
+    r"(?P<hgad>\S+)\s+(?P<fit>[\d.]+)$",
+    re.M,
+)
+
+
+def sim2real_rows(out: str) -> list[list[str]]:
+    """The rows of the "mean over N worlds" block of ``bench_sim2real.py``."""
+    mean = out.split("mean over", 1)
+    if len(mean) < 2:
+        raise SystemExit(f"bench_sim2real.py printed no mean block:\n{out[-3000:]}")
+    block = mean[1].split("\nlearned twin", 1)[0]
+    rows = [
+        [m["map"], m["split"], m["rmse"], m["over"], m["bias"], m["cover"],
+         m["greedy"], m["hgad"], m["fit"]]
+        for m in SIM2REAL_LINE.finditer(block)
+    ]  # fmt: skip
+    if not rows:
+        raise SystemExit(f"bench_sim2real.py: no rows in the mean block:\n{block}")
+    return rows
+
+
+def sim2real_table(ctx: Context, old: list[str]) -> list[str]:
+    """Maps and learned twins against a held-out "real" flight, mean over synthetic worlds."""
+    rows = sim2real_rows(ctx.bench("bench_sim2real.py"))
+    header = ["map", "held out", "SNR RMSE [dB]", "over the noise floor [dB]", "bias [dB]"]
+    header += ["in the 95% interval", "Greedy Mbit error", "HGAD Mbit error", "fit CPU [s]"]
+    return markdown(header, list("llrrrrrrr"), rows)
+
+
 TABLES: dict[str, Callable[[Context, list[str]], list[str]]] = {
     "presets": presets_table,
     "autonomous": autonomous_table,
     "sources": sources_table,
     "sweep-example": sweep_example_table,
     "sweep-scale": sweep_scale_table,
+    "sim2real": sim2real_table,
     "speed": speed_table,
     "suite": suite_table,
 }

@@ -34,6 +34,7 @@ EXPECTED = {
     "bench_planner.py": ["planner gain over hgad", "mean gap to bound", "above the bound: 0"],
     "bench_resilience.py": ["robust - plain", "hgad-robust", "planner-robust", "ended home"],
     "bench_single.py": ["paper-sim-fixed", "aadm-default", "slots/s"],
+    "bench_sim2real.py": ["neural + DT prior", "noise floor", "fit time", "twin (DT map)"],
     "bench_sweep.py": ["sample-10k", "us CPU/mission", "process executor", "seed axis"],
     "train_ppo.py": ["hgad", "bound", "PPO - HGAD"],
 }
@@ -70,6 +71,13 @@ def test_benchmark_runs_at_tiny_size(
         _, parse = README_TABLES["SPEED_BENCHES"][name]
         cells = parse(out)
         assert cells and all(cells.values()), f"{name}: README speed cells {cells}"
+    if name == "bench_sim2real.py":  # its README table is parsed from this output
+        rows = README_TABLES["sim2real_rows"](out)
+        labels = [r[0] for r in rows]
+        assert labels[0] == "twin (DT map)" and labels[-2:] == [
+            "neural + DT prior",
+            "oracle: twin - bias",
+        ], labels
 
 
 def test_the_sweep_scale_mode_runs_and_fills_the_readme_rows(

@@ -52,6 +52,7 @@ NOT_RUN_PREFIXES = {
     "dask scheduler": "a server until stopped; test_sweep_scale.py runs a sweep through the "
     "scheduler address of a cluster of worker processes",
     "dask worker": "joins the scheduler of the line above until stopped (test_sweep_scale.py)",
+    "skymule aadm towers": "serves the tower ports until stopped (tests/test_aadm_testbed.py)",
 }
 """Commands shown as terminals side by side: tested by the AADM tests instead."""
 

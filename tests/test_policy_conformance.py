@@ -108,11 +108,15 @@ def test_user_policy_by_import_path(monkeypatch: pytest.MonkeyPatch) -> None:
     result = simulate(load_scenario("paper-sim-fixed"), "my_policies:LargestBufferFirst")
     assert result.summary["policy"] == "largest-buffer-first"
     assert_slot_contract(result.mission, result.log)
-    assert unknown_policies(["my_policies:LargestBufferFirst", "greedy"]) == []
-    assert unknown_policies(["my_policies:Nope", "no_such_module:X"]) == [
-        "my_policies:Nope",
-        "no_such_module:X",
+    # names are checked without importing anything: a bad import shows when the policy runs
+    assert unknown_policies(["my_policies:Nope", "no_such_module:X", "greedy"]) == []
+    assert unknown_policies(["my_policies", "no such:X", "greedx"]) == [
+        "my_policies",
+        "no such:X",
+        "greedx",
     ]
+    with pytest.raises(SkymuleError, match="has no 'Nope'"):
+        simulate(load_scenario("paper-sim-fixed"), "my_policies:Nope")
     with pytest.raises(SkymuleError, match="has no reset, act"):
         simulate(load_scenario("paper-sim-fixed"), "my_policies:NotAPolicy")
 

@@ -82,15 +82,41 @@ def test_summary_table_is_summary_csv(sweep_dir: Path) -> None:
     table = re.search(r'<table id="sweep-summary-table">(.*?)</table>', page(sweep_dir))
     assert table
     rows = re.findall(r"<tr><td>(.*?)</td></tr>", table.group(1))
-    assert len(rows) == len(summary) == 2
+    # one row per policy and swept duration (the list axis), 8 seeds each
+    assert len(rows) == len(summary) == 4
+    assert list(summary.columns[:3]) == ["policy", "mission.duration_s", "missions"]
     for row, (_, want) in zip(rows, summary.iterrows(), strict=True):
         cells = row.split("</td><td>")
-        assert cells[0] == want["policy"] and int(cells[1]) == want["missions"] == 16
-        assert cells[2] == (
+        assert cells[0] == want["policy"] and int(cells[2]) == want["missions"] == 8
+        assert float(cells[1]) == want["mission.duration_s"]
+        assert cells[3] == (
             f"{want['total_downloaded_mbit_mean']:.1f} ± {want['total_downloaded_mbit_ci95']:.1f}"
         )
-        assert cells[3] == f"{want['completion_mean']:.3f} ± {want['completion_ci95']:.3f}"
-        assert len(cells) == 2 + 7  # the seven headline metrics
+        assert cells[4] == f"{want['completion_mean']:.3f} ± {want['completion_ci95']:.3f}"
+        assert len(cells) == 3 + 7  # the seven headline metrics
+    results = pd.read_parquet(sweep_dir / "results.parquet")
+    mine = results[(results["policy"] == "hgad") & (results["mission.duration_s"] == 160)]
+    row = summary[(summary["policy"] == "hgad") & (summary["mission.duration_s"] == 160)]
+    assert float(row["total_downloaded_mbit_mean"].iloc[0]) == pytest.approx(
+        mine["total_downloaded_mbit"].mean()
+    )
+
+
+def test_without_summary_csv_the_rows_give_the_same_table(sweep_dir: Path, tmp_path: Path) -> None:
+    """summary.csv lost: the table comes from results.parquet, split by the list axis as
+    summary.csv is (the drawn buffers, varying per mission, are no level)."""
+    copy = tmp_path / "sw"
+    shutil.copytree(sweep_dir, copy)
+    (copy / "summary.csv").unlink()
+    assert run_cli("report", copy, "--no-pdf").returncode == 0
+
+    def rows(text: str) -> list[str]:
+        table = re.search(r'<table id="sweep-summary-table">(.*?)</table>', text)
+        assert table
+        return re.findall(r"<tr><td>(.*?)</td></tr>", table.group(1))
+
+    assert "no complete summary.csv" in page(copy)
+    assert rows(page(copy)) == rows(page(sweep_dir)) and len(rows(page(copy))) == 4
 
 
 def independent_gain(results: pd.DataFrame, policy: str, baseline: str) -> dict[str, float]:

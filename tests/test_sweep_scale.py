@@ -117,6 +117,42 @@ def test_batched_summary_statistics_match_numpy_with_nan_and_inf() -> None:
     assert row["completion_mean"] == np.inf  # as numpy.nanmean
 
 
+def test_batched_summary_groups_by_policy_and_level_as_pandas_does() -> None:
+    """One row per policy and value of each level column (a missing value a group of its
+    own, last), in pandas' groupby order, whatever the batches; each group's statistics as
+    numpy's on its values."""
+    rng = np.random.default_rng(3)
+    n = 600
+    frame = pd.DataFrame(
+        {
+            "policy": rng.choice(["hgad", "greedy"], n),
+            "mission.duration_s": rng.choice([300, 120, 200], n),
+            "policy.params.min_rate_mbps": rng.choice([6.0, 0.0, np.nan], n),
+            "total_downloaded_mbit": rng.uniform(0, 500, n),
+        }
+    )
+    levels = ["mission.duration_s", "policy.params.min_rate_mbps", "not.a.column"]
+    stats = store.SummaryStats(levels)
+    for start in range(0, n, 97):
+        stats.add(pa.Table.from_pandas(frame.iloc[start : start + 97], preserve_index=False))
+    got = stats.table()
+    keys = ["policy", "mission.duration_s", "policy.params.min_rate_mbps"]
+    assert list(got.columns[:4]) == [*keys, "missions"]
+    groups = frame.groupby(keys, sort=True, dropna=False)["total_downloaded_mbit"]
+    assert len(got) == groups.ngroups == 2 * 3 * 3
+    for (_, row), (key, values) in zip(got.iterrows(), groups, strict=True):
+        assert row["policy"] == key[0] and row["mission.duration_s"] == key[1]
+        assert row["policy.params.min_rate_mbps"] == key[2] or np.isnan(key[2])
+        assert np.isnan(key[2]) == np.isnan(row["policy.params.min_rate_mbps"])
+        assert row["missions"] == values.size
+        assert row["total_downloaded_mbit_mean"] == pytest.approx(values.mean(), rel=1e-12)
+        assert row["total_downloaded_mbit_ci95"] == pytest.approx(
+            store.ci95_half_width(values.to_numpy()), rel=1e-9
+        )
+    # the rows as one batch: the same table
+    pd.testing.assert_frame_equal(store.summary_table(frame, levels), got, rtol=1e-12)
+
+
 def _files(folder: Path) -> tuple[bytes, bytes]:
     return (folder / store.RESULTS).read_bytes(), (folder / store.SUMMARY).read_bytes()
 

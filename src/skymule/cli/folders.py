@@ -21,12 +21,15 @@ from skymule.errors import SkymuleError
 SWEEP_FILES = ("sweep.json", "results", "results.parquet", "summary.csv", ".lock")
 """What a sweep folder holds (``skymule.experiments.store``)."""
 
+SIM2REAL_FILE = "sim2real.json"
+"""What marks a ``skymule sim2real --out`` folder (``skymule.tasks.sim2real``)."""
+
 
 @dataclass(frozen=True)
 class Holds:
     """What an output folder holds: its kind and, where known, scenario and policies."""
 
-    kind: str  # "empty", "run", "compare", "bound", "sweep" or "other"
+    kind: str  # "empty", "run", "compare", "bound", "sweep", "sim2real" or "other"
     scenario: str | None = None
     policies: tuple[str, ...] = ()
 
@@ -39,6 +42,8 @@ class Holds:
             return f"the bound of scenario {self.scenario!r}"
         if self.kind == "sweep":
             return "a sweep"
+        if self.kind == "sim2real":
+            return "a sim2real comparison"
         return "other files"
 
 
@@ -69,6 +74,8 @@ def inspect_folder(out: Path) -> Holds:
         return Holds("other")
     if any((out / name).exists() for name in SWEEP_FILES):
         return Holds("sweep")
+    if (out / SIM2REAL_FILE).exists():
+        return Holds("sim2real")
     if (out / "comparison.csv").exists():
         scenario, policies = _comparison(out / "comparison.csv")
         return Holds("compare", scenario, policies)
@@ -118,6 +125,14 @@ def guard_bound(out: Path, scenario: str, force: bool) -> None:
     if holds.kind in ("bound", "compare") and holds.scenario == scenario:
         return
     raise _refuse(out, holds, f"the bound of scenario {scenario!r}")
+
+
+def guard_sim2real(out: Path, force: bool) -> None:
+    """Refuse a folder that holds anything but a sim2real comparison (unless ``--force``)."""
+    holds = inspect_folder(out)
+    if force or holds.kind in ("empty", "sim2real"):
+        return
+    raise _refuse(out, holds, "a sim2real comparison")
 
 
 def guard_sweep(out: Path, sweep_file: Path, force: bool) -> None:

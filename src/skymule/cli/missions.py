@@ -12,6 +12,7 @@ import skymule.cli.output as output
 from skymule.cli.folders import guard_bound, guard_compare, guard_run, guard_sweep
 from skymule.cli.output import print_json
 from skymule.cli.tables import fmt, print_table
+from skymule.trust import TRUST_HELP, trust_option
 
 if TYPE_CHECKING:
     from skymule.scenario import Scenario
@@ -32,6 +33,12 @@ JsonOption = Annotated[
 ForceOption = Annotated[
     bool, typer.Option("--force", help="Write into --out even if it holds something else.")
 ]
+
+TrustOption = Annotated[
+    list[Path] | None,
+    typer.Option("--trust-model", help=TRUST_HELP, callback=trust_option),
+]
+"""--trust-model PATH: for this command (:func:`skymule.cli.main` restores it) and its workers."""
 GAP_COLUMNS = ("gap_to_bound_mbit", "gap_to_bound_frac")
 
 
@@ -41,10 +48,26 @@ def summary_columns() -> tuple[str, ...]:
     return ("policy", *HEADLINE_METRICS)
 
 
-def load(scenario: str, overrides: list[str] | None) -> Scenario:
+def load(scenario: str, overrides: list[str] | None, policies: list[str] | None = None) -> Scenario:
+    """The scenario with ``--set`` applied; ``policies``: those the command runs instead of the
+    file's own (``[policy.params]`` may hold any of their parameters)."""
     from skymule.scenario import load_scenario
 
-    return load_scenario(scenario, overrides or ())
+    return load_scenario(scenario, overrides or (), policies=policies)
+
+
+def announce_imports(names: list[str], source: str | Path) -> None:
+    """One stderr line per plug-in module that policies named in a file make the command
+    import (names typed on the command line need no notice)."""
+    from skymule.policies.registry import plugin_module
+
+    for name in dict.fromkeys(names):
+        module = plugin_module(name)
+        if module is not None:
+            print(
+                f"skymule: importing module {module} for policy {name!r} (named in {source})",
+                file=sys.stderr,
+            )
 
 
 def per_sensor_rows(summary: dict[str, Any]) -> list[dict[str, Any]]:
@@ -73,21 +96,26 @@ def run(
     overrides: SetOption = None,
     json_out: JsonOption = False,
     force: ForceOption = False,
+    trust_model: TrustOption = None,
 ) -> None:
     """Run one mission and print its summary."""
     from skymule.tasks.simulate import simulate
 
-    spec = load(scenario, overrides)
+    spec = load(scenario, overrides, None if policy is None else [policy])
     if spec.uavs:  # several UAVs (docs/fleet.md)
         from skymule.cli.fleet import run_fleet_command
 
         if out is not None:
             guard_run(out, spec.name, policy or spec.policy.name, force)
+        if policy is None:
+            announce_imports(fleet_policy_names(spec), scenario)
         return run_fleet_command(spec, policy, out, json_out)
     if policy is not None:
         spec = spec.with_policy(policy)
     if out is not None:
         guard_run(out, spec.name, spec.policy.name, force)
+    if policy is None:
+        announce_imports([spec.policy.name], scenario)
     result = simulate(spec)
     if out is not None:
         result.write(out)
@@ -102,6 +130,11 @@ def run(
     print_table(output.console, "summary", [result.summary], summary_columns())
     if out is not None:
         output.say(f"wrote {out}/summary.json, slots.csv, scenario.json")
+
+
+def fleet_policy_names(spec: Scenario) -> list[str]:
+    """The policies a fleet scenario's UAVs fly: each UAV's own, else the scenario's."""
+    return [(uav.policy or spec.policy).name for uav in spec.uavs or ()]
 
 
 def _names(text: str) -> list[str]:
@@ -125,6 +158,7 @@ def compare(
     overrides: SetOption = None,
     json_out: JsonOption = False,
     force: ForceOption = False,
+    trust_model: TrustOption = None,
 ) -> None:
     """Run one scenario under several policies on identical signal draws."""
     from skymule.policies import check_policies
@@ -135,7 +169,7 @@ def compare(
         write_compare,
     )
 
-    base = load(scenario, overrides)
+    base = load(scenario, overrides, _names(policies))
     if sources is None and base.uavs:  # several UAVs (docs/fleet.md)
         from skymule.cli.fleet import check_policy_names, compare_fleet_command
 
@@ -287,15 +321,19 @@ def sweep(
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress bar.")] = False,
     overrides: SetOption = None,
     force: ForceOption = False,
+    trust_model: TrustOption = None,
 ) -> None:
     """Run many missions (resumable); results.parquet and summary.csv in --out."""
     from skymule.experiments.run import run_sweep
     from skymule.experiments.sweep import load_sweep
+    from skymule.policies import check_policies
 
     spec = load_sweep(sweep_file)
     if overrides:
         spec = _sweep_with_overrides(spec, overrides)
+    check_policies(spec.policy_names, f"{sweep_file}: policy.name")  # before any worker starts
     guard_sweep(out, sweep_file, force)
+    announce_imports(spec.policy_names, sweep_file)
     try:
         outcome = run_sweep(
             spec,
@@ -312,17 +350,20 @@ def sweep(
         again += ["--scheduler", scheduler] if scheduler else []
         again += ["--chunk-size", str(chunk_size)] if chunk_size != 500 else []
         again += [f"--set={o}" for o in overrides or []]
+        again += [f"--trust-model={p}" for p in trust_model or []]
         _sweep_interrupted(out, spec, again)
+    levels = [c for c in spec.level_columns if c in outcome.summary.columns]
     rows = [
         {
             "policy": row["policy"],
+            **{c: row[c] for c in levels},
             "missions": row["missions"],
             **{m: f"{fmt(row[f'{m}_mean'])} ± {fmt(row[f'{m}_ci95'])}" for m in SWEEP_METRICS},
         }
         for row in outcome.summary.to_dict("records")
     ]
     title = f"{sweep_file.name}: {outcome.n_missions} missions (mean ± 95% CI)"
-    print_table(output.console, title, rows, ("policy", "missions", *SWEEP_METRICS))
+    print_table(output.console, title, rows, ("policy", *levels, "missions", *SWEEP_METRICS))
     output.say(
         f"ran {outcome.n_run} of {outcome.n_missions} missions in {outcome.seconds:.1f} s; "
         f"wrote {out}/results.parquet and {out}/summary.csv"
@@ -340,7 +381,8 @@ def _sweep_with_overrides(spec: Any, overrides: list[str]) -> Any:
     data = spec.base.to_toml_dict()
     for override in overrides:
         data = apply_override(data, override)
-    base = scenario_from_dict(data, f"{spec.source} (--set)", Path(spec.base.base_dir))
+    source = f"{spec.source} (--set)"
+    base = scenario_from_dict(data, source, Path(spec.base.base_dir), policies=spec.policy_names)
     # the folder's sweep identity covers the overrides: resuming needs the same --set
     digest = hashlib.sha256("\0".join([spec.digest, *overrides]).encode()).hexdigest()
     return replace(spec, base=base, digest=digest)

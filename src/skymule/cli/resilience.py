@@ -8,9 +8,10 @@ from typing import Annotated
 import typer
 
 import skymule.cli.output as output
-from skymule.cli.missions import ScenarioArg, SetOption, _names, load
+from skymule.cli.missions import ScenarioArg, SetOption, TrustOption, _names, load
 from skymule.cli.tables import print_table
 from skymule.errors import SkymuleError
+from skymule.io import atomic
 
 COLUMNS = (
     "policy", "level", "missions", "mbit_mean", "mbit_ci95", "aadm_score_mean", "bound_mbit_mean"
@@ -37,6 +38,7 @@ def resilience(
         int, typer.Option("--missions", help="Paired missions per level (seeds seed..seed+N-1).")
     ] = 20,
     overrides: SetOption = None,
+    trust_model: TrustOption = None,
 ) -> None:
     """Every policy over increasing fault intensity, paired draws: Mbit (mean, 95 % CI)."""
     from skymule.policies import check_policies
@@ -48,12 +50,12 @@ def resilience(
         raise SkymuleError(f"--missions = {missions}; allowed: an integer >= 1")
     if out.exists() and not out.is_dir():
         raise SkymuleError(f"--out {out}: exists and is not a folder")
-    base = load(scenario, overrides)
+    base = load(scenario, overrides, names)
     if base.uavs:
         raise SkymuleError("resilience runs one UAV; this scenario has [[uavs]]")
     frame = table(run_study(base, fault, values, names, missions))
     out.mkdir(parents=True, exist_ok=True)
-    frame.to_csv(out / "resilience.csv", index=False)
+    atomic.write_with(out / "resilience.csv", lambda tmp: frame.to_csv(tmp, index=False))
     plot(frame, fault, out / "resilience.png")
     rows = [{str(k): v for k, v in row.items()} for row in frame.to_dict("records")]
     print_table(output.console, f"{base.name}: {fault}", rows, COLUMNS)

@@ -17,8 +17,10 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import logging
 import multiprocessing
 import os
+import signal
 import sys
 import threading
 import time
@@ -249,13 +251,46 @@ def _start_local_cluster(distributed: Any, workers: int) -> Any:
         "dashboard_address": "127.0.0.1:0",
         "scheduler_kwargs": {"dashboard": False},
         "memory_limit": 0,  # no memory monitor: a chunk stays within CHUNK_MEMORY_BYTES
+        # its workers' warnings (a task cancelled by Ctrl-C...) are noise in a command line;
+        # errors still show
+        "silence_logs": logging.ERROR,
     }
     timeout = f"{DASK_START_TIMEOUT_S}s"
-    with dask.config.set({"distributed.comm.timeouts.connect": timeout, **QUIET_DASK}):
+    settings = {"distributed.comm.timeouts.connect": timeout, **QUIET_DASK}
+    with dask.config.set(settings), _workers_deaf_to_ctrl_c():
         try:
             return distributed.LocalCluster(**options)
         except (RuntimeError, OSError, TimeoutError):
             return distributed.LocalCluster(**options)  # once more: a busy machine, not a bug
+
+
+@contextmanager
+def _workers_deaf_to_ctrl_c() -> Iterator[None]:
+    """Start local Dask workers ignoring SIGINT, so a Ctrl-C in the terminal (sent to the
+    whole process group) stops the sweep process alone, which closes the cluster; otherwise
+    every worker process prints its own KeyboardInterrupt traceback. An ignored SIGINT is
+    the one setting a spawned process inherits (a handler or a blocked mask is reset at
+    exec); the sweep process ignores it too while its workers start (a few seconds)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextmanager
+def _quiet_when_interrupted() -> Iterator[None]:
+    """On Ctrl-C, silence Dask's loggers before the cluster or client is closed: closing an
+    interrupted one logs connection errors (CommClosedError, CancelledError) with tracebacks,
+    where the command prints one line and the resume command."""
+    try:
+        yield
+    except KeyboardInterrupt:
+        logging.getLogger("distributed").setLevel(logging.CRITICAL + 1)
+        raise
 
 
 @contextmanager
@@ -264,7 +299,11 @@ def _dask_local(
 ) -> Iterator[Executor]:
     distributed = _distributed()
     cluster = _start_local_cluster(distributed, workers or default_workers())
-    with cluster, distributed.Client(cluster, timeout=f"{DASK_START_TIMEOUT_S}s") as client:
+    with (
+        cluster,
+        distributed.Client(cluster, timeout=f"{DASK_START_TIMEOUT_S}s") as client,
+        _quiet_when_interrupted(),
+    ):
         yield DaskExecutor(client, local=True)
 
 
@@ -279,7 +318,7 @@ def _dask(
         client = distributed.Client(scheduler, timeout="20s")
     except (OSError, TimeoutError) as exc:
         raise SkymuleError(f"--scheduler {scheduler!r}: cannot connect ({exc})") from None
-    with client:
+    with client, _quiet_when_interrupted():
         yield DaskExecutor(client, local=False)
 
 

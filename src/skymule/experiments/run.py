@@ -76,7 +76,7 @@ Task = tuple[int, str, dict[str, Any], dict[str, Any]]
 
 @dataclass(frozen=True)
 class SweepOutcome:
-    """A finished sweep: its folder, the per-policy summary and what this call ran."""
+    """A finished sweep: its folder, the summary (per policy and swept value), what it ran."""
 
     folder: Path
     summary: pd.DataFrame
@@ -383,7 +383,7 @@ def run_sweep(
                     n_run += _collect(out, pending, advance)
             while pending:
                 n_run += _collect(out, pending, advance)
-        merged = store.consolidate(out)
+        merged = store.consolidate(out, spec.level_columns)
         store.write_summary(out, merged.summary)
     seconds = time.perf_counter() - start
     return SweepOutcome(out, merged.summary, merged.rows, n_run, seconds)

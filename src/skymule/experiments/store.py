@@ -6,7 +6,7 @@ Layout of a sweep folder ``DIR``::
     DIR/.lock                            while a sweep runs: its pid, host and start time
     DIR/results/part-*.parquet ...       one part per finished chunk (unique tmp + os.replace)
     DIR/results.parquet                  every mission of the sweep exactly once, in order
-    DIR/summary.csv                      per policy: missions, mean and 95% CI per metric
+    DIR/summary.csv                      per policy and swept value: missions, mean and 95% CI
 
 A part is either complete or absent: each writer writes a temporary file under a name no other
 writer uses and renames it into place, so the mission ids in the parts are exactly the missions
@@ -26,7 +26,7 @@ import os
 import socket
 import time
 import uuid
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -37,6 +37,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from skymule.errors import SkymuleError
+from skymule.io import atomic
 from skymule.metrics.summary import HEADLINE_METRICS
 
 PARTS = "results"
@@ -167,35 +168,19 @@ def claim(out: Path, digest: str, source: str) -> None:
             "cannot be resumed; use a new --out folder"
         )
     record = {"sweep_sha256": digest, "id_scheme": ID_SCHEME, "source": source}
-    _atomic_text(json.dumps(record, indent=1) + "\n", meta)
+    atomic.write_text(meta, json.dumps(record, indent=1) + "\n")
 
 
 # --- parts -----------------------------------------------------------------------------
 
 
-def _temporary(path: Path) -> Path:
-    """A temporary name next to ``path`` that no other writer (process or host) uses."""
-    return path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex}.tmp")
-
-
-def _atomic_text(text: str, path: Path) -> None:
-    tmp = _temporary(path)
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
 def _atomic_parquet(table: pa.Table | pd.DataFrame, path: Path) -> None:
-    tmp = _temporary(path)
-    try:
+    # synced before the rename: a resume trusts that a part in place is complete on disk
+    with atomic.atomic_path(path, sync=True) as tmp:
         if isinstance(table, pd.DataFrame):
             table.to_parquet(tmp, index=False)
         else:
             pq.write_table(table, tmp)
-        with open(tmp, "rb") as handle:
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def _sorted_table(frame: pd.DataFrame) -> pa.Table:
@@ -221,16 +206,7 @@ def write_part_bytes(out: Path, data: bytes) -> Path:
     """Store a part made elsewhere (:func:`part_bytes`), atomically, under a fresh name."""
     first = pq.read_metadata(pa.BufferReader(data)).row_group(0).column(0).statistics
     path = _part_path(out, int(first.min) if first is not None and first.has_min_max else 0)
-    tmp = _temporary(path)
-    try:
-        with open(tmp, "wb") as handle:
-            handle.write(data)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return path
+    return atomic.write_bytes(path, data, sync=True)  # a resume trusts a part in place
 
 
 def write_part(out: Path, frame: pd.DataFrame) -> Path:
@@ -374,15 +350,17 @@ def _bucket(parts: list[_Part], bucket: int, schema: pa.Schema) -> pa.Table:
 
 @dataclass(frozen=True)
 class Consolidated:
-    """What :func:`consolidate` wrote: the number of rows and the per-policy summary."""
+    """What :func:`consolidate` wrote: the number of rows and the summary (per policy and
+    swept value)."""
 
     rows: int
     summary: pd.DataFrame
 
 
-def consolidate(out: Path) -> Consolidated:
+def consolidate(out: Path, levels: Sequence[str] = ()) -> Consolidated:
     """``results.parquet`` (every stored mission exactly once, in mission order) and the
-    per-policy summary, streamed: memory holds one bucket of rows, never the sweep.
+    summary per policy and combination of the ``levels`` columns (:class:`SummaryStats`),
+    streamed: memory holds one bucket of rows, never the sweep.
 
     The parts are merged bucket by bucket (``BUCKET_ROWS`` consecutive missions each, one row
     group of the output): a part is read for each bucket it holds rows of (once when its
@@ -395,22 +373,17 @@ def consolidate(out: Path) -> Consolidated:
     for part in parts:
         for bucket in part.buckets:
             by_bucket.setdefault(bucket, []).append(part)
-    summary = SummaryStats()
+    summary = SummaryStats(levels)
     rows = 0
-    path = out / RESULTS
-    tmp = _temporary(path)
-    try:
-        with pq.ParquetWriter(tmp, schema) as writer:
-            for bucket in sorted(by_bucket):
-                table = _bucket(by_bucket[bucket], bucket, schema)
-                writer.write_table(table, row_group_size=BUCKET_ROWS)
-                summary.add(table)
-                rows += len(table)
-        with open(tmp, "rb") as handle:
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    with (
+        atomic.atomic_path(out / RESULTS, sync=True) as tmp,
+        pq.ParquetWriter(tmp, schema) as writer,
+    ):
+        for bucket in sorted(by_bucket):
+            table = _bucket(by_bucket[bucket], bucket, schema)
+            writer.write(table, row_group_size=BUCKET_ROWS)
+            summary.add(table)
+            rows += len(table)
     return Consolidated(rows, summary.table())
 
 
@@ -431,27 +404,34 @@ def t_half_width(n: int, std: float) -> float:
     return float(stdtrit(n - 1, 0.975) * std / np.sqrt(n))
 
 
+Group = tuple[object, ...]
+"""A summary row's key: the policy, then the value of each level column (None: null or NaN)."""
+
+
 class SummaryStats:
-    """Per policy and metric: count, mean and spread, added to batch by batch.
+    """Per policy and combination of the ``levels`` columns, per metric: count, mean and
+    spread, added to batch by batch.
 
     Batches merge by Chan, Golub and LeVeque's pairwise update of (n, mean, M2) ("Updating
     formulae and a pairwise algorithm for computing sample variances", 1979), so a sweep of any
-    size costs one batch of memory. Means are over the non-NaN values (an infinite value makes
-    the mean infinite, as ``numpy.nanmean`` does); the CI is over the finite ones.
+    size costs one batch of memory plus a few numbers per group (policies times swept values,
+    a small number). Means are over the non-NaN values (an infinite value makes the mean
+    infinite, as ``numpy.nanmean`` does); the CI is over the finite ones.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, levels: Sequence[str] = ()) -> None:
+        self.levels = tuple(levels)
+        self.keys: list[str] | None = None  # policy + the levels the rows have, at the first add
         self.metrics: list[str] | None = None
-        self.stats: dict[str, np.ndarray] = {}  # policy -> rows n, mean, M2, +inf, -inf
+        self.stats: dict[Group, np.ndarray] = {}  # group -> rows n, mean, M2, +inf, -inf, rows
 
     def add(self, table: pa.Table) -> None:
-        """Add a batch of result rows (a ``policy`` column and the metrics)."""
+        """Add a batch of result rows (a ``policy`` column, the level columns, the metrics)."""
         if "policy" not in table.column_names or not len(table):
             return
-        if self.metrics is None:
+        if self.keys is None or self.metrics is None:
+            self.keys = ["policy", *(c for c in self.levels if c in table.column_names)]
             self.metrics = [m for m in SUMMARY_METRICS if m in table.column_names]
-        encoded = pc.dictionary_encode(table.column("policy").cast(pa.string())).combine_chunks()
-        codes = encoded.indices.to_numpy(zero_copy_only=False)
         values = np.column_stack(
             [
                 table.column(m).cast(pa.float64()).to_numpy(zero_copy_only=False)
@@ -459,10 +439,11 @@ class SummaryStats:
             ]
             or [np.empty(len(table))]
         )[:, : len(self.metrics)]
-        for code, policy in enumerate(encoded.dictionary.to_pylist()):
-            self._merge(str(policy), values[codes == code])
+        codes, groups = _group_codes(table, self.keys)
+        for code, group in enumerate(groups):
+            self._merge(group, values[codes == code])
 
-    def _merge(self, policy: str, values: np.ndarray) -> None:
+    def _merge(self, group: Group, values: np.ndarray) -> None:
         finite = np.isfinite(values)
         n_b = finite.sum(axis=0).astype(float)
         # shifted by a value of the batch: equal values give their mean and M2 = 0 exactly
@@ -481,9 +462,9 @@ class SummaryStats:
                 np.full(n_b.shape, len(values), float),
             ]
         )
-        held = self.stats.get(policy)
+        held = self.stats.get(group)
         if held is None:
-            self.stats[policy] = batch
+            self.stats[group] = batch
             return
         n_a, mean_a, m2_a = held[0], held[1], held[2]
         n = n_a + n_b
@@ -495,11 +476,12 @@ class SummaryStats:
         held[3:] += batch[3:]
 
     def table(self) -> pd.DataFrame:
-        """Per policy (sorted): missions, and mean and 95% CI half-width of each metric."""
+        """One row per group, sorted by policy then level values (missing values last):
+        the group's columns, missions, and mean and 95% CI half-width of each metric."""
         rows = []
-        for policy in sorted(self.stats):
-            n, mean, m2, up, down, missions = self.stats[policy]
-            row: dict[str, object] = {"policy": policy, "missions": int(missions[0])}
+        for group, (n, mean, m2, up, down, missions) in self.stats.items():
+            row: dict[str, object] = dict(zip(self.keys or (), group, strict=True))
+            row["missions"] = int(missions[0])
             for k, metric in enumerate(self.metrics or []):
                 value = float(mean[k]) if n[k] > 0 else float("nan")
                 if up[k] or down[k]:
@@ -508,29 +490,54 @@ class SummaryStats:
                 std = float(np.sqrt(m2[k] / (n[k] - 1))) if n[k] > 1 else float("nan")
                 row[f"{metric}_ci95"] = t_half_width(int(n[k]), std)
             rows.append(row)
-        return pd.DataFrame(rows)
+        frame = pd.DataFrame(rows)
+        if not rows:
+            return frame
+        # the order pandas' groupby(sort=True, dropna=False) gives; stable, so it never
+        # depends on the order the groups were first met in
+        ordered = frame.sort_values(self.keys or [], na_position="last", kind="stable")
+        return ordered.reset_index(drop=True)
 
 
-def summary_table(results: pd.DataFrame) -> pd.DataFrame:
-    """Per policy: number of missions, and mean and 95% CI half-width of each metric."""
-    stats = SummaryStats()
+def _group_codes(table: pa.Table, keys: Sequence[str]) -> tuple[np.ndarray, list[Group]]:
+    """Each row's group number, and the groups (tuples of ``keys`` values; a null or NaN
+    value is None) in order of their numbers."""
+    codes = np.zeros(len(table), np.int64)
+    groups: list[Group] = [()]
+    for key in keys:
+        encoded = pc.dictionary_encode(table.column(key)).combine_chunks()
+        values = [*(_plain(v) for v in encoded.dictionary.to_pylist()), None]
+        index = encoded.indices.fill_null(len(values) - 1).to_numpy(zero_copy_only=False)
+        # renumbered after each column, so a code stays below the number of rows
+        present, codes = np.unique(codes * len(values) + index, return_inverse=True)
+        groups = [groups[c // len(values)] + (values[c % len(values)],) for c in present.tolist()]
+    return codes.reshape(-1), groups
+
+
+def _plain(value: object) -> object:
+    """A key value as a dictionary key: NaN (never equal to itself) as None, like a null."""
+    return None if isinstance(value, float) and value != value else value
+
+
+def summary_table(results: pd.DataFrame, levels: Sequence[str] = ()) -> pd.DataFrame:
+    """Per policy and combination of the ``levels`` columns (the swept treatments, see
+    :attr:`skymule.experiments.sweep.SweepSpec.level_columns`): number of missions, and mean
+    and 95% CI half-width of each metric."""
+    stats = SummaryStats(levels)
     stats.add(pa.Table.from_pandas(results, preserve_index=False))
     return stats.table()
 
 
-def summary_of(path: Path) -> pd.DataFrame:
+def summary_of(path: Path, levels: Sequence[str] = ()) -> pd.DataFrame:
     """:func:`summary_table` of a results.parquet, read one row group at a time."""
-    stats = SummaryStats()
     file = pq.ParquetFile(path)
-    columns = [c for c in ("policy", *SUMMARY_METRICS) if c in file.schema_arrow.names]
+    names = file.schema_arrow.names
+    columns = [c for c in ("policy", *levels, *SUMMARY_METRICS) if c in names]
+    stats = SummaryStats(levels)
     for group in range(file.num_row_groups):
         stats.add(file.read_row_group(group, columns))
     return stats.table()
 
 
 def write_summary(out: Path, summary: pd.DataFrame) -> Path:
-    path = out / SUMMARY
-    tmp = _temporary(path)
-    summary.to_csv(tmp, index=False)
-    os.replace(tmp, path)
-    return path
+    return atomic.write_with(out / SUMMARY, lambda tmp: summary.to_csv(tmp, index=False))

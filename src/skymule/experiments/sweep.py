@@ -57,7 +57,8 @@ from skymule.experiments.fields import (
     stars,
 )
 from skymule.io.textfiles import read_text
-from skymule.scenario import Scenario, load_scenario, scenario_from_dict
+from skymule.policies.registry import is_plugin
+from skymule.scenario import Scenario, load_scenario, policy_shares, scenario_from_dict
 
 TOP_LEVEL_KEYS = ("base", "seed", "mode", "axes")
 POLICY_PREFIX = "policy."
@@ -98,6 +99,24 @@ class SweepSpec:
     @property
     def drawn(self) -> tuple[Axis, ...]:
         return tuple(a for a in self.axes if a.dist is not None)
+
+    @property
+    def policy_names(self) -> list[str]:
+        """The policies the sweep runs: the ``policy.name`` axis, else the base's policy."""
+        return _policy_axis(self.axes) or [self.base.policy.name]
+
+    @property
+    def level_columns(self) -> list[str]:
+        """The result columns of the list/range axes that are treatments (not seeds, not the
+        policy): ``summary.csv`` has one row per policy and combination of them."""
+        base = base_dict(self.base)
+        columns: list[str] = []
+        for axis in self.discrete:
+            if axis.key in ("seed", "policy.name") or axis.key.endswith(".seed"):
+                continue
+            count = stars(axis.path, base)
+            columns += [axis.key] if count is None else [column(axis.key, i) for i in range(count)]
+        return columns
 
     def __len__(self) -> int:
         paired = math.prod(len(a.values or ()) for a in self.discrete if a.paired)
@@ -226,11 +245,21 @@ def _parse_mode(source: str, mode: Any) -> int | None:
     raise _fail(source, f"mode = {mode!r}; allowed: 'product' or {{sample = N}} with N >= 1")
 
 
-def _base_scenario(source: str, base: Any, folder: Path) -> Scenario:
+def _base_scenario(
+    source: str, base: Any, folder: Path, policies: list[str] | None = None
+) -> Scenario:
     if not isinstance(base, str) or not base:
         raise _fail(source, f"base = {base!r}; allowed: a preset name or a scenario path")
     candidate = folder / base
-    return load_scenario(candidate if candidate.exists() else base)
+    return load_scenario(candidate if candidate.exists() else base, policies=policies)
+
+
+def _policy_axis(axes: Sequence[Axis]) -> list[str] | None:
+    """The values of the ``policy.name`` axis (None: the base's own policy runs)."""
+    for axis in axes:
+        if axis.key == "policy.name" and axis.values is not None:
+            return [str(v) for v in axis.values]
+    return None
 
 
 def parse_sweep(data: dict[str, Any], source: str, folder: Path) -> SweepSpec:
@@ -248,7 +277,7 @@ def parse_sweep(data: dict[str, Any], source: str, folder: Path) -> SweepSpec:
     if not isinstance(table, dict) or not table:
         raise _fail(source, "[axes] is missing or empty; give at least one axis")
     axes = tuple(parse_axis(source, k, v) for k, v in flatten_axes(table))
-    base = _base_scenario(source, data["base"], folder)
+    base = _base_scenario(source, data["base"], folder, _policy_axis(axes))
     spec = SweepSpec(source, base, seed, axes, sample, sweep_digest(data))
     if sample is None and not spec.discrete:
         raise _fail(
@@ -317,15 +346,17 @@ class Expansion:
     base: dict[str, Any]
     axes: tuple[Axis, ...]
     counts: tuple[int | None, ...]  # elements each "*" axis spans (None: no "*")
+    shares: tuple[tuple[str, frozenset[str] | None], ...] = ()
+    """The ``[policy.params]`` keys each policy of the sweep keeps (None: all)."""
 
     def scenario(self, values: Sequence[Any]) -> dict[str, Any]:
-        """The resolved scenario dictionary of a mission."""
+        """The resolved scenario dictionary of a mission (its policy's parameters only)."""
         data = self.base
         for axis, count, value in zip(self.axes, self.counts, values, strict=True):
             if count is not None and axis.values is not None:
                 value = [value] * count
             data = assign(data, axis.path, value, self.source, axis.key)
-        return place_sensors(data)
+        return place_sensors(share_params(data, dict(self.shares)))
 
     def scenario_with(self, data: dict[str, Any], axis: Axis, value: Any) -> dict[str, Any]:
         """``data`` (a base or resolved dict) with one list/range axis set to ``value``."""
@@ -362,10 +393,37 @@ class Expansion:
             return scenario_from_dict(data, source, Path(self.base_dir))
 
 
+def share_params(data: dict[str, Any], shares: dict[str, frozenset[str] | None]) -> dict[str, Any]:
+    """``data`` with ``[policy.params]`` cut to the keys its policy keeps (``shares``; a
+    policy not in it keeps everything)."""
+    policy = data.get("policy")
+    if not isinstance(policy, dict) or not isinstance(policy.get("params"), dict):
+        return data
+    keep = shares.get(str(policy.get("name")))
+    if keep is None:
+        return data
+    params = {k: v for k, v in policy["params"].items() if k in keep}
+    return {**data, "policy": {**policy, "params": params}}
+
+
 def expansion(spec: SweepSpec) -> Expansion:
+    """The sweep's :class:`Expansion`, for running it: the plug-ins among its policies are
+    imported (to share ``[policy.params]`` out, and refuse a key none of its policies has)."""
     base = base_dict(spec.base)
     counts = tuple(stars(axis.path, base) for axis in spec.axes)
-    return Expansion(spec.source, spec.base.base_dir, base, spec.axes, counts)
+    shares = tuple(zip(spec.policy_names, _shares(spec), strict=True))
+    return Expansion(spec.source, spec.base.base_dir, base, spec.axes, counts, shares)
+
+
+def _shares(spec: SweepSpec) -> list[frozenset[str] | None]:
+    """:func:`policy_shares` of the sweep's policies over the base's ``[policy.params]`` and
+    the ``policy.params.*`` axes (imports the plug-ins among them)."""
+    params = (a.path[2] for a in spec.axes if a.path[:2] == ("policy", "params"))
+    keys = dict.fromkeys([*spec.base.policy.params, *map(str, params)])
+    try:
+        return policy_shares(keys, spec.policy_names, spec.base.policy.name)
+    except SkymuleError as exc:
+        raise _fail(spec.source, str(exc)) from None
 
 
 def _id_prefix(spec: SweepSpec, base: dict[str, Any]) -> bytes:
@@ -590,15 +648,18 @@ def _check_axes(spec: SweepSpec) -> None:
     from skymule.policies import POLICIES, unknown_policies
 
     base = base_dict(spec.base)
+    # which policy keeps which [policy.params] key is known without importing anything when
+    # the sweep runs no plug-in; else it is checked when the sweep runs (expansion)
+    unknown = unknown_policies(spec.policy_names)
+    if unknown:
+        raise _fail(
+            spec.source,
+            f"axes.policy.name value {unknown[0]!r} is not a policy; "
+            f"allowed: {', '.join(sorted(POLICIES))}",
+        )
+    plugins = any(is_plugin(name) for name in spec.policy_names)
+    registered = {} if plugins else dict(zip(spec.policy_names, _shares(spec), strict=True))
     for axis in spec.axes:
-        if axis.key == "policy.name":
-            unknown = unknown_policies([str(v) for v in axis.values or ()])
-            if unknown:
-                raise _fail(
-                    spec.source,
-                    f"axes.policy.name value {unknown[0]!r} is not a policy; "
-                    f"allowed: {', '.join(sorted(POLICIES))}",
-                )
         count = stars(axis.path, base)
         candidates: Iterable[Any] = [None]  # distributions: checked on their draws
         if isinstance(axis.values, range):
@@ -612,4 +673,9 @@ def _check_axes(spec: SweepSpec) -> None:
             elif count is not None:
                 value = [value] * count
             data = place_sensors(assign(base, axis.path, value, spec.source, axis.key))
-            scenario_from_dict(data, f"{spec.source}: axes.{axis.key}", Path(spec.base.base_dir))
+            scenario_from_dict(
+                share_params(data, registered),
+                f"{spec.source}: axes.{axis.key}",
+                Path(spec.base.base_dir),
+                policies=spec.policy_names,
+            )

@@ -17,6 +17,7 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
+from skymule.io import atomic
 from skymule.report.style import SENSOR_PALETTE, TOTAL_STYLE
 
 
@@ -60,9 +61,10 @@ def _site_geometry(scenario: dict[str, Any]) -> dict[str, Any]:
 
 def _save(fig: Figure, path: Path) -> Path:
     fig.tight_layout()
-    fig.savefig(path, dpi=150)
-    plt.close(fig)
-    return path
+    try:
+        return atomic.write_with(path, lambda tmp: fig.savefig(tmp, dpi=150, format="png"))
+    finally:
+        plt.close(fig)
 
 
 def _xy(point: Any, frame: Any) -> tuple[float, float] | None:

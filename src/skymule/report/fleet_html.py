@@ -21,6 +21,7 @@ from pathlib import Path
 
 from matplotlib.axes import Axes
 
+from skymule.io import atomic
 from skymule.report.fleet import draw_fleet_trajectory, draw_uav_cumulative, draw_uav_sensor_bars
 from skymule.report.fleet_inputs import FleetRun, load_fleet_input
 from skymule.report.html import (
@@ -200,12 +201,13 @@ def uavs_section(fleets: tuple[FleetRun, ...]) -> str:
     return "".join(parts)
 
 
-def build_fleet_report(folder: Path, pdf: bool = True) -> Path:
-    """Write ``folder/report.html`` (and ``folder/figures/*.png|pdf``) for a fleet run folder
-    or a compare folder of fleet runs; returns the HTML path. ``pdf=False`` skips the PDFs."""
+def build_fleet_report(folder: Path, pdf: bool = True, out: Path | None = None) -> Path:
+    """Write ``report.html`` (and ``figures/*.png|pdf``) for a fleet run folder or a compare
+    folder of fleet runs into ``out`` (default: ``folder``); returns the HTML path.
+    ``pdf=False`` skips the PDFs."""
     kind, fleets = load_fleet_input(folder)
     runs = tuple(f.run for f in fleets)
-    figures = folder / FIGURES_DIR
+    figures = (out or folder) / FIGURES_DIR
     first = runs[0].summary
     labels = ", ".join(f.label for f in fleets)
     title = f"{first.get('scenario', folder.name)}: {labels} ({len(fleets[0].uavs)} UAVs)"
@@ -237,6 +239,4 @@ def build_fleet_report(folder: Path, pdf: bool = True) -> Path:
         f"<p>skymule report of <code>{html.escape(str(folder))}</code> ({what}; UAVs: "
         f"{html.escape(', '.join(fleets[0].uavs))}).</p>{note_html}"
     )
-    out = folder / REPORT_FILE
-    out.write_text(page_html(title, intro, sections), encoding="utf-8")
-    return out
+    return atomic.write_text((out or folder) / REPORT_FILE, page_html(title, intro, sections))

@@ -19,6 +19,7 @@ from typing import Any, Generic, TypeVar
 
 from matplotlib.axes import Axes
 
+from skymule.io import atomic
 from skymule.report.figures import draw_cumulative_download, draw_snr_cdf
 from skymule.report.inputs import (
     ReportInput,
@@ -323,13 +324,13 @@ def _scenario_block(report: ReportInput) -> str:
     return intro + f"<pre>{html.escape(text)}</pre>"
 
 
-def build_run_report(folder: Path, pdf: bool = True) -> Path:
-    """Write ``folder/report.html`` (and ``folder/figures/*.png|pdf``) for a run or compare
-    folder; returns the HTML path. ``pdf=False`` skips the vector PDFs (the HTML only embeds
-    the PNGs)."""
+def build_run_report(folder: Path, pdf: bool = True, out: Path | None = None) -> Path:
+    """Write ``report.html`` (and ``figures/*.png|pdf``) for a run or compare folder into
+    ``out`` (default: ``folder``); returns the HTML path. ``pdf=False`` skips the vector PDFs
+    (the HTML only embeds the PNGs)."""
     report = load_input(folder)
     runs = report.runs
-    figures = folder / FIGURES_DIR
+    figures = (out or folder) / FIGURES_DIR
     scores = [score_breakdown(r) for r in runs]
     first = runs[0].summary
     title = f"{first.get('scenario', folder.name)}: " + (
@@ -399,6 +400,4 @@ def build_run_report(folder: Path, pdf: bool = True) -> Path:
     page = page_html(
         title, intro, sections, f"{payload_script(list(runs))}<script>{SCRIPT}</script>"
     )
-    out = folder / REPORT_FILE
-    out.write_text(page, encoding="utf-8")
-    return out
+    return atomic.write_text((out or folder) / REPORT_FILE, page)

@@ -30,6 +30,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from skymule.errors import SkymuleError
+from skymule.io import atomic
 
 if TYPE_CHECKING:
     from matplotlib.typing import RcKeyType
@@ -253,7 +254,8 @@ def save_figure(
     try:
         for fmt in formats:
             path = folder / f"{stem}.{fmt}"
-            fig.savefig(path, dpi=dpi, format=fmt, metadata=_metadata(fmt))
+            with atomic.atomic_path(path) as tmp:
+                fig.savefig(tmp, dpi=dpi, format=fmt, metadata=_metadata(fmt))
             written[fmt] = path
     finally:
         plt.close(fig)

@@ -5,11 +5,12 @@ Reads ``results.parquet`` (one row per mission: parameters + summary metrics) an
 
 * summary: the per-policy table of ``summary.csv`` (recomputed from the rows if it is absent);
 * distributions of total downloaded data and of completion per policy (box + strip, ECDF);
-* paired comparison: missions with the same parameters except the policy ones (``policy.*``)
+* paired comparison: missions with the same parameters except the policy (``policy.name``)
   form a pair set; the ECDF of each policy's per-mission gain over a baseline, its mean with a
   95% CI (Student t) and the fractions of missions won, lost and tied;
-* swept parameters: mean metric vs up to two swept numeric parameters, per policy, with 95%
-  CI bands (discrete axes per value, drawn ones in quantile bins).
+* swept parameters: mean metric vs every swept numeric list/range parameter (a policy's own
+  ``policy.params.*`` included) and, up to two figures in all, the drawn ones, per policy, with
+  95% CI bands (discrete axes per value, drawn ones in quantile bins).
 
 Figures go to ``SWEEPDIR/figures/sweep-*.png|pdf`` and are embedded as base64 PNGs.
 """
@@ -35,6 +36,7 @@ from skymule.experiments.store import (
     summary_of,
     t_half_width,
 )
+from skymule.io import atomic
 from skymule.report.html import (
     FIGURES_DIR,
     REPORT_DPI,
@@ -64,7 +66,7 @@ from skymule.report.sweep_query import (
 )
 
 POLICY_COLUMN = "policy"
-POLICY_PREFIX = "policy."
+POLICY_NAME = "policy.name"
 GAIN_METRIC = "total_downloaded_mbit"
 #: |gain| at or below this [Mbit] (one bit) counts as a tie.
 TIE_MBIT = 1e-6
@@ -193,9 +195,10 @@ def parameter_columns(columns: list[str]) -> list[str]:
     ]
 
 
-def read_summary(folder: Path, results: Results) -> tuple[pd.DataFrame, str]:
+def read_summary(folder: Path, results: Results, query: ResultsQuery) -> tuple[pd.DataFrame, str]:
     """``summary.csv`` when it is readable and complete, else the same table from the rows
-    (streamed)."""
+    (streamed, per policy and value of each list axis as :func:`summary_levels_of` finds
+    them)."""
     path = folder / SUMMARY
     metrics = [m for m in SUMMARY_METRICS if m in results.columns]
     wanted = {"policy", "missions", *(f"{m}_{s}" for m in metrics for s in ("mean", "ci95"))}
@@ -207,7 +210,26 @@ def read_summary(folder: Path, results: Results) -> tuple[pd.DataFrame, str]:
         if wanted <= set(table.columns):
             table["policy"] = table["policy"].astype(str)
             return table, SUMMARY
-    return summary_of(results.path), f"{RESULTS} (no complete {SUMMARY})"
+    return summary_of(results.path, summary_levels_of(query, results)), (
+        f"{RESULTS} (no complete {SUMMARY})"
+    )
+
+
+def summary_levels_of(query: ResultsQuery, results: Results) -> list[str]:
+    """The parameter columns a summary is split by when only the rows are left: the list
+    axes, told from drawn ones by their few distinct values (seeds and the policy aside)."""
+    levels = []
+    for column in parameter_columns(results.columns):
+        if column in (POLICY_NAME, "seed") or column.endswith(".seed"):
+            continue
+        name = quoted(column)
+        # HyperLogLog first: an exact count of millions of distinct draws costs a hash table
+        if query.approx_distinct(name) > 4 * MAX_DISCRETE:
+            continue
+        ((distinct,),) = query.rows(f"SELECT count(DISTINCT {name}) FROM results")
+        if distinct <= MAX_DISCRETE:
+            levels.append(column)
+    return levels
 
 
 def default_baseline(policies: list[str]) -> str:
@@ -236,7 +258,7 @@ def paired_gains(
     """Gains over ``baseline`` on pair sets: rows equal in every non-policy parameter."""
     if len(policies) < 2:
         return None
-    keys = [p for p in params if not p.startswith(POLICY_PREFIX) and p != POLICY_COLUMN]
+    keys = [p for p in params if p not in (POLICY_NAME, POLICY_COLUMN)]
     policy = f"CAST({quoted(POLICY_COLUMN)} AS VARCHAR)"
     columns = []
     for i, name in enumerate(policies):
@@ -297,14 +319,15 @@ def _is_number(field: pa.Field) -> bool:
 def swept_parameters(
     query: ResultsQuery, schema: pa.Schema, params: list[str]
 ) -> list[SweptParameter]:
-    """Up to two numeric parameters that vary: discrete axes first, then drawn ones.
+    """The numeric parameters that vary: every discrete one (a policy's parameters too), then
+    drawn ones while there are fewer than :data:`MAX_PARAMETER_FIGURES`.
 
     Seeds are replicate indices, not treatments, and are left out; ``sensors[i].field``
     columns form one parameter (their sum for buffers, else their mean).
     """
     groups: dict[str, list[str]] = {}
     for col in params:
-        if col.startswith(POLICY_PREFIX) or col == "seed" or col.endswith(".seed"):
+        if col == POLICY_NAME or col == "seed" or col.endswith(".seed"):
             continue
         if not _is_number(schema.field(col)):
             continue
@@ -333,8 +356,9 @@ def swept_parameters(
         ((distinct,),) = query.rows(f"SELECT count(DISTINCT {x}) FROM results")
         if distinct > 1:
             found.append(SweptParameter(label, expression, bool(distinct <= MAX_DISCRETE)))
-    found.sort(key=lambda p: not p.discrete)  # stable: file order within each kind
-    return found[:MAX_PARAMETER_FIGURES]
+    discrete = [p for p in found if p.discrete]
+    drawn = [p for p in found if not p.discrete]
+    return discrete + drawn[: max(0, MAX_PARAMETER_FIGURES - len(discrete))]
 
 
 def policy_colours(policies: list[str]) -> dict[str, str]:
@@ -469,21 +493,49 @@ def _num(value: float, template: str) -> str:
     return "-" if not np.isfinite(value) else template.format(value)
 
 
+def summary_levels(summary: pd.DataFrame) -> list[str]:
+    """The swept treatments of ``summary.csv``: its columns between policy and missions."""
+    columns = list(summary.columns)
+    if columns[:1] != ["policy"] or "missions" not in columns:
+        return []
+    return columns[1 : columns.index("missions")]
+
+
 def summary_html(summary: pd.DataFrame, source: str) -> str:
     metrics = [m for m in METRIC_LABELS if f"{m}_mean" in summary.columns]
+    levels = summary_levels(summary)
     rows = []
     for _, row in summary.iterrows():
-        cells = [html.escape(str(row["policy"])), str(int(row["missions"]))]
+        cells = [html.escape(str(row["policy"]))]
+        cells += [html.escape(_level(row[c])) for c in levels]
+        cells.append(str(int(row["missions"])))
         for metric in metrics:
             fmt = METRIC_LABELS[metric][1]
             mean, half = float(row[f"{metric}_mean"]), float(row[f"{metric}_ci95"])
             cells.append(f"{_num(mean, fmt)} ± {_num(half, fmt)}")
         rows.append(cells)
-    header = ["policy", "missions", *(METRIC_LABELS[m][0] for m in metrics)]
+    header = [
+        "policy",
+        *(_column_label(c) for c in levels),
+        "missions",
+        *(METRIC_LABELS[m][0] for m in metrics),
+    ]
+    per = "per policy" + (" and swept value" if levels else "")
     return (
-        f"<p>Mean ± 95% CI half-width (Student t) per policy, from <code>{html.escape(source)}"
+        f"<p>Mean ± 95% CI half-width (Student t) {per}, from <code>{html.escape(source)}"
         "</code>.</p>" + table_html(header, rows, "sweep-summary-table")
     )
+
+
+def _column_label(column: str) -> str:
+    """A parameter column in words (``sensors[1].buffer_mbit`` -> ``sensor 2 buffer [Mbit]``)."""
+    match = re.fullmatch(r"sensors\[(\d+)\]\..*", column)
+    words = parameter_label(column)
+    return f"sensor {int(match.group(1)) + 1} {words}" if match else words
+
+
+def _level(value: object) -> str:
+    return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def gain_html(paired: Paired) -> str:
@@ -562,15 +614,18 @@ def parameters_html(query: ResultsQuery, schema: pa.Schema, params: list[str]) -
     return table_html(["parameter", "distinct values", "values"], rows, "parameter-table")
 
 
-def build_sweep_report(folder: Path, pdf: bool = True, baseline: str | None = None) -> Path:
-    """Write ``folder/report.html`` and ``folder/figures/sweep-*.png|pdf``; returns the HTML.
+def build_sweep_report(
+    folder: Path, pdf: bool = True, baseline: str | None = None, out: Path | None = None
+) -> Path:
+    """Write ``report.html`` and ``figures/sweep-*.png|pdf`` of a sweep folder into ``out``
+    (default: ``folder``); returns the HTML.
 
     The rows stay on disk: every statistic is a DuckDB query over results.parquet
     (:mod:`skymule.report.sweep_query`), so ten million missions report in constant memory.
     """
     results = read_results(folder)
-    summary, source = read_summary(folder, results)
     with results_query(results.path, results.schema) as query:
+        summary, source = read_summary(folder, results, query)
         policies = query.distinct(POLICY_COLUMN)
         if baseline is None:
             baseline = default_baseline(policies)
@@ -579,7 +634,8 @@ def build_sweep_report(folder: Path, pdf: bool = True, baseline: str | None = No
                 f"--baseline {baseline}: not a policy of {folder / RESULTS}; "
                 f"allowed: {', '.join(policies)}"
             )
-        sections = _sections(query, folder, results, summary, source, policies, baseline, pdf)
+        figures = (out or folder) / FIGURES_DIR
+        sections = _sections(query, figures, results, summary, source, policies, baseline, pdf)
         scenarios = query.distinct("scenario") if "scenario" in results.columns else []
     scenario = ", ".join(scenarios)
     title = f"{scenario or folder.name}: sweep of {results.n} missions"
@@ -588,14 +644,12 @@ def build_sweep_report(folder: Path, pdf: bool = True, baseline: str | None = No
         f"{results.n} missions, policies: {html.escape(', '.join(policies))}).</p>"
     )
     page = page_html(title, intro, sections)
-    out = folder / REPORT_FILE
-    out.write_text(page, encoding="utf-8")
-    return out
+    return atomic.write_text((out or folder) / REPORT_FILE, page)
 
 
 def _sections(
     query: ResultsQuery,
-    folder: Path,
+    figures: Path,
     results: Results,
     summary: pd.DataFrame,
     source: str,
@@ -603,7 +657,6 @@ def _sections(
     baseline: str,
     pdf: bool,
 ) -> list[tuple[str, str, str]]:
-    figures = folder / FIGURES_DIR
     params = parameter_columns(results.columns)
     sections: list[tuple[str, str, str]] = [("summary", "Summary", summary_html(summary, source))]
     dist = figure_html(

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from skymule.errors import SkymuleError
+from skymule.io import atomic
 from skymule.policies import check_policies
 from skymule.radio.pathloss import PATHLOSS_MODELS
 from skymule.registry import did_you_mean
@@ -158,16 +159,18 @@ def bound_row(upper: MissionBound, **extra: object) -> dict[str, Any]:
 def write_bound(folder: Path, upper: MissionBound) -> Path:
     """Write ``folder/bound.json`` (Mbit) and return its path."""
     folder.mkdir(parents=True, exist_ok=True)
-    path = folder / BOUND_JSON
-    path.write_text(json.dumps(upper.to_json_dict(), indent=2) + "\n")
-    return path
+    return atomic.write_text(folder / BOUND_JSON, json.dumps(upper.to_json_dict(), indent=2) + "\n")
 
 
 def _run_all(
     scenario: Scenario, policies: Sequence[str], source: str | None, mission: Mission | None
 ) -> list[CompareRun]:
     shared = build_mission(scenario) if mission is None else mission
-    return [CompareRun(source, p, simulate(scenario, p, mission=shared)) for p in policies]
+    variants = scenario.with_policies(policies)  # each policy gets its own parameters
+    return [
+        CompareRun(source, name, simulate(variant, mission=shared))
+        for name, variant in zip(policies, variants, strict=True)
+    ]
 
 
 def compare_policies(
@@ -265,7 +268,8 @@ def write_compare(
     for run in comparison.runs:
         run.result.write(run_folder(out, run))
     written = [out / COMPARISON_CSV]
-    pd.DataFrame([*comparison.rows(), *extra_rows]).to_csv(written[0], index=False)
+    table = pd.DataFrame([*comparison.rows(), *extra_rows])
+    atomic.write_with(written[0], lambda tmp: table.to_csv(tmp, index=False))
     if not comparison.by_source:
         upper = comparison.bounds.get(None)
         if upper is not None:

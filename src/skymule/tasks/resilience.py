@@ -24,6 +24,7 @@ import numpy as np
 import pandas as pd
 
 from skymule.errors import SkymuleError
+from skymule.io import atomic
 from skymule.scenario import Scenario, scenario_from_dict
 from skymule.units import BITS_PER_MBIT
 
@@ -133,8 +134,8 @@ def run_study(
         for m in range(missions):
             single = leveled(scenario, kind, level, m)
             mission = build_mission(single)
-            for name in policies:
-                summary = simulate(single, policy=name, mission=mission).summary
+            for name, variant in zip(policies, single.with_policies(policies), strict=True):
+                summary = simulate(variant, mission=mission).summary
                 rows.append(
                     {
                         "level": level,
@@ -218,6 +219,6 @@ def plot(frame: pd.DataFrame, kind: str, path: Path) -> None:
         ax.set_ylabel("downloaded [Mbit] (mean, 95 % CI)")
         ax.legend()
         fig.tight_layout()
-        fig.savefig(path, dpi=120)
+        atomic.write_with(path, lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
     finally:
         plt.close(fig)

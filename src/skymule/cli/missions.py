@@ -31,7 +31,12 @@ JsonOption = Annotated[
     bool, typer.Option("--json", help="Print a machine-readable summary (JSON) instead.")
 ]
 ForceOption = Annotated[
-    bool, typer.Option("--force", help="Write into --out even if it holds something else.")
+    bool,
+    typer.Option(
+        "--force",
+        help="Write into --out even if it holds another result (which is removed first; "
+        "files skymule did not write are kept).",
+    ),
 ]
 
 TrustOption = Annotated[
@@ -181,7 +186,7 @@ def compare(
     names = check_policies(_names(policies))
     source_specs = parse_sources(sources) if sources is not None else None
     if out is not None:
-        guard_compare(out, base.name, names, force)
+        guard_compare(out, base.name, names, force, source_specs)
     if source_specs is None:
         comparison = compare_policies(base, names)
     else:

@@ -12,6 +12,7 @@ import skymule.cli.output as output
 from skymule.cli.folders import guard_bound, guard_compare, guard_run, guard_sweep
 from skymule.cli.output import print_json
 from skymule.cli.tables import fmt, print_table
+from skymule.errors import SkymuleError
 from skymule.trust import TRUST_HELP, trust_option
 
 if TYPE_CHECKING:
@@ -314,8 +315,13 @@ def sweep(
     sweep_file: Annotated[Path, typer.Argument(help="Sweep TOML (base scenario + axes).")],
     out: Annotated[Path, typer.Option("--out", help="Sweep folder (resumed if it exists).")],
     executor: Annotated[
-        str, typer.Option("--executor", help="inprocess, process, dask-local or dask.")
-    ] = "process",
+        str,
+        typer.Option(
+            "--executor",
+            help="auto (this process for a small sweep, else a process pool: by estimated "
+            "work), inprocess, process, dask-local or dask.",
+        ),
+    ] = "auto",
     workers: Annotated[
         int | None, typer.Option("--workers", help="Workers (default: all cores).")
     ] = None,
@@ -337,20 +343,22 @@ def sweep(
     if overrides:
         spec = _sweep_with_overrides(spec, overrides)
     check_policies(spec.policy_names, f"{sweep_file}: policy.name")  # before any worker starts
+    chosen = sweep_executor(executor, spec, workers, scheduler)
     guard_sweep(out, sweep_file, force)
     announce_imports(spec.policy_names, sweep_file)
     try:
         outcome = run_sweep(
             spec,
             out,
-            executor=executor,
+            executor=chosen,
             workers=workers,
             scheduler=scheduler,
             chunk_size=chunk_size,
             progress=not quiet and sys.stderr.isatty(),
         )
     except KeyboardInterrupt:
-        again = ["skymule", "sweep", str(sweep_file), "--out", str(out), "--executor", executor]
+        again = ["skymule", "sweep", str(sweep_file), "--out", str(out)]
+        again += ["--executor", executor] if executor != "auto" else []
         again += ["--workers", str(workers)] if workers is not None else []
         again += ["--scheduler", scheduler] if scheduler else []
         again += ["--chunk-size", str(chunk_size)] if chunk_size != 500 else []
@@ -369,10 +377,30 @@ def sweep(
     ]
     title = f"{sweep_file.name}: {outcome.n_missions} missions (mean ± 95% CI)"
     print_table(output.console, title, rows, ("policy", *levels, "missions", *SWEEP_METRICS))
+    how = f" ({chosen}, chosen by estimated work)" if executor == "auto" else ""
     output.say(
-        f"ran {outcome.n_run} of {outcome.n_missions} missions in {outcome.seconds:.1f} s; "
-        f"wrote {out}/results.parquet and {out}/summary.csv"
+        f"ran {outcome.n_run} of {outcome.n_missions} missions in {outcome.seconds:.1f} s"
+        f"{how}; wrote {out}/results.parquet and {out}/summary.csv"
     )
+
+
+def sweep_executor(executor: str, spec: Any, workers: int | None, scheduler: str | None) -> str:
+    """The executor ``--executor`` names; for ``auto``, ``dask`` with a ``--scheduler``, else
+    the local one that finishes sooner (:func:`skymule.experiments.workload.choose_executor`)."""
+    from skymule.experiments.executors import EXECUTORS, default_workers
+
+    if executor == "auto":
+        from skymule.experiments.workload import choose_executor
+
+        if scheduler is not None:
+            return "dask"
+        return choose_executor(spec, workers or default_workers())
+    if executor not in EXECUTORS:
+        from skymule.registry import unknown_name_message
+
+        choices = ["auto", *EXECUTORS.names()]
+        raise SkymuleError(unknown_name_message("--executor", executor, choices))
+    return executor
 
 
 def _sweep_with_overrides(spec: Any, overrides: list[str]) -> Any:

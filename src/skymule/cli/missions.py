@@ -11,7 +11,7 @@ import typer
 import skymule.cli.output as output
 from skymule.cli.folders import guard_bound, guard_compare, guard_run, guard_sweep
 from skymule.cli.output import print_json
-from skymule.cli.tables import fmt, print_table
+from skymule.cli.tables import fmt_mean_ci, print_table
 from skymule.errors import SkymuleError
 from skymule.trust import TRUST_HELP, trust_option
 
@@ -300,7 +300,7 @@ def scenarios(
                 "name": name,
                 "mode": spec.trajectory.mode,
                 "source": spec.signal.source,
-                "duration [s]": fmt(spec.mission.duration_s),
+                "duration [s]": spec.mission.duration_s,
                 "sensors": ", ".join(f"{s.name}:{s.buffer_mbit:g}" for s in spec.sensors),
             }
         )
@@ -371,7 +371,7 @@ def sweep(
             "policy": row["policy"],
             **{c: row[c] for c in levels},
             "missions": row["missions"],
-            **{m: f"{fmt(row[f'{m}_mean'])} ± {fmt(row[f'{m}_ci95'])}" for m in SWEEP_METRICS},
+            **{m: fmt_mean_ci(row[f"{m}_mean"], row[f"{m}_ci95"]) for m in SWEEP_METRICS},
         }
         for row in outcome.summary.to_dict("records")
     ]

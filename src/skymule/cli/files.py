@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -171,8 +172,11 @@ def fit_radiomap_command(
             seed=seed,
         )
     fit.fitted.write(out)
+    for warning in fit.warnings:
+        print(f"skymule: warning: {warning}", file=sys.stderr)
     if json_out:
-        print(json.dumps({"map": str(out), "method": method, "sensors": fit.rows}, indent=2))
+        shown = {"map": str(out), "method": method, "sensors": fit.rows}
+        print(json.dumps({**shown, "warnings": list(fit.warnings)}, indent=2))
         return
     held_out = "last segment of each trace" if method == "neural" else "held-out trace segments"
     title = f"radio map fit, {method} (cv: {held_out}; baseline: fspl)"

@@ -28,7 +28,13 @@ def resilience(
         ),
     ],
     levels: Annotated[
-        str, typer.Option("--levels", help="Comma-separated intensities, e.g. 0,3,6 (dB).")
+        str,
+        typer.Option(
+            "--levels",
+            help="Comma-separated intensities of --fault, e.g. 0,60,120: outage mean length "
+            "[s], gilbert-elliott share of lost slots [0-1), snr-error std [dB], missed-polls "
+            "probability [0-1), gps-error std [m], wind speed [m/s].",
+        ),
     ],
     out: Annotated[Path, typer.Option("--out", help="Folder for resilience.csv/.png.")],
     policies: Annotated[

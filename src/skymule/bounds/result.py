@@ -28,6 +28,7 @@ class BoundResult:
             optimal relaxed solution.
         dwell_time_s: ``(K,)`` seconds spent at sample ``k``.
         last_sample: index of the last sample reached.
+        warnings: conditions of the method that visibly fail for this mission (one line each).
     """
 
     upper_bound_bit: float
@@ -37,6 +38,7 @@ class BoundResult:
     served_time_s: np.ndarray
     dwell_time_s: np.ndarray
     last_sample: int
+    warnings: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -53,6 +55,8 @@ class MissionBound:
         total_buffer_bit: sum of the initial buffers (bit).
         no_hover_upper_bound_bit: fixed trajectories: the paper's formulation with ``r_t``
             fixed (no pausing), in bit; None for autonomous ones.
+        warnings: conditions of the method that visibly fail for this mission (one line
+            each); ``skymule bound`` and ``compare`` print them.
     """
 
     scenario: str
@@ -63,6 +67,7 @@ class MissionBound:
     solve_time_s: float
     total_buffer_bit: float
     no_hover_upper_bound_bit: float | None = None
+    warnings: tuple[str, ...] = ()
 
     def to_json_dict(self) -> dict[str, Any]:
         """The ``bound.json`` record (Mbit at the edge)."""
@@ -76,4 +81,5 @@ class MissionBound:
             "method": self.method,
             "status": self.status,
             "solve_time_s": self.solve_time_s,
+            "warnings": list(self.warnings),
         }

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -143,6 +144,12 @@ def fleet_policy_names(spec: Scenario) -> list[str]:
     return [(uav.policy or spec.policy).name for uav in spec.uavs or ()]
 
 
+def warn(lines: Sequence[str]) -> None:
+    """Print each line as a warning on stderr (the result is still written and printed)."""
+    for line in lines:
+        print(f"skymule: warning: {line}", file=sys.stderr)
+
+
 def _names(text: str) -> list[str]:
     return [p.strip() for p in text.split(",") if p.strip()]
 
@@ -193,6 +200,9 @@ def compare(
     else:
         comparison = compare_sources(base, source_specs, names)
     written = write_compare(comparison, out) if out is not None else []
+    for source, upper in comparison.bounds.items():
+        where = f"{source}: " if source is not None else ""
+        warn([f"{where}upper bound: {w}" for w in upper.warnings] if upper else [])
     if json_out:
         print_json(_comparison_json(comparison))
         return
@@ -228,7 +238,9 @@ def _comparison_json(comparison: Comparison) -> dict[str, Any]:
 
 
 def bound_rows(record: dict[str, Any]) -> list[dict[str, Any]]:
-    return [{"quantity": k, "value": v} for k, v in record.items() if v is not None]
+    """The bound's quantities as table rows (its warnings go to stderr, one line each)."""
+    shown = {k: v for k, v in record.items() if v is not None and k != "warnings"}
+    return [{"quantity": k, "value": v} for k, v in shown.items()]
 
 
 def bound(
@@ -248,6 +260,7 @@ def bound(
         upper = scenario_bound(spec)
     record = upper.to_json_dict()
     path = write_bound(out, upper) if out is not None else None
+    warn(upper.warnings)
     if json_out:
         print_json(record)
         return

@@ -145,3 +145,15 @@ def test_steepest_step_ignores_points_off_the_grid_and_dead_links() -> None:
     snr = np.array([[10.0, 12.5, np.nan], [11.0, -np.inf, 40.0]])[:, :, None]
     assert steepest_step_db(snr) == 2.5  # 10 -> 12.5 across, 10 -> 11 down; 40 has no neighbour
     assert steepest_step_db(np.full((2, 2, 1), np.nan)) == 0.0
+
+
+def test_the_python_bound_reads_in_mbit_like_every_summary() -> None:
+    from skymule.tasks.compare import compare_policies, scenario_bound
+
+    scenario = load_scenario("paper-sim-fixed")
+    upper = scenario_bound(scenario)
+    assert upper.upper_bound_mbit == pytest.approx(3000.0) and upper.total_buffer_mbit == 3000.0
+    assert upper.upper_bound_mbit == upper.to_json_dict()["upper_bound_mbit"]
+    assert 2500.0 < (upper.no_hover_upper_bound_mbit or 0.0) < 3000.0
+    (row,) = compare_policies(scenario, ["hgad"]).rows()
+    assert row["upper_bound_mbit"] - row["total_downloaded_mbit"] == row["gap_to_bound_mbit"]

@@ -26,7 +26,6 @@ import pandas as pd
 from skymule.errors import SkymuleError
 from skymule.io import atomic
 from skymule.scenario import Scenario, scenario_from_dict
-from skymule.units import BITS_PER_MBIT
 
 FaultLevel = Callable[[float], dict[str, Any]]
 
@@ -150,7 +149,7 @@ def run_study(
 
         for m in range(missions):
             clean = build_mission(leveled(scenario, kind, 0.0, m))
-            bounds.append(fixed_mission_bound(clean).upper_bound_bit / BITS_PER_MBIT)
+            bounds.append(fixed_mission_bound(clean).upper_bound_mbit)
     return Study(pd.DataFrame(rows), np.array(bounds) if bounds else None)
 
 

@@ -281,35 +281,67 @@ def _ecdf(ax: Axes, values: np.ndarray, **kwargs: object) -> None:
         ax.step(np.r_[values[0], values], np.r_[0.0, y], where="post", **kwargs)  # type: ignore[arg-type]
 
 
+#: Missions drawn as dots per policy at most: beyond a few hundred dots a strip is a blob
+#: (the box and the CDF summarise every mission).
+STRIP_POINTS = 300
+
+
+def sweep_title(results: pd.DataFrame, what: str = "") -> str:
+    """What a sweep figure is about: the scenario (name, sensors, length), the missions and
+    ``what``; from results.parquet alone."""
+    names = (
+        ", ".join(sorted(results["scenario"].astype(str).unique())) if "scenario" in results else ""
+    )
+    sensors = sum(c.startswith("per_sensor_buffer_mbit.") for c in results.columns)
+    lengths = results["mission_time_s"].unique() if "mission_time_s" in results else []
+    parts = [p for p in (names, f"{sensors} sensors" if sensors else "") if p]
+    if len(lengths) == 1:
+        parts.append(f"{float(lengths[0]):.0f} s")
+    head = f"{', '.join(parts)}: " if parts else ""
+    return f"{head}{len(results):,} missions" + (f"; {what}" if what else "")
+
+
+def strip_sample(values: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """At most :data:`STRIP_POINTS` of ``values``, drawn without replacement (seeded)."""
+    if values.size <= STRIP_POINTS:
+        return values
+    return rng.choice(values, STRIP_POINTS, replace=False)
+
+
 def draw_distribution(
     results: pd.DataFrame, metric: str, label: str, folder: Path, stem: str, pdf: bool
 ) -> Path:
-    """Box + jittered strip per policy (left), ECDF per policy (right)."""
+    """Box + jittered strip per policy (left; at most :data:`STRIP_POINTS` dots a policy),
+    ECDF per policy (right)."""
     policies = sorted(results[POLICY_COLUMN].unique())
     colours = policy_colours(policies)
     data = [results.loc[results[POLICY_COLUMN] == p, metric].to_numpy(float) for p in policies]
     data = [d[np.isfinite(d)] for d in data]
     rng = np.random.default_rng(0)
+    sampled = any(values.size > STRIP_POINTS for values in data)
     with paper_style():
         fig, (box, cdf) = panel_figure(2, 2.6)
         box.boxplot(data, widths=0.5, showfliers=False, medianprops={"color": "#000000"})
         for i, (policy, values) in enumerate(zip(policies, data, strict=True), start=1):
-            jitter = rng.uniform(-0.18, 0.18, values.size)
-            box.scatter(i + jitter, values, s=4, alpha=0.45, color=colours[policy], lw=0)
+            shown = strip_sample(values, rng)
+            jitter = rng.uniform(-0.18, 0.18, shown.size)
+            box.scatter(i + jitter, shown, s=4, alpha=0.45, color=colours[policy], lw=0)
             box.plot(i, values.mean() if values.size else np.nan, "D", color="#000000", ms=3)
             _ecdf(cdf, values, color=colours[policy], label=policy)
         box.plot([], [], "D", color="#000000", ms=3, ls="", label="mean")
         box.set_xticks(range(1, len(policies) + 1), policies)
         box.set_ylabel(label)
-        box.set_title("per mission")
+        box.set_title(f"per mission ({STRIP_POINTS} dots a policy)" if sampled else "per mission")
         cdf.set_xlabel(label)
         cdf.set_ylabel("fraction of missions")
         cdf.set_title("empirical CDF")
-        finish_figure(fig, f"{len(results)} missions")
+        finish_figure(fig, sweep_title(results))
         return save_figure(fig, folder, stem, report_formats(pdf), REPORT_DPI)["png"]
 
 
-def draw_gains(paired: Paired, policies: list[str], folder: Path, pdf: bool) -> Path:
+def draw_gains(
+    paired: Paired, policies: list[str], folder: Path, pdf: bool, title: str = ""
+) -> Path:
     colours = policy_colours(policies)
     with paper_style():
         fig, (ax,) = panel_figure(1, 2.9)
@@ -326,7 +358,7 @@ def draw_gains(paired: Paired, policies: list[str], folder: Path, pdf: bool) -> 
         ax.axvline(0.0, color="#000000", lw=0.8)
         ax.set_xlabel(f"gain over {paired.baseline} per mission [Mbit]")
         ax.set_ylabel("fraction of missions")
-        finish_figure(fig, f"Paired gain over {paired.baseline}", columns=1)
+        finish_figure(fig, title or f"Paired gain over {paired.baseline}", columns=1)
         return save_figure(fig, folder, "sweep-gain", report_formats(pdf), REPORT_DPI)["png"]
 
 
@@ -366,7 +398,7 @@ def draw_parameter(
                 )
             ax.set_xlabel(parameter.label + ("" if parameter.discrete else " (binned)"))
             ax.set_ylabel(f"mean {METRIC_LABELS[metric][0]}")
-        finish_figure(fig, f"Mean per policy vs {parameter.label} (bands: 95% CI)")
+        finish_figure(fig, sweep_title(results, f"mean vs {parameter.label} (bands: 95% CI)"))
         stem = f"sweep-parameter-{number}"
         return save_figure(fig, folder, stem, report_formats(pdf), REPORT_DPI)["png"]
 
@@ -507,8 +539,9 @@ def build_sweep_report(
         draw_distribution(
             results, GAIN_METRIC, "downloaded [Mbit]", figures, "sweep-download", pdf
         ),
-        "Total data downloaded per mission, per policy: box (quartiles, whiskers 1.5 IQR) with "
-        "every mission as a dot, and the empirical CDF.",
+        "Total data downloaded per mission, per policy: box (quartiles, whiskers 1.5 IQR) over "
+        f"every mission, with up to {STRIP_POINTS} missions a policy as dots, and the "
+        "empirical CDF.",
         2 * PANEL_WIDTH_IN,
     )
     if "completion" in results.columns:
@@ -532,7 +565,9 @@ def build_sweep_report(
     else:
         content = figure_html(
             "sweep-gain",
-            draw_gains(paired, policies, figures, pdf),
+            draw_gains(
+                paired, policies, figures, pdf, sweep_title(results, f"gain over {baseline}")
+            ),
             f"Empirical CDF of the per-mission gain in total downloaded data over "
             f"{paired.baseline} on paired missions; dashed: mean gain, shaded: its 95% CI.",
             PANEL_WIDTH_IN,

@@ -290,5 +290,5 @@ def _snr_cdf_figure(comparison: Comparison, out: Path) -> Path:
         if run.policy == first_policy
     ]
     figure = out / "snr_cdf_by_source.png"
-    plot_snr_cdf_by_source(panels, figure, f"SNR CDF ({first_policy})")
+    plot_snr_cdf_by_source(panels, figure, f"SNR CDF by signal source ({first_policy})")
     return figure

@@ -120,15 +120,20 @@ def _is_results_folder(path: Path) -> bool:
     return bool(inside) and all(p.is_dir() and (p / "summary.json").is_file() for p in inside)
 
 
-def clear_results(out: Path) -> None:
-    """Remove what skymule wrote in ``out`` (its result files, run and source folders); the
-    user's other files stay. ``--force`` calls it, so a folder never mixes two results."""
-    for name in RESULT_FILES:
+def _remove(out: Path, names: tuple[str, ...]) -> None:
+    """Delete ``out/name`` for each of ``names`` that exists (file or folder)."""
+    for name in names:
         path = out / name
         if path.is_dir():
             shutil.rmtree(path)
         elif path.exists():
             path.unlink()
+
+
+def clear_results(out: Path) -> None:
+    """Remove what skymule wrote in ``out`` (its result files, run and source folders); the
+    user's other files stay. ``--force`` calls it, so a folder never mixes two results."""
+    _remove(out, RESULT_FILES)
     for path in out.iterdir():
         if path.is_dir() and _is_results_folder(path):
             shutil.rmtree(path)
@@ -209,9 +214,4 @@ def guard_sweep(out: Path, sweep_file: Path, force: bool) -> None:
             raise _refuse(out, holds, f"a sweep of {sweep_file}")
         return
     if holds.kind == "sweep":
-        for name in SWEEP_FILES:
-            path = out / name
-            if path.is_dir():
-                shutil.rmtree(path)
-            elif path.exists():
-                path.unlink()
+        _remove(out, SWEEP_FILES)

@@ -8,6 +8,7 @@ Each ``draw_*`` function draws on a given Axes from :class:`~skymule.report.inpu
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -143,7 +144,7 @@ def draw_snr_time(ax: Axes, run: RunData, title: str = "") -> Axes:
 
 
 #: The upper bound on any policy's download: black and solid, unlike the grey dashed buffer.
-BOUND_STYLE = {"color": "black", "ls": "-", "lw": 1.0}
+BOUND_STYLE: dict[str, Any] = {"color": "black", "ls": "-", "lw": 1.0}
 
 
 def draw_policy_bars(

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import textwrap
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -25,7 +26,7 @@ from skymule.report.style import (
 )
 
 #: The fault-free bound: black dashed (the policies are solid, dashed-dotted, dotted).
-BOUND_STYLE = {"color": "black", "ls": (0, (5, 3)), "lw": 0.9}
+BOUND_STYLE: dict[str, Any] = {"color": "black", "ls": (0, (5, 3)), "lw": 0.9}
 
 
 def plot_resilience(

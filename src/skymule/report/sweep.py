@@ -293,10 +293,12 @@ def sweep_title(results: pd.DataFrame, what: str = "") -> str:
         ", ".join(sorted(results["scenario"].astype(str).unique())) if "scenario" in results else ""
     )
     sensors = sum(c.startswith("per_sensor_buffer_mbit.") for c in results.columns)
-    lengths = results["mission_time_s"].unique() if "mission_time_s" in results else []
+    lengths: list[float] = []
+    if "mission_time_s" in results:
+        lengths = [float(v) for v in results["mission_time_s"].unique()]
     parts = [p for p in (names, f"{sensors} sensors" if sensors else "") if p]
     if len(lengths) == 1:
-        parts.append(f"{float(lengths[0]):.0f} s")
+        parts.append(f"{lengths[0]:.0f} s")
     head = f"{', '.join(parts)}: " if parts else ""
     return f"{head}{len(results):,} missions" + (f"; {what}" if what else "")
 

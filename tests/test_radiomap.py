@@ -211,3 +211,6 @@ def test_a_degenerate_fit_is_flagged(tmp_path: Path) -> None:
     assert fit_warnings([sound]) == ()
     assert len(fit_warnings([{**sound, "range_m": 1.0}])) == 1  # shortest range tried
     assert len(fit_warnings([{**sound, "sigma_db": 0.001}])) == 1  # no sill
+    flat = {**sound, "sigma_db": 0.0, "range_m": 1.0}
+    assert fit_warnings([flat], "log-distance") == ()  # it kriges nothing: nothing to flag
+    assert "learned model alone" in fit_warnings([flat], "neural")[0]

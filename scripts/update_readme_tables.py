@@ -25,14 +25,17 @@ Options:
 Tables, what they run and roughly how long on the 2-core machine they were written on:
   presets       skymule compare {paper-sim-fixed, aadm-default} --policies greedy,hgad   ~3 s
   autonomous    skymule compare paper-sim-autonomous                                     ~2 s
+  table-ii      skymule run paper-sim-autonomous with the paper's Table II buffers (x4)  ~4 s
   sources       skymule compare paper-sim-fixed --sources fspl,two-ray,al-hourani,...    ~3 s
+  bounds        skymule compare {paper-sim-fixed, aadm-default} --policies ...,optimal-fixed ~5 s
+  planner       skymule compare paper-sim-autonomous --policies hgad,planner (x3 variants) ~10 s
   sweep-example skymule sweep examples/sweep-paper.toml (1,000 missions)                 ~10 s
   sweep-scale   benchmarks/bench_sweep.py --missions 20000,200000 (inprocess) and
                 --missions 100000 (inprocess, process, dask-local)                       ~5 min
                 (--saved FILE[,FILE]: only the rows of saved outputs of longer runs,
                 e.g. --missions 10000000 --report; rows not re-run keep their text)
   sim2real      benchmarks/bench_sim2real.py (3 synthetic worlds, every map, two splits)  ~15 min
-  speed         benchmarks/bench_{engine,sweep,channel,bound,autonomous,planner}.py     ~15 min
+  speed         benchmarks/bench_{engine,sweep,channel,bound,autonomous,planner,startup}.py ~15 min
                 (SPEED_BENCHES; sweeps and planner against PREVIOUS_REV in the same run;
                 the 100,000-mission sweep only with --all: +10 min)
   suite         python -m pytest -q (only with --all)                                     ~3 min
@@ -42,6 +45,7 @@ Rows that are not re-run keep their current text.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import re
 import subprocess
@@ -233,6 +237,79 @@ def sweep_scale_table(ctx: Context, old: list[str]) -> list[str]:
     order = sorted(rows, key=lambda k: (int(k[0].replace(",", "")), k[1].startswith("`"), k[1]))
     header = [*SCALE_HEADER, "peak RSS [MiB]", "load"]
     return markdown(header, list("rlrrrrrr"), [rows[k] for k in order])
+
+
+def _bound_mbit(out: Path) -> tuple[float, float | None]:
+    """(bound, no-hover bound) [Mbit] of a compare folder's bound.json."""
+    record = json.loads((out / "bound.json").read_text())
+    return record["upper_bound_mbit"], record["no_hover_upper_bound_mbit"]
+
+
+def bounds_table(ctx: Context, old: list[str]) -> list[str]:
+    """The bound and each policy's gap to it on the fixed presets."""
+    rows = []
+    for preset in ("paper-sim-fixed", "aadm-default"):
+        name = f"bounds-{preset}"
+        table = _compare(ctx, name, preset, "--policies", "greedy,hgad,optimal-fixed")
+        bound, no_hover = _bound_mbit(ctx.work / name)
+        cells = [preset, f"{bound:.1f} ({no_hover:.1f})"]
+        for i, (_, r) in enumerate(table.iterrows()):
+            gap = f"{100 * r['gap_to_bound_frac']:.2f}%"
+            cells.append(f"{r['total_downloaded_mbit']:.1f} ({'gap ' if i == 0 else ''}{gap})")
+        rows.append(cells)
+    header = ["preset", "bound [Mbit] (no hover)", "greedy", "hgad", "optimal-fixed"]
+    return markdown(header, list("lrrrr"), rows)
+
+
+PLANNER_CASES = (
+    ("paper-sim-autonomous", ()),
+    ("same, 300 s", ("--set", "mission.duration_s=300")),
+    (
+        "same, 1500 Mbit per tower",
+        tuple(a for i in range(4) for a in ("--set", f"sensors[{i}].buffer_mbit=1500")),
+    ),
+)
+
+
+def planner_table(ctx: Context, old: list[str]) -> list[str]:
+    """HGAD and the planner against the autonomous bound: as specified, shorter, larger."""
+    rows = []
+    for label, args in PLANNER_CASES:
+        name = f"planner-{len(rows)}"
+        table = _compare(ctx, name, "paper-sim-autonomous", "--policies", "hgad,planner", *args)
+        cells = [label]
+        for _, r in table.iterrows():
+            down = r["total_downloaded_mbit"]
+            if r["aadm_complete"]:  # everything downloaded: when, and the score it earns
+                cells.append(
+                    f"{down:.1f} Mbit, done at {r['aadm_t1_s']:.0f} s, AADM {r['aadm_score']:.0f}"
+                )
+            else:
+                cells.append(f"{down:.1f}")
+        rows.append([*cells, f"{_bound_mbit(ctx.work / name)[0]:.1f}"])
+    return markdown(["autonomous", "hgad", "planner", "bound"], list("lrrr"), rows)
+
+
+TABLE_II = (
+    ((700, 500, 800, 1000), "LW4, LW3, LW1, LW2"),
+    ((500, 800, 1000, 700), "LW3, LW2, LW4, LW1"),
+    ((800, 500, 700, 1000), "LW4, LW1, LW3, LW2"),
+    ((500, 1000, 700, 800), "LW2, LW4, LW3, LW1"),
+)
+"""The paper's Table II: buffers LW1..LW4 [Mbit] and HGAD's navigation order (published)."""
+
+
+def table_ii_table(ctx: Context, old: list[str]) -> list[str]:
+    """HGAD's visit order on paper-sim-autonomous for the paper's Table II buffers."""
+    rows = []
+    for buffers, paper in TABLE_II:
+        sets = [
+            a for i, b in enumerate(buffers) for a in ("--set", f"sensors[{i}].buffer_mbit={b}")
+        ]
+        out, _ = ctx.skymule("run", "paper-sim-autonomous", "--policy", "hgad", *sets, "--json")
+        order = ", ".join(json.loads(out)["visit_order"])
+        rows.append(["/".join(map(str, buffers)), paper, order])
+    return markdown(["buffers LW1..LW4 [Mbit]", "paper", "skymule"], list("lll"), rows)
 
 
 def _numbers(pattern: str, text: str) -> list[tuple[str, ...]]:
@@ -473,6 +550,27 @@ def planner_cells(out: str) -> dict[str, str]:
     }
 
 
+def startup_cells(out: str) -> dict[str, str]:
+    """Start-up of ``skymule --help``, ``run``, ``bound`` and ``compare`` of a preset, from
+    ``bench_startup.py`` (wall and CPU medians; the target is 3x ``--help``)."""
+    ((runs, load),) = _numbers(r"median of (\d+) runs \(load ([\d.]+) ->", out)
+    found = {
+        label: (_f(wall), _f(cpu))
+        for label, wall, cpu in _numbers(
+            r"(?m)^  (--help|run|bound|compare)\s+wall\s+([\d.]+) s \(min [\d.]+\), CPU ([\d.]+) s",
+            out,
+        )
+    }
+    help_wall, help_cpu = found["--help"]
+    parts = [f"`--help` {help_wall:.2f} s ({help_cpu:.2f} s CPU)"]
+    parts += [
+        f"`{label}` {wall:.2f} s (×{wall / help_wall:.1f}; {cpu:.2f} s CPU, ×{cpu / help_cpu:.1f})"
+        for label, (wall, cpu) in found.items()
+        if label != "--help"
+    ]
+    return {"^start-up": f"{', '.join(parts)}; median of {runs}, load {_f(load):.1f} on 2 cores"}
+
+
 SPEED_BENCHES: dict[str, tuple[tuple[str, ...], Callable[[str], dict[str, str]]]] = {
     "bench_engine.py": ((), engine_cells),
     "bench_sweep.py": (("--old-rev", PREVIOUS_REV), sweep_cells),
@@ -481,6 +579,7 @@ SPEED_BENCHES: dict[str, tuple[tuple[str, ...], Callable[[str], dict[str, str]]]
     "bench_autonomous.py": (("--reference-rev", PREVIOUS_REV), autonomous_cells),
     "bench_policies.py": ((), policies_cells),
     "bench_planner.py": (("--speed", "20", "--before", PREVIOUS_REV), planner_cells),
+    "bench_startup.py": ((), startup_cells),
 }
 """Benchmark -> (its arguments for the README, the parser of its output into speed cells).
 ``tests/test_benchmarks_smoke.py`` feeds each parser the tiny run's output, so none rots."""
@@ -500,11 +599,23 @@ def speed_rows(ctx: Context) -> dict[str, str]:
     return cells
 
 
+NEW_SPEED_ROWS = {
+    "^start-up": (
+        "start-up: `skymule --help`, and `run`, `bound`, `compare` of paper-sim-fixed, wall "
+        "time of a fresh process (×: against `--help`)",
+        "`python benchmarks/bench_startup.py`",
+    ),
+}
+"""Rows a measured pattern adds when the table has none yet: pattern -> (what, command)."""
+
+
 def speed_table(ctx: Context, old: list[str]) -> list[str]:
     """Rewrite the figure cell of each row whose ``what`` matches a measured row's pattern;
-    a row no benchmark measured this time (the 100k sweep without --all) keeps its text."""
+    a row no benchmark measured this time (the 100k sweep without --all) keeps its text, and
+    a measured pattern of :data:`NEW_SPEED_ROWS` that no row matches is added as a row."""
     cells = speed_rows(ctx)
     out = []
+    matched = set()
     for line in old:
         parts = line.split(" | ")
         what = parts[0].lstrip("| ")
@@ -512,7 +623,11 @@ def speed_table(ctx: Context, old: list[str]) -> list[str]:
         if key is not None and len(parts) >= 3:
             parts[1] = cells[key]
             line = " | ".join(parts)
+            matched.add(key)
         out.append(line)
+    for key, (what, command) in NEW_SPEED_ROWS.items():
+        if key in cells and key not in matched:
+            out.append(f"| {what} | {cells[key]} | {command} |")
     return out
 
 
@@ -586,7 +701,10 @@ def sim2real_table(ctx: Context, old: list[str]) -> list[str]:
 TABLES: dict[str, Callable[[Context, list[str]], list[str]]] = {
     "presets": presets_table,
     "autonomous": autonomous_table,
+    "table-ii": table_ii_table,
     "sources": sources_table,
+    "bounds": bounds_table,
+    "planner": planner_table,
     "sweep-example": sweep_example_table,
     "sweep-scale": sweep_scale_table,
     "sim2real": sim2real_table,

@@ -93,11 +93,13 @@ def test_a_failed_write_keeps_the_previous_file_and_leaves_no_temporary(tmp_path
 
 def test_ctrl_c_is_held_back_until_related_renames_are_done(tmp_path: Path) -> None:
     done = []
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)  # as in a terminal
     with pytest.raises(KeyboardInterrupt), atomic.ctrl_c_deferred():
         os.kill(os.getpid(), signal.SIGINT)
         done.append("renamed")  # still runs: the Ctrl-C waits for the block's end
     assert done == ["renamed"]
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # put back
+    signal.signal(signal.SIGINT, before)
 
 
 @pytest.fixture(scope="module")
@@ -144,7 +146,11 @@ def test_ctrl_c_during_a_report_prints_one_line_and_keeps_the_previous_one(
     assert drawn and _snapshot(run) == before  # no new figure, no half report, no staging
 
 
-CLI = "from skymule.cli import main; main()"
+# SIGINT as a terminal gives it (a test runner's worker may have it ignored; that is inherited)
+CLI = (
+    "import signal; signal.signal(signal.SIGINT, signal.default_int_handler); "
+    "from skymule.cli import main; main()"
+)
 
 
 def _limited_report(folder: Path, limit: int) -> subprocess.CompletedProcess[str]:

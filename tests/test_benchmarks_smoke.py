@@ -35,6 +35,7 @@ EXPECTED = {
     "bench_resilience.py": ["robust - plain", "hgad-robust", "planner-robust", "ended home"],
     "bench_single.py": ["paper-sim-fixed", "aadm-default", "slots/s"],
     "bench_sim2real.py": ["neural + DT prior", "noise floor", "fit time", "twin (DT map)"],
+    "bench_startup.py": ["--help", "run", "x --help in wall time", "CPU"],
     "bench_sweep.py": ["sample-10k", "us CPU/mission", "process executor", "seed axis"],
     "train_ppo.py": ["hgad", "bound", "PPO - HGAD"],
 }

@@ -55,7 +55,10 @@ def test_ctrl_c_prints_one_line_and_the_resume_command(tmp_path: Path, executor:
     (tmp_path / "sweep.toml").write_text(SWEEP)
     out = tmp_path / "out"
     args = ["sweep", "sweep.toml", "--out", str(out), "--executor", executor, "--workers", "2"]
-    command = [sys.executable, "-c", "from skymule.cli import main; main()", *args]
+    # SIGINT as a terminal gives it (a test runner's worker may have it ignored, and an
+    # ignored signal is inherited)
+    start = "import signal; signal.signal(signal.SIGINT, signal.default_int_handler); "
+    command = [sys.executable, "-c", start + "from skymule.cli import main; main()", *args]
     with _group([*command, "--chunk-size", "20"], tmp_path) as sweep:
         deadline = time.monotonic() + 240  # a loaded machine starts a cluster slowly
         while not list((out / "results").glob("part-*.parquet")):

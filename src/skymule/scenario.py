@@ -543,6 +543,11 @@ class Scenario(_Spec):
                     f"faults[{index}] ({fault.kind}): sensor {unknown[0]!r} is not in the "
                     f"scenario; allowed: {', '.join(names)}"
                 )
+            if fault.kind == "battery" and self.trajectory.mode == "fixed":
+                raise ValueError(
+                    f"faults[{index}] (battery): a battery limit needs trajectory.mode = "
+                    "'autonomous' (a fixed path cannot turn home when the energy runs low)"
+                )
             if fault.kind == "wind" and not self.uavs:  # a fleet checks each UAV (sim.fleet)
                 uav = (
                     self.trajectory.max_speed_mps

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from shapely.geometry import Point, Polygon, box
 
-from skymule.aadm.score import AADM_WINDOW_S
+from skymule.aadm.rules import AADM_WINDOW_S
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.faults.draws import FaultDraws, draw_faults, fault_rng
 from skymule.flight.navigation import Navigator, hover_point

@@ -17,8 +17,14 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from skymule.aadm.protocol import FIRST_TOWER_PORT, TELEMETRY_PORT, TOWERS_TELEMETRY_PORT, UAV_PORT
-from skymule.aadm.score import AADM_POLL_S, AADM_WINDOW_S
+from skymule.aadm.rules import (
+    AADM_POLL_S,
+    AADM_WINDOW_S,
+    FIRST_TOWER_PORT,
+    TELEMETRY_PORT,
+    TOWERS_TELEMETRY_PORT,
+    UAV_PORT,
+)
 from skymule.errors import SkymuleError
 from skymule.trust import TRUST_HELP, trust_option
 

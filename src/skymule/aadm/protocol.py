@@ -49,11 +49,11 @@ from datetime import datetime
 import numpy as np
 
 from skymule.aadm.files import TIME_FORMAT
+from skymule.aadm.rules import FIRST_TOWER_PORT as FIRST_TOWER_PORT
+from skymule.aadm.rules import TELEMETRY_PORT as TELEMETRY_PORT
+from skymule.aadm.rules import TOWERS_TELEMETRY_PORT as TOWERS_TELEMETRY_PORT
+from skymule.aadm.rules import UAV_PORT as UAV_PORT
 from skymule.errors import SkymuleError
-
-#: The testbed's ports: UAV polls, telemetry, tower k at FIRST_TOWER_PORT + k - 1; and where
-#: ``skymule aadm towers`` takes telemetry (beside the controller's) by default.
-UAV_PORT, TELEMETRY_PORT, FIRST_TOWER_PORT, TOWERS_TELEMETRY_PORT = 8005, 8006, 8001, 8007
 
 REQUEST = "snr_dd"
 NOT_HEARD_DB = -99.0

@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 import skymule.cli.output as output
-from skymule.cli.folders import guard_analysis
+from skymule.cli.folders import guard_analysis, inspect_folder
 from skymule.cli.missions import TrustOption
 from skymule.cli.tables import print_table
+from skymule.errors import SkymuleError
 
 
 def plot(
@@ -20,26 +22,39 @@ def plot(
     dpi: Annotated[int, typer.Option("--dpi", help="Raster resolution [dpi].")] = 300,
 ) -> None:
     """Draw a run's figures from its files (never re-simulates)."""
-    from skymule.io.runs import is_run_dir, read_run
+    from skymule.io.runs import read_run
     from skymule.report.plot import plot_run
     from skymule.report.style import check_dpi, parse_formats
 
     formats = parse_formats(fmt)
     check_dpi(dpi)
-
-    folders = (
-        [run_dir]
-        if is_run_dir(run_dir)
-        else sorted(p for p in run_dir.iterdir() if p.is_dir() and is_run_dir(p))
-        if run_dir.is_dir()
-        else []
-    )
+    if inspect_folder(run_dir).kind == "sweep":
+        raise SkymuleError(
+            f"{run_dir}: a sweep folder; its figures come with `skymule report {run_dir}` "
+            "(report.html and figures/sweep-*.png), plot draws run and compare folders"
+        )
+    folders = run_folders(run_dir)
     if not folders:
         read_run(run_dir)  # raises the clear "not a run folder" error
     for folder in folders:
         summary, slots = read_run(folder)
         for path in plot_run(folder, summary, slots, formats=formats, dpi=dpi):
             output.say(f"wrote {path}")
+
+
+def run_folders(folder: Path) -> list[Path]:
+    """The run folders in ``folder``: itself, its policies (compare), or its sources'
+    policies (``compare --sources``)."""
+    from skymule.io.runs import is_run_dir
+
+    if is_run_dir(folder):
+        return [folder]
+    if not folder.is_dir():
+        return []
+    inside = sorted(p for p in folder.iterdir() if p.is_dir())
+    return [p for p in inside if is_run_dir(p)] or [
+        run for p in inside for run in sorted(p.iterdir()) if run.is_dir() and is_run_dir(run)
+    ]
 
 
 def _report(folder: Path, pdf: bool, baseline: str | None = None) -> Path:
@@ -171,8 +186,11 @@ def fit_radiomap_command(
             seed=seed,
         )
     fit.fitted.write(out)
+    for warning in fit.warnings:
+        print(f"skymule: warning: {warning}", file=sys.stderr)
     if json_out:
-        print(json.dumps({"map": str(out), "method": method, "sensors": fit.rows}, indent=2))
+        shown = {"map": str(out), "method": method, "sensors": fit.rows}
+        print(json.dumps({**shown, "warnings": list(fit.warnings)}, indent=2))
         return
     held_out = "last segment of each trace" if method == "neural" else "held-out trace segments"
     title = f"radio map fit, {method} (cv: {held_out}; baseline: fspl)"

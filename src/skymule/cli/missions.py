@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -11,7 +12,8 @@ import typer
 import skymule.cli.output as output
 from skymule.cli.folders import guard_bound, guard_compare, guard_run, guard_sweep
 from skymule.cli.output import print_json
-from skymule.cli.tables import fmt, print_table
+from skymule.cli.tables import fmt_mean_ci, print_table
+from skymule.errors import SkymuleError
 from skymule.trust import TRUST_HELP, trust_option
 
 if TYPE_CHECKING:
@@ -31,7 +33,12 @@ JsonOption = Annotated[
     bool, typer.Option("--json", help="Print a machine-readable summary (JSON) instead.")
 ]
 ForceOption = Annotated[
-    bool, typer.Option("--force", help="Write into --out even if it holds something else.")
+    bool,
+    typer.Option(
+        "--force",
+        help="Write into --out even if it holds another result (which is removed first; "
+        "files skymule did not write are kept).",
+    ),
 ]
 
 TrustOption = Annotated[
@@ -137,6 +144,12 @@ def fleet_policy_names(spec: Scenario) -> list[str]:
     return [(uav.policy or spec.policy).name for uav in spec.uavs or ()]
 
 
+def warn(lines: Sequence[str]) -> None:
+    """Print each line as a warning on stderr (the result is still written and printed)."""
+    for line in lines:
+        print(f"skymule: warning: {line}", file=sys.stderr)
+
+
 def _names(text: str) -> list[str]:
     return [p.strip() for p in text.split(",") if p.strip()]
 
@@ -181,12 +194,15 @@ def compare(
     names = check_policies(_names(policies))
     source_specs = parse_sources(sources) if sources is not None else None
     if out is not None:
-        guard_compare(out, base.name, names, force)
+        guard_compare(out, base.name, names, force, source_specs)
     if source_specs is None:
         comparison = compare_policies(base, names)
     else:
         comparison = compare_sources(base, source_specs, names)
     written = write_compare(comparison, out) if out is not None else []
+    for source, upper in comparison.bounds.items():
+        where = f"{source}: " if source is not None else ""
+        warn([f"{where}upper bound: {w}" for w in upper.warnings] if upper else [])
     if json_out:
         print_json(_comparison_json(comparison))
         return
@@ -222,7 +238,9 @@ def _comparison_json(comparison: Comparison) -> dict[str, Any]:
 
 
 def bound_rows(record: dict[str, Any]) -> list[dict[str, Any]]:
-    return [{"quantity": k, "value": v} for k, v in record.items() if v is not None]
+    """The bound's quantities as table rows (its warnings go to stderr, one line each)."""
+    shown = {k: v for k, v in record.items() if v is not None and k != "warnings"}
+    return [{"quantity": k, "value": v} for k, v in shown.items()]
 
 
 def bound(
@@ -242,6 +260,7 @@ def bound(
         upper = scenario_bound(spec)
     record = upper.to_json_dict()
     path = write_bound(out, upper) if out is not None else None
+    warn(upper.warnings)
     if json_out:
         print_json(record)
         return
@@ -294,7 +313,7 @@ def scenarios(
                 "name": name,
                 "mode": spec.trajectory.mode,
                 "source": spec.signal.source,
-                "duration [s]": fmt(spec.mission.duration_s),
+                "duration [s]": spec.mission.duration_s,
                 "sensors": ", ".join(f"{s.name}:{s.buffer_mbit:g}" for s in spec.sensors),
             }
         )
@@ -309,8 +328,13 @@ def sweep(
     sweep_file: Annotated[Path, typer.Argument(help="Sweep TOML (base scenario + axes).")],
     out: Annotated[Path, typer.Option("--out", help="Sweep folder (resumed if it exists).")],
     executor: Annotated[
-        str, typer.Option("--executor", help="inprocess, process, dask-local or dask.")
-    ] = "process",
+        str,
+        typer.Option(
+            "--executor",
+            help="auto (this process for a small sweep, else a process pool: by estimated "
+            "work), inprocess, process, dask-local or dask.",
+        ),
+    ] = "auto",
     workers: Annotated[
         int | None, typer.Option("--workers", help="Workers (default: all cores).")
     ] = None,
@@ -332,20 +356,22 @@ def sweep(
     if overrides:
         spec = _sweep_with_overrides(spec, overrides)
     check_policies(spec.policy_names, f"{sweep_file}: policy.name")  # before any worker starts
+    chosen = sweep_executor(executor, spec, workers, scheduler)
     guard_sweep(out, sweep_file, force)
     announce_imports(spec.policy_names, sweep_file)
     try:
         outcome = run_sweep(
             spec,
             out,
-            executor=executor,
+            executor=chosen,
             workers=workers,
             scheduler=scheduler,
             chunk_size=chunk_size,
             progress=not quiet and sys.stderr.isatty(),
         )
     except KeyboardInterrupt:
-        again = ["skymule", "sweep", str(sweep_file), "--out", str(out), "--executor", executor]
+        again = ["skymule", "sweep", str(sweep_file), "--out", str(out)]
+        again += ["--executor", executor] if executor != "auto" else []
         again += ["--workers", str(workers)] if workers is not None else []
         again += ["--scheduler", scheduler] if scheduler else []
         again += ["--chunk-size", str(chunk_size)] if chunk_size != 500 else []
@@ -358,16 +384,36 @@ def sweep(
             "policy": row["policy"],
             **{c: row[c] for c in levels},
             "missions": row["missions"],
-            **{m: f"{fmt(row[f'{m}_mean'])} ± {fmt(row[f'{m}_ci95'])}" for m in SWEEP_METRICS},
+            **{m: fmt_mean_ci(row[f"{m}_mean"], row[f"{m}_ci95"]) for m in SWEEP_METRICS},
         }
         for row in outcome.summary.to_dict("records")
     ]
     title = f"{sweep_file.name}: {outcome.n_missions} missions (mean ± 95% CI)"
     print_table(output.console, title, rows, ("policy", *levels, "missions", *SWEEP_METRICS))
+    how = f" ({chosen}, chosen by estimated work)" if executor == "auto" else ""
     output.say(
-        f"ran {outcome.n_run} of {outcome.n_missions} missions in {outcome.seconds:.1f} s; "
-        f"wrote {out}/results.parquet and {out}/summary.csv"
+        f"ran {outcome.n_run} of {outcome.n_missions} missions in {outcome.seconds:.1f} s"
+        f"{how}; wrote {out}/results.parquet and {out}/summary.csv"
     )
+
+
+def sweep_executor(executor: str, spec: Any, workers: int | None, scheduler: str | None) -> str:
+    """The executor ``--executor`` names; for ``auto``, ``dask`` with a ``--scheduler``, else
+    the local one that finishes sooner (:func:`skymule.experiments.workload.choose_executor`)."""
+    from skymule.experiments.executors import EXECUTORS, default_workers
+
+    if executor == "auto":
+        from skymule.experiments.workload import choose_executor
+
+        if scheduler is not None:
+            return "dask"
+        return choose_executor(spec, workers or default_workers())
+    if executor not in EXECUTORS:
+        from skymule.registry import unknown_name_message
+
+        choices = ["auto", *EXECUTORS.names()]
+        raise SkymuleError(unknown_name_message("--executor", executor, choices))
+    return executor
 
 
 def _sweep_with_overrides(spec: Any, overrides: list[str]) -> Any:

@@ -28,7 +28,13 @@ def resilience(
         ),
     ],
     levels: Annotated[
-        str, typer.Option("--levels", help="Comma-separated intensities, e.g. 0,3,6 (dB).")
+        str,
+        typer.Option(
+            "--levels",
+            help="Comma-separated intensities of --fault, e.g. 0,60,120: outage mean length "
+            "[s], gilbert-elliott share of lost slots [0-1), snr-error std [dB], missed-polls "
+            "probability [0-1), gps-error std [m], wind speed [m/s].",
+        ),
     ],
     out: Annotated[Path, typer.Option("--out", help="Folder for resilience.csv/.png.")],
     policies: Annotated[
@@ -42,7 +48,8 @@ def resilience(
 ) -> None:
     """Every policy over increasing fault intensity, paired draws: Mbit (mean, 95 % CI)."""
     from skymule.policies import check_policies
-    from skymule.tasks.resilience import parse_levels, plot, run_study, table
+    from skymule.report.resilience import plot_resilience
+    from skymule.tasks.resilience import LEVELS, parse_levels, run_study, table
 
     values = parse_levels(levels, fault)
     names = check_policies(_names(policies))
@@ -56,7 +63,10 @@ def resilience(
     frame = table(run_study(base, fault, values, names, missions))
     out.mkdir(parents=True, exist_ok=True)
     atomic.write_with(out / "resilience.csv", lambda tmp: frame.to_csv(tmp, index=False))
-    plot(frame, fault, out / "resilience.png")
+    from skymule.report.style import scenario_description
+
+    words = scenario_description(base.to_toml_dict(), {"mission_time_s": base.mission.duration_s})
+    plot_resilience(frame, LEVELS[fault][0], out / "resilience.png", f"{words}: {fault}")
     rows = [{str(k): v for k, v in row.items()} for row in frame.to_dict("records")]
     print_table(output.console, f"{base.name}: {fault}", rows, COLUMNS)
     output.say(f"wrote {out}/resilience.csv, resilience.png")

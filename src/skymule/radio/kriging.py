@@ -293,15 +293,23 @@ def empirical_semivariogram(
     return lag_sums[ok] / counts[ok], sums[ok] / counts[ok], counts[ok]
 
 
+SHORTEST_RANGE_M = 1.0
+"""The shortest correlation range :func:`fit_variogram` tries [m]; a fit that ends there (or
+with a sill of :data:`NO_SILL_DB2`) found no spatial structure to krige."""
+
+NO_SILL_DB2 = 1e-6
+"""The sill [dB^2] :func:`fit_variogram` gives a residual without spatial structure."""
+
+
 def fit_variogram(positions_m: np.ndarray, residual_db: np.ndarray) -> Variogram:
     """Exponential variogram with nugget, by weighted least squares over a grid of ranges."""
     lag, gamma, counts = empirical_semivariogram(positions_m, residual_db)
     total = float(np.var(residual_db))
     if lag.size < 2 or total <= 0:
-        return Variogram(sill_db2=max(total, 1e-6), range_m=1.0, nugget_db2=0.0)
+        return Variogram(sill_db2=max(total, NO_SILL_DB2), range_m=SHORTEST_RANGE_M, nugget_db2=0.0)
     w = np.sqrt(counts)
     best: tuple[float, Variogram] | None = None
-    for range_m in np.geomspace(1.0, 5.0 * lag.max(), 120):
+    for range_m in np.geomspace(SHORTEST_RANGE_M, 5.0 * lag.max(), 120):
         design = np.column_stack([np.ones_like(lag), 1.0 - np.exp(-lag / range_m)])
         (nugget, sill), cost = scipy.optimize.nnls(design * w[:, None], gamma * w)
         if best is None or cost < best[0]:
@@ -309,7 +317,8 @@ def fit_variogram(positions_m: np.ndarray, residual_db: np.ndarray) -> Variogram
     assert best is not None
     vario = best[1]
     if vario.sill_db2 <= 0:  # pure nugget: no spatial structure
-        return Variogram(sill_db2=1e-6, range_m=1.0, nugget_db2=max(vario.nugget_db2, 1e-6))
+        nugget = max(vario.nugget_db2, NO_SILL_DB2)
+        return Variogram(sill_db2=NO_SILL_DB2, range_m=SHORTEST_RANGE_M, nugget_db2=nugget)
     return vario
 
 

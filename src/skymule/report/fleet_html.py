@@ -30,15 +30,18 @@ from skymule.report.html import (
     PanelSpec,
     figure_html,
     format_cell,
+    gap_table,
     page_html,
     render_bars,
     render_panels,
     sensor_table,
     table_html,
 )
+from skymule.report.inputs import COMPARISON_FILE, comparison_bound, read_comparison
 from skymule.report.panels import draw_remaining
 from skymule.report.style import (
     PANEL_WIDTH_IN,
+    grid_shape,
     report_formats,
     scenario_description,
 )
@@ -216,18 +219,22 @@ def build_fleet_report(folder: Path, pdf: bool = True, out: Path | None = None) 
         ("uavs", "UAVs", uavs_section(fleets)),
     ]
     if kind == "compare":
-        bars = render_bars(runs, figures, pdf)
-        caption = "Data downloaded per policy (all UAVs), stacked by sensor; dashed: total buffer."
+        bound = comparison_bound(read_comparison(folder / COMPARISON_FILE))
+        bars = render_bars(runs, figures, pdf, bound)
+        caption = "Data downloaded per policy (all UAVs), stacked by sensor; dashed: total buffer"
+        if bound is not None:
+            caption += "; solid: the K-UAV upper bound on what any policies can download"
         sections.append(
             (
                 "comparison",
                 "Policy comparison",
-                figure_html("policies", bars, caption, PANEL_WIDTH_IN),
+                figure_html("policies", bars, caption + ".", PANEL_WIDTH_IN)
+                + (gap_table(runs, bound) if bound is not None else ""),
             )
         )
     for panel in FLEET_PANELS:
         png = render_fleet_panel(panel, fleets, figures, pdf)
-        width = PANEL_WIDTH_IN * len(fleets)
+        width = PANEL_WIDTH_IN * grid_shape(len(fleets))[1]
         sections.append((panel.key, panel.title, figure_html(panel.key, png, panel.caption, width)))
     scenario = runs[0].scenario
     text = json.dumps(scenario, indent=2) if scenario else "(no scenario.json)"

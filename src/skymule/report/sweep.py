@@ -371,6 +371,36 @@ def _ecdf(ax: Axes, x: np.ndarray, y: np.ndarray, **kwargs: object) -> None:
         ax.step(np.r_[x[0], x], np.r_[0.0, y], where="post", **kwargs)  # type: ignore[arg-type]
 
 
+#: Missions drawn as dots per policy at most: beyond a few hundred dots a strip is a blob
+#: (the box and the CDF summarise every mission).
+STRIP_POINTS = 300
+
+
+def sweep_title(query: ResultsQuery, results: Results, what: str = "") -> str:
+    """What a sweep figure is about: the scenario (name, sensors, length), the missions and
+    ``what``; from results.parquet alone (queried, not loaded)."""
+    names, lengths = "", []
+    if "scenario" in results.columns:
+        found = query.rows(f"SELECT DISTINCT CAST({quoted('scenario')} AS VARCHAR) FROM results")
+        names = ", ".join(sorted(str(v) for (v,) in found))
+    if "mission_time_s" in results.columns:
+        found = query.rows(f"SELECT DISTINCT {quoted('mission_time_s')} FROM results LIMIT 2")
+        lengths = [float(v) for (v,) in found]
+    sensors = sum(c.startswith("per_sensor_buffer_mbit.") for c in results.columns)
+    parts = [p for p in (names, f"{sensors} sensors" if sensors else "") if p]
+    if len(lengths) == 1:
+        parts.append(f"{lengths[0]:.0f} s")
+    head = f"{', '.join(parts)}: " if parts else ""
+    return f"{head}{results.n:,} missions" + (f"; {what}" if what else "")
+
+
+def strip_sample(values: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """At most :data:`STRIP_POINTS` of ``values``, drawn without replacement (seeded)."""
+    if values.size <= STRIP_POINTS:
+        return values
+    return rng.choice(values, STRIP_POINTS, replace=False)
+
+
 def draw_distribution(
     query: ResultsQuery,
     policies: list[str],
@@ -379,12 +409,14 @@ def draw_distribution(
     folder: Path,
     stem: str,
     pdf: bool,
+    title: str,
 ) -> Path:
-    """Box + jittered strip per policy (left), ECDF per policy (right)."""
+    """Box + jittered strip per policy (left; at most :data:`STRIP_POINTS` dots a policy),
+    ECDF per policy (right)."""
     colours = policy_colours(policies)
     found = query.distribution(metric, POLICY_COLUMN)
     rng = np.random.default_rng(0)
-    sampled = any(d.dots.size < d.n for d in found.values())
+    sampled = any(d.n > STRIP_POINTS for d in found.values())
     with paper_style():
         fig, (box, cdf) = panel_figure(2, 2.6)
         shown = [(i, p) for i, p in enumerate(policies, start=1) if p in found]
@@ -397,24 +429,25 @@ def draw_distribution(
         )
         for i, policy in shown:
             dist = found[policy]
-            jitter = rng.uniform(-0.18, 0.18, dist.dots.size)
-            box.scatter(i + jitter, dist.dots, s=4, alpha=0.45, color=colours[policy], lw=0)
+            dots = strip_sample(dist.dots, rng)
+            jitter = rng.uniform(-0.18, 0.18, dots.size)
+            box.scatter(i + jitter, dots, s=4, alpha=0.45, color=colours[policy], lw=0)
             box.plot(i, dist.mean, "D", color="#000000", ms=3)
             _ecdf(cdf, dist.ecdf_x, dist.ecdf_y, color=colours[policy], label=policy)
         box.plot([], [], "D", color="#000000", ms=3, ls="", label="mean")
         box.set_xticks(range(1, len(policies) + 1), policies)
         box.set_ylabel(label)
-        box.set_title(
-            f"per mission (dots: {DOTS:,} per policy at random)" if sampled else "per mission"
-        )
+        box.set_title(f"per mission ({STRIP_POINTS} dots a policy)" if sampled else "per mission")
         cdf.set_xlabel(label)
         cdf.set_ylabel("fraction of missions")
         cdf.set_title("empirical CDF")
-        finish_figure(fig, f"{sum(d.n for d in found.values()):,} missions")
+        finish_figure(fig, title)
         return save_figure(fig, folder, stem, report_formats(pdf), REPORT_DPI)["png"]
 
 
-def draw_gains(paired: Paired, policies: list[str], folder: Path, pdf: bool) -> Path:
+def draw_gains(
+    paired: Paired, policies: list[str], folder: Path, pdf: bool, title: str = ""
+) -> Path:
     colours = policy_colours(policies)
     with paper_style():
         fig, (ax,) = panel_figure(1, 2.9)
@@ -431,7 +464,7 @@ def draw_gains(paired: Paired, policies: list[str], folder: Path, pdf: bool) -> 
         ax.axvline(0.0, color="#000000", lw=0.8)
         ax.set_xlabel(f"gain over {paired.baseline} per mission [Mbit]")
         ax.set_ylabel("fraction of missions")
-        finish_figure(fig, f"Paired gain over {paired.baseline}", columns=1)
+        finish_figure(fig, title or f"Paired gain over {paired.baseline}", columns=1)
         return save_figure(fig, folder, "sweep-gain", report_formats(pdf), REPORT_DPI)["png"]
 
 
@@ -466,6 +499,7 @@ def draw_parameter(
     number: int,
     folder: Path,
     pdf: bool,
+    title: str,
 ) -> Path:
     colours = policy_colours(policies)
     bin_sql, centres = _bins(query, parameter)
@@ -484,7 +518,7 @@ def draw_parameter(
                 )
             ax.set_xlabel(parameter.label + ("" if parameter.discrete else " (binned)"))
             ax.set_ylabel(f"mean {METRIC_LABELS[metric][0]}")
-        finish_figure(fig, f"Mean per policy vs {parameter.label} (bands: 95% CI)")
+        finish_figure(fig, f"{title}; mean vs {parameter.label} (bands: 95% CI)")
         stem = f"sweep-parameter-{number}"
         return save_figure(fig, folder, stem, report_formats(pdf), REPORT_DPI)["png"]
 
@@ -659,20 +693,36 @@ def _sections(
 ) -> list[tuple[str, str, str]]:
     params = parameter_columns(results.columns)
     sections: list[tuple[str, str, str]] = [("summary", "Summary", summary_html(summary, source))]
+    title = sweep_title(query, results)
     dist = figure_html(
         "sweep-download",
         draw_distribution(
-            query, policies, GAIN_METRIC, "downloaded [Mbit]", figures, "sweep-download", pdf
+            query,
+            policies,
+            GAIN_METRIC,
+            "downloaded [Mbit]",
+            figures,
+            "sweep-download",
+            pdf,
+            title,
         ),
-        "Total data downloaded per mission, per policy: box (quartiles, whiskers 1.5 IQR) with "
-        "missions as dots, and the empirical CDF.",
+        "Total data downloaded per mission, per policy: box (quartiles, whiskers 1.5 IQR) over "
+        f"every mission, with up to {STRIP_POINTS} missions a policy as dots, and the "
+        "empirical CDF.",
         2 * PANEL_WIDTH_IN,
     )
     if "completion" in results.columns:
         dist += figure_html(
             "sweep-completion",
             draw_distribution(
-                query, policies, "completion", "completion", figures, "sweep-completion", pdf
+                query,
+                policies,
+                "completion",
+                "completion",
+                figures,
+                "sweep-completion",
+                pdf,
+                title,
             ),
             "Completion (downloaded / buffered) per mission, per policy.",
             2 * PANEL_WIDTH_IN,
@@ -689,7 +739,7 @@ def _sections(
     else:
         content = figure_html(
             "sweep-gain",
-            draw_gains(paired, policies, figures, pdf),
+            draw_gains(paired, policies, figures, pdf, f"{title}; gain over {baseline}"),
             f"Empirical CDF of the per-mission gain in total downloaded data over "
             f"{paired.baseline} on paired missions; dashed: mean gain, shaded: its 95% CI.",
             PANEL_WIDTH_IN,
@@ -701,7 +751,7 @@ def _sections(
         content = "".join(
             figure_html(
                 f"sweep-parameter-{i}",
-                draw_parameter(query, policies, metrics, p, i, figures, pdf),
+                draw_parameter(query, policies, metrics, p, i, figures, pdf, title),
                 f"Mean downloaded data and completion vs {p.label} per policy; bands: 95% CI of "
                 "the mean" + ("." if p.discrete else f" ({BINS} quantile bins, x: bin median)."),
                 2 * PANEL_WIDTH_IN,

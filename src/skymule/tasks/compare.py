@@ -37,7 +37,6 @@ from skymule.radio.pathloss import PATHLOSS_MODELS
 from skymule.registry import did_you_mean
 from skymule.scenario import Scenario
 from skymule.tasks.simulate import RunResult, simulate
-from skymule.units import BITS_PER_MBIT
 from skymule.world import Mission, build_mission
 
 if TYPE_CHECKING:
@@ -126,7 +125,8 @@ def mission_bound_or_note(mission: Mission) -> tuple[MissionBound | None, str | 
 
 def scenario_bound(scenario: Scenario) -> MissionBound:
     """The upper bound on what any policy can download in ``scenario`` (one-line error if none);
-    with ``[[uavs]]``, the K-UAV bound (``docs/fleet.md``)."""
+    with ``[[uavs]]``, the K-UAV bound (``docs/fleet.md``). In Mbit:
+    ``scenario_bound(s).upper_bound_mbit`` (``upper_bound_bit`` inside)."""
     if scenario.uavs:
         from skymule.bounds.fleet import fleet_bound
         from skymule.sim.fleet import build_fleet
@@ -141,7 +141,7 @@ def with_gap(row: dict[str, Any], upper: MissionBound | None) -> dict[str, Any]:
     """``row`` plus upper_bound_mbit and the gap columns (unchanged without a bound)."""
     if upper is None:
         return row
-    bound_mbit = upper.upper_bound_bit / BITS_PER_MBIT
+    bound_mbit = upper.upper_bound_mbit
     gap = bound_mbit - row["total_downloaded_mbit"]
     frac = gap / bound_mbit if bound_mbit > 0 else 0.0
     return {**row, "upper_bound_mbit": bound_mbit, GAP_COLUMNS[0]: gap, GAP_COLUMNS[1]: frac}
@@ -152,7 +152,7 @@ def bound_row(upper: MissionBound, **extra: object) -> dict[str, Any]:
     return {
         **extra,
         "policy": "bound",
-        "total_downloaded_mbit": upper.upper_bound_bit / BITS_PER_MBIT,
+        "total_downloaded_mbit": upper.upper_bound_mbit,
     }
 
 
@@ -290,5 +290,5 @@ def _snr_cdf_figure(comparison: Comparison, out: Path) -> Path:
         if run.policy == first_policy
     ]
     figure = out / "snr_cdf_by_source.png"
-    plot_snr_cdf_by_source(panels, figure, f"SNR CDF ({first_policy})")
+    plot_snr_cdf_by_source(panels, figure, f"SNR CDF by signal source ({first_policy})")
     return figure

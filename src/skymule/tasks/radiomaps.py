@@ -56,6 +56,8 @@ class RadioMapFit:
 
     fitted: RadioMap
     rows: list[dict[str, Any]]
+    warnings: tuple[str, ...] = ()
+    """One line per sensor whose fit is degenerate (:func:`fit_warnings`)."""
 
     COLUMNS = (
         "sensor", "exponent", "intercept_db", "sigma_db", "range_m", "nugget_db", "n_used",
@@ -186,7 +188,33 @@ def fit_radiomap_files(
         }
         for m in fitted.sensors
     ]
-    return RadioMapFit(fitted, rows)
+    return RadioMapFit(fitted, rows, fit_warnings(rows, method))
+
+
+KRIGED_OVER = {"kriging": "log-distance trend", "neural": "learned model"}
+"""Methods that krige a residual, and what the map is where there is nothing to krige."""
+
+
+def fit_warnings(rows: Sequence[dict[str, Any]], method: str = "kriging") -> tuple[str, ...]:
+    """A line for each sensor whose kriged residual is degenerate: no spatial structure (the
+    variogram fit ends at its shortest range or without a sill), so the map there is the
+    method's trend alone, whatever its kriging parameters read. Methods that krige nothing
+    (``log-distance``; ``gp`` fits its own kernel) get none."""
+    from skymule.radio.kriging import NO_SILL_DB2, SHORTEST_RANGE_M
+
+    trend = KRIGED_OVER.get(method)
+    if trend is None:
+        return ()
+    found = []
+    for row in rows:
+        name, sigma, range_m = row["sensor"], row["sigma_db"], row["range_m"]
+        if sigma**2 <= NO_SILL_DB2 or range_m <= SHORTEST_RANGE_M:
+            found.append(
+                f"{name}: degenerate fit (sigma {sigma:.3f} dB, range {range_m:.1f} m): the "
+                f"residual shows no spatial correlation, so the map is the {trend} alone "
+                f"there; more samples near {name} may help"
+            )
+    return tuple(found)
 
 
 def score_against_trace(

@@ -14,6 +14,7 @@ from pathlib import Path
 import matplotlib.colors as mcolors
 import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 import pytest
 from matplotlib.figure import Figure
 from PIL import Image
@@ -44,7 +45,8 @@ from skymule.report.style import (
     sensor_colours,
     wrap_title,
 )
-from skymule.report.sweep import STRIP_POINTS, strip_sample, sweep_title
+from skymule.report.sweep import STRIP_POINTS, Results, strip_sample, sweep_title
+from skymule.report.sweep_query import results_query
 
 SCENARIO = """
 name = "my-scenario-id"
@@ -328,7 +330,7 @@ def test_resilience_figure_tells_every_policy_apart(tmp_path: Path) -> None:
     assert styles["hgad"]["ls"] != styles["hgad-robust"]["ls"]
 
 
-def test_sweep_strips_draw_a_sample_and_titles_name_the_scenario() -> None:
+def test_sweep_strips_draw_a_sample_and_titles_name_the_scenario(tmp_path: Path) -> None:
     rng = np.random.default_rng(1)
     many = rng.normal(size=10_000)
     shown = strip_sample(many, np.random.default_rng(0))
@@ -342,4 +344,7 @@ def test_sweep_strips_draw_a_sample_and_titles_name_the_scenario() -> None:
             "per_sensor_buffer_mbit.LW2": [1.0] * 3,
         }
     )
-    assert sweep_title(results) == "paper-sim-fixed, 2 sensors, 500 s: 3 missions"
+    results.to_parquet(tmp_path / "results.parquet", index=False)
+    stored = Results(tmp_path / "results.parquet", pq.read_schema(tmp_path / "results.parquet"), 3)
+    with results_query(stored.path, stored.schema) as query:  # queried, not loaded
+        assert sweep_title(query, stored) == "paper-sim-fixed, 2 sensors, 500 s: 3 missions"

@@ -56,7 +56,6 @@ from skymule.report.style import (
     sensor_colours,
 )
 from skymule.report.sweep_query import (
-    DOTS,
     EXACT_VALUES,
     ResultsQuery,
     finite,

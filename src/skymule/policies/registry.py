@@ -5,7 +5,8 @@
 model as ``params`` metadata (``POLICIES.meta(name, "params")``). :mod:`skymule.policies`
 registers the built-in policies in it when imported (which importing this module does first,
 as its parent package); you can register your own the same way. Names of the form
-``"package.module:Class"`` (plug-ins) and ``"rl:model.zip"`` (learned models) need no entry.
+``"package.module:Class"`` (plug-ins), ``"rl:model.zip"`` (learned models) and
+``"learned:weights.npz"`` (the ``learned`` policy with your own weights) need no entry.
 """
 
 from __future__ import annotations
@@ -79,6 +80,10 @@ POLICIES: Registry[PolicyFactory] = Registry(
 LEARNED_PREFIX = "rl:"
 """Policy names ``rl:path/to/model.zip``: a model trained in skymule's environments."""
 
+WEIGHTS_PREFIX = "learned:"
+"""Policy names ``learned:path/to/weights.npz``: the ``learned`` option scorer with your own
+weights (:mod:`skymule.policies.learned`; plain arrays, no code)."""
+
 
 def import_target(name: str) -> Any:
     """``Attr`` of ``module`` for ``"module:Attr"``, looking in the current folder too."""
@@ -124,6 +129,8 @@ def policy_params_model(name: str) -> type[BaseModel] | None:
     import.
     """
     if name.startswith(LEARNED_PREFIX):  # rl:path/to/model.zip: the model is the parameter
+        return None
+    if name.startswith(WEIGHTS_PREFIX):  # learned:path/to/weights.npz: likewise
         return None
     if ":" in name:
         return _params_of(import_target(name))

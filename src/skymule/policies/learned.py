@@ -36,6 +36,7 @@ import numpy as np
 from skymule.errors import SkymuleError
 from skymule.policies.base import BatchAction, BatchObservation, MissionContext
 from skymule.policies.options import (
+    FRACTIONS,
     GLOBAL_FEATURES,
     N_DURATIONS,
     OPTION_FEATURES,
@@ -44,6 +45,7 @@ from skymule.policies.options import (
     OptionRunner,
     option_features,
 )
+from skymule.sim import compiled
 
 #: Policy names ``learned:path/to/weights.npz``.
 PREFIX = "learned:"
@@ -222,6 +224,23 @@ def scores(net: OptionNet, model: np.ndarray | None, decision: Decision) -> np.n
     return np.where(allowed, flat, -np.inf)
 
 
+def compiled_scores(net: OptionNet, decision: Decision) -> np.ndarray:
+    """:func:`scores` of model 0 by the compiled twin
+    (:func:`skymule.policies.learned_kernel.score_rows`; plain Python without numba)."""
+    from skymule.policies.learned_kernel import score_kernel
+
+    d = decision
+    rows, n = d.travel.shape
+    out = np.empty((rows, n * N_DURATIONS + 1))
+    score_kernel()(
+        d.travel, d.back, d.pair, d.home, d.slots_left, d.n_slots, d.slot_s, d.remaining,
+        d.initial, d.peak, d.rate_now, d.usable, d.visited, d.near, np.asarray(FRACTIONS),
+        net.encoder_w[0], net.encoder_b[0], net.hidden_w[0], net.hidden_b[0], net.out_w[0],
+        float(net.out_b[0]), net.linear_w[0], net.home_w[0], float(net.home_b[0]), out,
+    )  # fmt: skip
+    return out
+
+
 def _bad(path: Path, what: str) -> SkymuleError:
     return SkymuleError(f"learned policy weights {path}: {what}")
 
@@ -307,6 +326,7 @@ class LearnedPolicy:
         self.name = name
         self.model = None if model is None else np.asarray(model, np.int64)
         self.runner: OptionRunner | None = None
+        self._compiled = compiled.available() and self.net.models == 1
 
     def reset(self, contexts: Sequence[MissionContext]) -> None:
         if any(c.mode != "autonomous" for c in contexts):
@@ -323,7 +343,10 @@ class LearnedPolicy:
         self.runner = OptionRunner(contexts, self.choose)
 
     def choose(self, decision: Decision) -> np.ndarray:
-        """(R,) the best-scored option of each decision."""
+        """(R,) the best-scored option of each decision (one model with numba installed: by
+        the compiled twin, the same scores)."""
+        if self.model is None and self._compiled:
+            return np.argmax(compiled_scores(self.net, decision), axis=1)
         model = None if self.model is None else self.model[decision.rows]
         return np.argmax(scores(self.net, model, decision), axis=1)
 

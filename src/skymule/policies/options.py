@@ -66,6 +66,8 @@ ARRIVE_M = 10.0
 SENSOR_FEATURES = (
     "travel",  # slots to fly to the hover point / slots left
     "back",  # slots from the hover point home / slots left (0 without return home)
+    "onward",  # slots from the hover point to the nearest other usable one / slots left
+    "spread",  # mean slots from the hover point to the other usable ones / slots left
     "need",  # slots to empty at the hover rate / slots left (at most 4)
     "peak",  # hover rate / the best hover rate among sensors
     "data",  # data left / the most data left
@@ -86,6 +88,9 @@ OPTION_FEATURES = (
     "pass",  # 1 for "serve while passing"
     "hgad",  # 1 for HGAD's next option: the most data among sensors not hovered at yet
     # (all of them once each was), for HGAD's hover time
+    "outlook",  # a planner's rough worth of the option and what can follow it: its bits
+    # plus the best hover rate over the time left after it, the nearest onward leg and the
+    # way home (at most the data left), / (best hover rate x time left)
 )
 
 #: Per-mission features, in order.
@@ -112,6 +117,7 @@ class Decision:
         rows: (R,) the missions deciding.
         travel: (R, N) slots to fly from here to each hover point.
         back: (R, N) slots from each hover point home (0 without return home).
+        pair: (R, N, N) slots from hover point k (row) to hover point j.
         home: (R,) slots from here home (0 without return home).
         slots_left: (R,) slots left in the mission (>= 1).
         n_slots: (R,) mission slots.
@@ -128,6 +134,7 @@ class Decision:
     rows: np.ndarray
     travel: np.ndarray
     back: np.ndarray
+    pair: np.ndarray
     home: np.ndarray
     slots_left: np.ndarray
     n_slots: np.ndarray
@@ -179,10 +186,16 @@ def option_features(decision: Decision) -> tuple[np.ndarray, np.ndarray, np.ndar
     data_usable = np.where(usable, d.remaining, -np.inf)
     largest = usable & (d.remaining == data_usable.max(axis=1, keepdims=True))
     safe_peak = np.where(d.peak > 0, d.peak, 1.0)
+    others = usable[:, None, :] & ~np.eye(usable.shape[1], dtype=bool)[None]
+    onward = np.min(np.where(others, d.pair, np.inf), axis=2)
+    onward = np.where(np.isfinite(onward), onward, 0.0)
+    spread = np.where(others, d.pair, 0.0).sum(axis=2) / np.maximum(others.sum(axis=2), 1)
     sensor = np.stack(
         [
             d.travel / left,
             d.back / left,
+            onward / left,
+            spread / left,
             np.minimum(need / left, 4.0),
             d.peak / peak_max,
             d.remaining / data_max,
@@ -210,6 +223,9 @@ def option_features(decision: Decision) -> tuple[np.ndarray, np.ndarray, np.ndar
     target = np.argmax(np.where(pending, d.remaining, -np.inf), axis=1)
     hgad = np.zeros(stay.shape, bool)
     hgad[np.arange(len(target)), target, -1] = pending.any(axis=1)
+    total = np.where(usable, d.remaining, 0.0).sum(axis=1)
+    after = left[..., None] - d.travel[..., None] - stay - (onward + d.back)[..., None]
+    rest = np.minimum(total[:, None, None] - bits, best * np.maximum(after, 0.0))
     option = np.stack(
         [
             stay / left[..., None],
@@ -219,11 +235,11 @@ def option_features(decision: Decision) -> tuple[np.ndarray, np.ndarray, np.ndar
             (left[..., None] - d.travel[..., None] - stay - d.back[..., None]) / left[..., None],
             (fractions == 0).astype(float),
             hgad.astype(float),
+            (bits + rest) / (best * left[..., None]),
         ],
         axis=3,
     )
     option = np.where(usable[..., None, None], option, 0.0)
-    total = np.where(usable, d.remaining, 0.0).sum(axis=1)
     mission = np.stack(
         [
             d.slots_left / d.n_slots,
@@ -270,13 +286,23 @@ class OptionRunner:
         self.initial = np.array([c.buffers_bit for c in contexts], float).reshape(n_missions, -1)
         self.known = self.geometry.known[:n_sensors].T.copy()
         hover = self.geometry.hover_m[:n_sensors]  # (N, B, 2)
-        columns = np.repeat(np.arange(n_missions), n_sensors)
-        points = hover.transpose(1, 0, 2).reshape(-1, 2)
-        points = np.where(self.known.reshape(-1, 1), points, self.geometry.home_m[columns])
-        to_home = self.geometry.travel_m(points, np.full(columns.size, n_sensors), columns)
-        to_home = to_home.reshape(n_missions, n_sensors)
-        back = self._slots(to_home, self.step_m[:, None])
+        # (B, N + 1, N + 1) in-fence distances between the hover points and home (one batched
+        # query): most decisions are taken at one of these places and need no path query
+        places = np.concatenate([hover.transpose(1, 0, 2), self.geometry.home_m[:, None]], 1)
+        known = np.concatenate([self.known, np.ones((n_missions, 1), bool)], axis=1)
+        self.places_m = np.where(known[..., None], places, np.nan)
+        size = n_sensors + 1
+        columns = np.repeat(np.arange(n_missions), size * size)
+        start = np.where(known[..., None], places, self.geometry.home_m[:, None])
+        start = np.repeat(start.reshape(-1, 2), size, axis=0)
+        goal = np.tile(np.arange(size), n_missions * size)
+        wanted = np.repeat(known.reshape(-1), size) & known[columns, goal]
+        table = np.full(columns.size, np.inf)
+        table[wanted] = self.geometry.travel_m(start[wanted], goal[wanted], columns[wanted])
+        self.table_m = table.reshape(n_missions, size, size)
+        back = self._slots(self.table_m[:, :n_sensors, n_sensors], self.step_m[:, None])
         self.back = np.where(self.return_home[:, None], back, 0.0)
+        self.pair = self._slots(self.table_m[:, :n_sensors, :n_sensors], self.step_m[:, None, None])
         # each mission's option: target sensor (N: home, NO_SENSOR: none), stay left
         self.target = np.full(n_missions, NO_SENSOR, np.int64)
         self.stay_left = np.zeros(n_missions, np.int64)
@@ -303,21 +329,29 @@ class OptionRunner:
         """What a planner knows for missions ``rows`` (positions (B, 2), slots (B,), buffers
         and rates (B, N), all missions)."""
         n = self.n_sensors
-        count = rows.size
-        here = np.repeat(position[rows], n + 1, axis=0)
-        place = np.tile(np.arange(n + 1), count)
-        mission = np.repeat(rows, n + 1)
-        known = np.concatenate([self.known[rows], np.ones((count, 1), bool)], axis=1).reshape(-1)
-        distance = np.full(count * (n + 1), np.inf)
-        ask = np.flatnonzero(known)
-        if ask.size:
-            distance[ask] = self.geometry.travel_m(here[ask], place[ask], mission[ask])
-        slots = self._slots(distance, np.repeat(self.step_m[rows], n + 1)).reshape(count, n + 1)
+        here = position[rows]
+        match = (self.places_m[rows] == here[:, None, :]).all(axis=2)
+        at = np.argmax(match, axis=1)
+        distance = self.table_m[rows, at].copy()  # (R, N + 1), right where a place matched
+        other = np.flatnonzero(~match.any(axis=1))
+        if other.size:
+            known = np.concatenate(
+                [self.known[rows[other]], np.ones((other.size, 1), bool)], axis=1
+            ).reshape(-1)
+            asked = np.full(other.size * (n + 1), np.inf)
+            ask = np.flatnonzero(known)
+            starts = np.repeat(here[other], n + 1, axis=0)[ask]
+            place = np.tile(np.arange(n + 1), other.size)[ask]
+            mission = np.repeat(rows[other], n + 1)[ask]
+            asked[ask] = self.geometry.travel_m(starts, place, mission)
+            distance[other] = asked.reshape(other.size, n + 1)
+        slots = self._slots(distance, self.step_m[rows, None])
         left = remaining[rows]
         return Decision(
             rows=rows,
             travel=slots[:, :n],
             back=self.back[rows],
+            pair=self.pair[rows],
             home=np.where(self.return_home[rows], slots[:, n], 0.0),
             slots_left=(self.n_slots[rows] - slot[rows]).astype(float),
             n_slots=self.n_slots[rows].astype(float),
@@ -328,7 +362,7 @@ class OptionRunner:
             rate_now=rate[rows],
             usable=self.known[rows] & (left > 0) & (self.peak[rows] > 0),
             visited=self.visited[rows],
-            near=distance.reshape(count, n + 1)[:, :n] <= ARRIVE_M,
+            near=distance[:, :n] <= ARRIVE_M,
         )
 
     def _decide(

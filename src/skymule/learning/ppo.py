@@ -303,8 +303,11 @@ def _update(
                 surrogate = torch.min(
                     ratio * adv, torch.clamp(ratio, 1 - config.clip, 1 + config.clip) * adv
                 )
-                prob = torch.exp(logp_all)
-                entropy = -(torch.where(prob > 0, prob * logp_all, torch.zeros_like(prob))).sum(1)
+                # masked options have logp -inf: keep them out of the product (a where over
+                # the product would still send NaN gradients back through it)
+                allowed = t["allowed"][idx]
+                logp_safe = torch.where(allowed, logp_all, torch.zeros_like(logp_all))
+                entropy = -(torch.exp(logp_safe) * logp_safe * allowed).sum(1)
                 loss = (
                     -surrogate.mean()
                     + config.value_weight * ((value - t["return"][idx]) ** 2).mean()

@@ -172,7 +172,7 @@ def scores(net: OptionNet, model: np.ndarray | None, decision: Decision) -> np.n
     sensor, option, mission, allowed = option_features(decision)
     rows, n = sensor.shape[:2]
     width = N_DURATIONS
-    usable = allowed[:, :-1].reshape(rows, n, width).any(axis=2)
+    usable = np.any(allowed[:, :-1].reshape(rows, n, width), axis=2)
     g_n = np.broadcast_to(mission[:, None, :], (rows, n, FG))
     enc_in = np.concatenate([sensor, g_n], axis=2)
     single = model is None or net.models == 1

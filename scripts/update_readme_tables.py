@@ -27,6 +27,9 @@ Tables, what they run and roughly how long on the 2-core machine they were writt
   speed         benchmarks/bench_{engine,sweep,channel,bound,autonomous,planner}.py     ~15 min
                 (SPEED_BENCHES; sweeps and planner against the v0.1 tag in the same run;
                 the 100,000-mission sweep only with --all: +10 min)
+  learned       benchmarks/bench_learned.py: learned vs greedy, hgad, planner, bound on 200
+                held-out missions per row, with and without faults                      ~25 min
+                (--learned-output FILE: parse a saved run of it instead of running it)
   suite         python -m pytest -q (only with --all)                                     ~3 min
 Rows that are not re-run keep their current text.
 """
@@ -59,6 +62,7 @@ class Context:
     tiny: bool
     slow: bool
     benches: frozenset[str] = frozenset()  # speed table: only these benchmarks (empty: all)
+    learned_output: Path | None = None  # a saved output of bench_learned.py
 
     def run(self, *command: str) -> tuple[str, float]:
         """Run ``command`` from the repository root; (stdout, wall seconds). Fails loudly."""
@@ -482,12 +486,88 @@ def suite_table(ctx: Context, old: list[str]) -> list[str]:
     )
 
 
+def _fields(line: str) -> dict[str, str]:
+    return dict(part.split("=", 1) for part in line.split()[1:])
+
+
+def learned_table(ctx: Context, old: list[str]) -> list[str]:
+    """The learned policy against the others, per fault condition and sensor count, and its
+    speed, from ``bench_learned.py`` (or its saved output)."""
+    if ctx.learned_output is not None:
+        out = ctx.learned_output.read_text()
+    else:
+        out = ctx.bench("bench_learned.py")
+    rows = [_fields(line) for line in out.splitlines() if line.startswith("row: ")]
+    versus = [_fields(line) for line in out.splitlines() if line.startswith("vs-hgad: ")]
+    if not rows or not versus:
+        raise SystemExit(f"bench_learned.py printed no row:/vs-hgad: lines:\n{out[-3000:]}")
+    cell = {(r["condition"], r["n"], r["policy"]): r for r in rows}
+    table = []
+    for v in versus:
+        key = (v["condition"], v["n"])
+
+        def mean(policy: str, key: tuple[str, str] = key) -> str:
+            r = cell[(*key, policy)]
+            return f"{_f(r['mean']):.1f} ± {_f(r['ci']):.1f}"
+
+        def diff(policy: str, key: tuple[str, str] = key) -> str:
+            r = cell[(*key, policy)]
+            return f"{_f(r['diff']):+.1f} ± {_f(r['diff_ci']):.1f}"
+
+        table.append(
+            [
+                "faults" if v["condition"] == "faults" else "none",
+                v["n"],
+                v["missions"],
+                mean("learned"),
+                mean("greedy"),
+                mean("hgad"),
+                mean("planner"),
+                mean("bound"),
+                diff("hgad"),
+                f"{100 * _f(v['rel']):+.1f}% ± {100 * _f(v['rel_ci']):.1f}",
+                f"{100 * _f(v['worst']):+.1f}%, {v['below5']}",
+                diff("planner"),
+                f"{100 * _f(cell[(*key, 'learned')]['gap']):.1f}%",
+            ]
+        )
+    header = [
+        "faults", "N", "missions", "learned", "greedy", "hgad", "planner", "bound",
+        "learned − hgad", "vs hgad", "worst vs hgad, missions < −5%", "learned − planner",
+        "learned's gap to bound",
+    ]  # fmt: skip
+    lines = markdown(header, list("lrrrrrrrrrrrr"), table)
+    ((per_us, _decisions),) = _numbers(
+        r"inference, one mission: ([\d.]+) us CPU per decision.*?(\d+) decisions", out
+    )
+    ((rate, slots, per_mission),) = _numbers(
+        r"batched in the engine, [\d,]+ missions: ([\d,]+) decisions per CPU-s \(([\d,]+) "
+        r"mission-slots per CPU-s, engine included; ([\d.]+) decisions per mission\)",
+        out,
+    )
+    ((hgad_slots,),) = _numbers(r"hgad in the same engine: ([\d,]+) mission-slots", out)
+    ((batch, scored),) = _numbers(
+        r"scorer on a batch of ([\d,]+) decisions \(numpy\): ([\d,]+) decisions per CPU-s", out
+    )
+    lines += [
+        "",
+        f"Speed (same run): one decision of one mission (features and network) "
+        f"{_f(per_us):.1f} µs CPU; batched in the engine {_f(rate):,.0f} option decisions per "
+        f"CPU-s, i.e. {_f(slots):,.0f} mission-slots (a serve and a goal each) per CPU-s, engine "
+        f"included (HGAD {_f(hgad_slots):,.0f}), "
+        f"{_f(per_mission):.1f} decisions per mission; the scorer alone on a batch of {batch} "
+        f"decisions {_f(scored):,.0f} decisions per CPU-s (`python benchmarks/bench_learned.py`).",
+    ]
+    return lines
+
+
 TABLES: dict[str, Callable[[Context, list[str]], list[str]]] = {
     "presets": presets_table,
     "autonomous": autonomous_table,
     "sources": sources_table,
     "sweep-example": sweep_example_table,
     "speed": speed_table,
+    "learned": learned_table,
     "suite": suite_table,
 }
 
@@ -521,6 +601,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--tiny", action="store_true")
     parser.add_argument("--benches", default="")
     parser.add_argument("--readme", type=Path, default=ROOT / "README.md")
+    parser.add_argument("--learned-output", type=Path, default=None)
     args = parser.parse_args(argv)
     names = [n.strip() for n in args.only.split(",") if n.strip()]
     unknown = [n for n in names if n not in TABLES]
@@ -533,7 +614,7 @@ def main(argv: list[str] | None = None) -> int:
         unknown_benches = sorted(benches - set(SPEED_BENCHES))
         if unknown_benches:
             parser.error(f"--benches {unknown_benches[0]}: allowed: {', '.join(SPEED_BENCHES)}")
-        ctx = Context(Path(scratch), args.tiny, args.all, benches)
+        ctx = Context(Path(scratch), args.tiny, args.all, benches, args.learned_output)
         for name in names:
             start = time.perf_counter()
             text = rewrite(text, name, lambda old, n=name: TABLES[n](ctx, old))

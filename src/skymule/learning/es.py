@@ -48,7 +48,7 @@ class ESConfig:
     pool_per_count: int = 100
     sensor_counts: tuple[int, ...] = (3, 4, 5, 6, 7, 8)
     loss_margin: float = 0.02
-    loss_weight: float = 2.0
+    loss_weight: float = 4.0
     hidden: int = 16
     width: int = 32
     seed: int = 0

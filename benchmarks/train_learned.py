@@ -75,6 +75,7 @@ def write_curve(rows: list[dict[str, float]], path: Path) -> None:
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]) if rows else ["generation"])
         writer.writeheader()
         writer.writerows(rows)
+    os.chmod(tmp, 0o644)
     os.replace(tmp, path)
 
 

@@ -303,6 +303,7 @@ def save_net(net: OptionNet, path: str | Path) -> Path:
     try:
         with os.fdopen(fd, "wb") as handle:
             np.savez(handle, format=np.array(FORMAT), features=np.array(FEATURE_NAMES), **arrays)
+        os.chmod(tmp, 0o644)  # a file to share, not mkstemp's private 0600
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

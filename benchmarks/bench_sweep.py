@@ -1,6 +1,7 @@
 """Sweep overhead: cost per mission at 10k and 100k missions, executors, the seed axis, memory.
 
-Run: ``python benchmarks/bench_sweep.py [--old-rev REV] [--old-large] [--quick]``
+Run: ``python benchmarks/bench_sweep.py [--old-rev REV] [--old-large] [--quick]``, or at scale:
+``python benchmarks/bench_sweep.py --missions N[,N...] [--executors E[,E...]] [--report]``
 
 Cases (paper-sim-fixed, Greedy and HGAD paired, random buffers), each in its own process
 so peak memory (main + workers, sampled every 0.2 s) and imports are its own:
@@ -15,6 +16,16 @@ Figures are CPU seconds (this process and its workers): the machine may be share
 printed at the end: cost per mission of 100k within 1.2x of 10k; ``process`` on
 2 workers >= 1.7x in-process (wall time: needs two idle cores); the seed axis within 1.3x of
 the same sweep without it; peak memory flat from 10k to 100k.
+
+``--missions N`` (scale mode) runs the same sweep (``mode = {sample = N/2}`` x 2 policies)
+of N missions on each of ``--executors`` (default ``inprocess,process,dask-local``, 2 workers)
+and prints, per size and executor, wall and CPU seconds (this process and every worker), CPU
+per mission and peak RSS (all processes, sampled every 0.2 s). ``--report`` then times
+``skymule report`` on the largest sweep (its wall time and peak RSS, in a fresh process);
+``--keep DIR`` keeps the sweep folders in DIR; ``--report-only DIR`` times the report of an
+existing sweep folder. Targets printed at the end: peak RSS flat with N (200,000 within
+60 MiB of 20,000), ``dask-local`` CPU within 1.15x of ``inprocess``, CPU per mission at
+10,000,000 within 1.1x of 100,000, the report in under a minute.
 
 ``--old-rev REV`` runs the same cases on another commit (``git archive REV`` into a temporary
 folder, e.g. ``--old-rev main``) in the same run and prints the ratio; its 100k case (several
@@ -79,39 +90,65 @@ def _rss_bytes() -> int:
     return total
 
 
-def measure(case: str) -> dict[str, float]:
-    """Run one case in this process; wall and CPU seconds, missions and peak RSS."""
+class PeakRss:
+    """Peak RSS of this process and its children, sampled every 0.2 s while in the block;
+    ``cpu_s``: the CPU seconds the sampling took (walking /proc for the children)."""
+
+    def __enter__(self) -> PeakRss:
+        self.peak = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._sample, daemon=True)
+        self._thread.start()
+        return self
+
+    def _sample(self) -> None:
+        while not self._stop.is_set():
+            self.peak = max(self.peak, _rss_bytes())
+            time.sleep(0.2)
+        self.cpu_s = time.thread_time()  # the sampling's own CPU (not the sweep's)
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join()
+        self.peak = max(self.peak, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)
+
+
+def measure_sweep(text: str, executor: str, workers: int | None, out: Path) -> dict[str, float]:
+    """Run one sweep in this process; wall and CPU seconds, missions and peak RSS."""
     from skymule.experiments.run import run_sweep
     from skymule.experiments.sweep import parse_sweep
 
-    template, n, executor, workers = CASES[case]
-    spec = parse_sweep(tomllib.loads(template.format(n=n)), "bench", Path("."))
-    peak = [0]
-    stop = threading.Event()
-
-    def sample() -> None:
-        while not stop.is_set():
-            peak[0] = max(peak[0], _rss_bytes())
-            time.sleep(0.2)
-
-    sampler = threading.Thread(target=sample, daemon=True)
-    sampler.start()
-    with tempfile.TemporaryDirectory() as folder:
+    spec = parse_sweep(tomllib.loads(text), "bench", Path("."))
+    with PeakRss() as rss:
         wall, cpu, main = time.perf_counter(), _cpu_s(), time.process_time()
-        outcome = run_sweep(
-            spec, Path(folder) / "out", executor=executor, workers=workers, progress=False
-        )
+        outcome = run_sweep(spec, out, executor=executor, workers=workers, progress=False)
         wall, cpu = time.perf_counter() - wall, _cpu_s() - cpu
         main = time.process_time() - main
-    stop.set()
-    sampler.join()
     return {
         "wall_s": wall,
-        "cpu_s": cpu,
-        "main_cpu_s": main,
+        "cpu_s": cpu - rss.cpu_s,
+        "main_cpu_s": main - rss.cpu_s,
         "missions": outcome.n_missions,
-        "peak_b": peak[0],
+        "peak_b": rss.peak,
     }
+
+
+def measure(case: str) -> dict[str, float]:
+    """Run one case in this process (in a temporary folder)."""
+    template, n, executor, workers = CASES[case]
+    with tempfile.TemporaryDirectory() as folder:
+        return measure_sweep(template.format(n=n), executor, workers, Path(folder) / "out")
+
+
+def measure_report(folder: Path) -> dict[str, float]:
+    """``skymule report FOLDER`` (with PDFs) in this process: wall seconds and peak RSS."""
+    from skymule.report.build import build_report
+
+    with PeakRss() as rss:
+        wall, cpu = time.perf_counter(), time.process_time()
+        build_report(folder)
+        wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    return {"wall_s": wall, "cpu_s": cpu - rss.cpu_s, "peak_b": rss.peak}
 
 
 def _cpu_s() -> float:
@@ -121,6 +158,12 @@ def _cpu_s() -> float:
         resource.getrusage(resource.RUSAGE_CHILDREN),
     )
     return me.ru_utime + me.ru_stime + children.ru_utime + children.ru_stime
+
+
+def _missions_in(folder: Path) -> int:
+    import pyarrow.parquet as pq
+
+    return int(pq.read_metadata(folder / "results.parquet").num_rows)
 
 
 def run_case(case: str, src: Path) -> dict[str, float]:
@@ -150,17 +193,110 @@ def _line(case: str, new: dict[str, float], old: dict[str, float] | None) -> str
     return text
 
 
+EXECUTORS = ("inprocess", "process", "dask-local")
+SCALE_WORKERS = 2
+
+
+def _subprocess_json(*args: str, src: Path) -> dict[str, float]:
+    env = {**os.environ, "PYTHONPATH": str(src)}
+    command = [sys.executable, __file__, *args]
+    done = subprocess.run(command, env=env, capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        raise SystemExit(f"{' '.join(args)} failed:\n{done.stderr}")
+    result: dict[str, float] = json.loads(done.stdout.strip().splitlines()[-1])
+    return result
+
+
+def _scale_line(executor: str, result: dict[str, float]) -> str:
+    n = int(result["missions"])
+    return (
+        f"scale {executor:<10} {n:>10,} missions: wall {result['wall_s']:8.1f} s, "
+        f"CPU {result['cpu_s']:8.1f} s ({1e6 * result['cpu_s'] / n:5.0f} us/mission, "
+        f"{result['main_cpu_s']:7.1f} s in main), peak RSS {result['peak_b'] / 2**20:5.0f} MiB "
+        f"(load {os.getloadavg()[0]:.1f})"
+    )
+
+
+def _report_line(missions: int, result: dict[str, float]) -> str:
+    return (
+        f"report {missions:>10,} missions: wall {result['wall_s']:6.1f} s, "
+        f"CPU {result['cpu_s']:6.1f} s, peak RSS {result['peak_b'] / 2**20:5.0f} MiB "
+        f"(target: under 60 s; load {os.getloadavg()[0]:.1f})"
+    )
+
+
+def run_scale(args: argparse.Namespace, src: Path) -> None:
+    """``--missions``: each size on each executor, in a fresh process each; the targets."""
+    sizes = [int(float(n)) for n in args.missions.split(",")]
+    executors = [e.strip() for e in args.executors.split(",") if e.strip()]
+    results: dict[tuple[int, str], dict[str, float]] = {}
+    with contextlib.ExitStack() as stack:
+        keep = (
+            Path(args.keep)
+            if args.keep
+            else Path(stack.enter_context(tempfile.TemporaryDirectory()))
+        )
+        for n in sizes:
+            for executor in executors:
+                out = keep / f"sweep-{n}-{executor}"
+                result = _subprocess_json("--one-sweep", str(n), executor, str(out), src=src)
+                results[n, executor] = result
+                print(_scale_line(executor, result), flush=True)
+        if args.report:
+            largest = max(sizes)
+            folder = keep / f"sweep-{largest}-{executors[0]}"
+            print(_report_line(largest, _subprocess_json("--one-report", str(folder), src=src)))
+    inprocess = {n: r for (n, e), r in results.items() if e == "inprocess"}
+    if 20_000 in inprocess and 200_000 in inprocess:
+        grown = (inprocess[200_000]["peak_b"] - inprocess[20_000]["peak_b"]) / 2**20
+        print(f"peak RSS, 200,000 - 20,000 missions (inprocess): {grown:+.0f} MiB (target <= 60)")
+    for n in sizes:
+        if (n, "dask-local") in results and (n, "inprocess") in results:
+            ratio = results[n, "dask-local"]["cpu_s"] / results[n, "inprocess"]["cpu_s"]
+            print(f"dask-local CPU / inprocess CPU, {n:,} missions: {ratio:.2f} (target <= 1.15)")
+    if 100_000 in inprocess:
+        base = inprocess[100_000]["cpu_s"] / inprocess[100_000]["missions"]
+        for n, result in sorted(inprocess.items()):
+            if n > 100_000:
+                ratio = result["cpu_s"] / result["missions"] / base
+                print(f"CPU per mission, {n:,} / 100,000 missions: {ratio:.2f} (target <= 1.1)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--one", choices=sorted(CASES), help=argparse.SUPPRESS)
+    parser.add_argument("--one-sweep", nargs=3, help=argparse.SUPPRESS)
+    parser.add_argument("--one-report", help=argparse.SUPPRESS)
     parser.add_argument("--old-rev", help="also run the cases on this git revision")
     parser.add_argument("--old-large", action="store_true", help="previous code at 100k too")
     parser.add_argument("--quick", action="store_true", help="skip the 100k case")
+    parser.add_argument("--missions", help="scale mode: sweep sizes, e.g. 20000,200000")
+    parser.add_argument("--executors", default=",".join(EXECUTORS), help="scale mode")
+    parser.add_argument("--report", action="store_true", help="scale mode: time the report")
+    parser.add_argument("--keep", help="scale mode: keep the sweep folders in this folder")
+    parser.add_argument("--report-only", help="time the report of this sweep folder")
     args = parser.parse_args()
     if args.one:
         print(json.dumps(measure(args.one)))
         return
+    if args.one_sweep:
+        n, executor, out = args.one_sweep
+        text = SAMPLE.format(n=int(n) // 2)
+        workers = None if executor == "inprocess" else SCALE_WORKERS
+        print(json.dumps(measure_sweep(text, executor, workers, Path(out))))
+        return
+    if args.one_report:
+        print(json.dumps(measure_report(Path(args.one_report))))
+        return
     repo = Path(__file__).resolve().parents[1]
+    if args.report_only:
+        folder = Path(args.report_only)
+        result = _subprocess_json("--one-report", str(folder), src=repo / "src")
+        print(_report_line(_missions_in(folder), result))
+        return
+    if args.missions:
+        run_scale(args, repo / "src")
+        return
     with tempfile.TemporaryDirectory() as old_tree:
         if args.old_rev:
             archive = subprocess.run(

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import os
 import tempfile
 import time
 from pathlib import Path
@@ -34,6 +33,7 @@ from typing import Any
 import numpy as np
 from _sizes import size
 
+from skymule.io.atomic import atomic_path, write_with
 from skymule.learning.es import ESConfig, fitness, hgad_downloads, relative_gain, train_es
 from skymule.learning.missions import HELD_OUT, draw_missions
 from skymule.policies.learned import LearnedPolicy, OptionNet, save_net
@@ -69,14 +69,10 @@ def validator(counts: dict[int, int]) -> Any:
 
 def write_curve(rows: list[dict[str, float]], path: Path) -> None:
     """The learning curve as CSV (atomically)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".csv", dir=path.parent)
-    with os.fdopen(fd, "w", newline="") as handle:
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]) if rows else ["generation"])
         writer.writeheader()
         writer.writerows(rows)
-    os.chmod(tmp, 0o644)
-    os.replace(tmp, path)
 
 
 def plot_curve(csv_path: Path, figure: Path) -> None:
@@ -102,7 +98,7 @@ def plot_curve(csv_path: Path, figure: Path) -> None:
     ax.set_title("learned: validation missions (300 s, Lake Wheeler)")
     ax.legend(fontsize=8)
     figure.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(figure, dpi=120)
+    write_with(figure, lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
     plt.close(fig)
 
 

@@ -38,6 +38,7 @@ from skymule.policies.planner import Planner
 from skymule.policies.rl import RLPolicy
 from skymule.scenario import Scenario, load_scenario
 from skymule.sim.run import run_mission
+from skymule.trust import trusting
 from skymule.world import build_mission
 
 PRESET = "paper-sim-autonomous"
@@ -108,7 +109,8 @@ def baselines(scenario: Scenario) -> tuple[float, float, float, float, float]:
 
 
 def rl_downloads(model_path: Path, scenarios: list[Scenario]) -> np.ndarray:
-    policy = RLPolicy(f"rl:{model_path}")
+    with trusting([model_path]):  # the model this script has just trained
+        policy = RLPolicy(f"rl:{model_path}")
     return np.array(
         [float(run_mission(build_mission(s), policy).downloaded_bit.sum()) for s in scenarios]
     )

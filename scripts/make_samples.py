@@ -14,6 +14,10 @@ The model (examples/samples/README.md says the same for users):
   free space + spatially correlated log-normal shadowing (``SHADOWING_STD_DB``, decorrelation
   ``SHADOWING_DECORRELATION_M``) + per-second Rician fading (K = ``RICIAN_K_DB``), all drawn by
   skymule's own channel code from the scenario seed ``SEED``; polls ``POLL_JITTER_S`` late at most.
+* Second "real" flight (``flight2_merged.csv``): the same towers on another day, the same
+  route at ``FLIGHT2_SPEED_MPS`` for ``FLIGHT2_SECONDS``, the same terrain (the shadowing field
+  of ``SEED``) and new Rician fading draws; for ``sim2real`` (learn on one flight, check on
+  the other).
 * Volumes (``volumes.txt``): the paper's Flight 1 buffers, 500/800/700/1000 Mbit, tower 1 first.
 * The flight's own downloads: Greedy (serve the highest SNR with data left) replayed on the
   "real" flight with those volumes, at ``GOODPUT`` of the rate table's rate (protocol
@@ -33,6 +37,7 @@ import numpy as np
 import pandas as pd
 
 from skymule.io.traces import read_trace, write_aadm_log, write_dt_export
+from skymule.radio.fading import draw_fading_db
 from skymule.scenario import Scenario, load_scenario
 from skymule.tasks.analyze import analysis_scenario
 from skymule.tasks.simulate import simulate
@@ -48,6 +53,9 @@ SHADOWING_STD_DB = 4.0
 SHADOWING_DECORRELATION_M = 30.0
 RICIAN_K_DB = 6.0
 POLL_JITTER_S = 0.012
+FLIGHT2_SECONDS = 360
+FLIGHT2_SPEED_MPS = 9.0
+FLIGHT2_START = "2025-05-27 10:02:11.402"
 VOLUMES_MBIT = (500.0, 800.0, 700.0, 1000.0)
 GOODPUT = 0.9
 START = "2025-05-24 16:19:31.186"
@@ -100,6 +108,27 @@ def write_flight(path: Path) -> None:
     )
 
 
+def write_second_flight(path: Path) -> None:
+    """A second "real" flight of the same towers on another day: the same route at
+    ``FLIGHT2_SPEED_MPS``, the same terrain (the shadowing field of ``SEED``), new fading."""
+    scenario = _radio_scenario("fspl", SHADOWING_STD_DB, "rician", FLIGHT2_SECONDS)
+    trajectory = scenario.trajectory.model_copy(update={"speed_mps": FLIGHT2_SPEED_MPS})
+    mission = build_mission(scenario.model_copy(update={"trajectory": trajectory}))
+    assert mission.track is not None
+    xyz = mission.track.position_m[:FLIGHT2_SECONDS]
+    fading = draw_fading_db(scenario.radio, np.random.default_rng([SEED, 3]), len(xyz), 4)
+    assert fading is not None
+    snr = (mission.track.snr_db[:FLIGHT2_SECONDS] + fading).round(2)
+    rng = np.random.default_rng([SEED, 4])
+    jitter_s = rng.uniform(0.0, POLL_JITTER_S, len(xyz))
+    jitter_s[0] = 0.0
+    lat, lon = mission.frame.to_latlon(xyz[:, 0], xyz[:, 1])
+    write_aadm_log(
+        path, np.arange(len(xyz)) + jitter_s, snr, mission.sensor_names, lat.round(7),
+        lon.round(7), xyz[:, 2], start=FLIGHT2_START,
+    )  # fmt: skip
+
+
 def write_downloads(flight: Path, controller: Path, towers: Path) -> None:
     """The flight's own download log, in the AADM controller's and in skymule's format."""
     trace = read_trace(flight)
@@ -137,6 +166,7 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     write_digital_twin(out / "dt_flight.csv")
     write_flight(out / "flight_merged.csv")
+    write_second_flight(out / "flight2_merged.csv")
     (out / "volumes.txt").write_text("".join(f"{v:g}\n" for v in VOLUMES_MBIT))
     write_downloads(
         out / "flight_merged.csv", out / "flight_downloads.csv", out / "flight_downloads_tower.csv"

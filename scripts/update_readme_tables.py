@@ -18,18 +18,30 @@ Options:
   --tiny              benchmarks at their tiny size (SKYMULE_BENCH_TINY=1): not measurements,
                       for testing this script
   --readme PATH       the file to rewrite (default: README.md next to scripts/)
+  --saved FILE[,FILE] sweep-scale table: parse these saved outputs of
+                      `bench_sweep.py --missions ...` (runs too long to repeat here)
+                      instead of re-running its default sizes; learned table: a saved
+                      output of `bench_learned.py` instead of running it
 
 Tables, what they run and roughly how long on the 2-core machine they were written on:
   presets       skymule compare {paper-sim-fixed, aadm-default} --policies greedy,hgad   ~3 s
   autonomous    skymule compare paper-sim-autonomous                                     ~2 s
+  table-ii      skymule run paper-sim-autonomous with the paper's Table II buffers (x4)  ~4 s
   sources       skymule compare paper-sim-fixed --sources fspl,two-ray,al-hourani,...    ~3 s
+  bounds        skymule compare {paper-sim-fixed, aadm-default} --policies ...,optimal-fixed ~5 s
+  planner       skymule compare paper-sim-autonomous --policies hgad,planner (x3 variants) ~10 s
   sweep-example skymule sweep examples/sweep-paper.toml (1,000 missions)                 ~10 s
-  speed         benchmarks/bench_{engine,sweep,channel,bound,autonomous,planner}.py     ~15 min
-                (SPEED_BENCHES; sweeps and planner against the v0.1 tag in the same run;
+  sweep-scale   benchmarks/bench_sweep.py --missions 20000,200000 (inprocess) and
+                --missions 100000 (inprocess, process, dask-local)                       ~5 min
+                (--saved FILE[,FILE]: only the rows of saved outputs of longer runs,
+                e.g. --missions 10000000 --report; rows not re-run keep their text)
+  sim2real      benchmarks/bench_sim2real.py (3 synthetic worlds, every map, two splits)  ~15 min
+  speed         benchmarks/bench_{engine,sweep,channel,bound,autonomous,planner,startup}.py ~15 min
+                (SPEED_BENCHES; sweeps and planner against PREVIOUS_REV in the same run;
                 the 100,000-mission sweep only with --all: +10 min)
   learned       benchmarks/bench_learned.py: learned vs greedy, hgad, planner, bound on 200
                 held-out missions per row, with and without faults                      ~25 min
-                (--learned-output FILE: parse a saved run of it instead of running it)
+                (--saved FILE: parse a saved run of it instead of running it)
   suite         python -m pytest -q (only with --all)                                     ~3 min
 Rows that are not re-run keep their current text.
 """
@@ -37,6 +49,7 @@ Rows that are not re-run keep their current text.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import re
 import subprocess
@@ -62,7 +75,7 @@ class Context:
     tiny: bool
     slow: bool
     benches: frozenset[str] = frozenset()  # speed table: only these benchmarks (empty: all)
-    learned_output: Path | None = None  # a saved output of bench_learned.py
+    saved: tuple[Path, ...] = ()  # sweep-scale table: saved bench_sweep.py --missions outputs
 
     def run(self, *command: str) -> tuple[str, float]:
         """Run ``command`` from the repository root; (stdout, wall seconds). Fails loudly."""
@@ -167,6 +180,142 @@ def sweep_example_table(ctx: Context, old: list[str]) -> list[str]:
     return markdown(header, list("rrrr"), [[f"{missions:,}", f"{seconds:.1f}", *cells]])
 
 
+SCALE_RUNS = (
+    ("--missions", "20000,200000", "--executors", "inprocess"),
+    ("--missions", "100000", "--executors", "inprocess,process,dask-local"),
+)
+"""The ``bench_sweep.py`` scale runs the sweep-scale table re-measures (~5 min)."""
+
+SCALE_LINE = (
+    r"scale (\S+)\s+([\d,]+) missions: wall\s+([\d.]+) s, CPU\s+([\d.]+) s \(\s*(\d+) "
+    r"us/mission,\s+([\d.]+) s in main\), peak RSS\s+(\d+) MiB \(load ([\d.]+)\)"
+)
+REPORT_LINE = (
+    r"report\s+([\d,]+) missions: wall\s+([\d.]+) s, CPU\s+([\d.]+) s, peak RSS\s+(\d+) MiB "
+    r"\(target: under 60 s; load ([\d.]+)\)"
+)
+
+
+def scale_rows(out: str) -> dict[tuple[str, str], list[str]]:
+    """Table rows by (missions, executor) from ``bench_sweep.py --missions`` output."""
+    rows = {}
+    for executor, n, wall, cpu, us, main, mib, load in re.findall(SCALE_LINE, out):
+        key = (f"{int(_f(n)):,}", executor)
+        rows[key] = [*key, f"{_f(wall):.1f}", f"{_f(cpu):.1f}", f"{_f(main):.1f}", us, mib, load]
+    for n, wall, cpu, mib, load in re.findall(REPORT_LINE, out):
+        key = (f"{int(_f(n)):,}", "`skymule report` of it")
+        rows[key] = [*key, f"{_f(wall):.1f}", f"{_f(cpu):.1f}", "", "", mib, load]
+    return rows
+
+
+SCALE_HEADER = [
+    "missions",
+    "executor",
+    "wall [s]",
+    "CPU [s]",
+    "of which the sweep process [s]",
+    "CPU per mission [µs]",
+]
+
+
+def sweep_scale_table(ctx: Context, old: list[str]) -> list[str]:
+    """Sweeps of 20,000 to 10,000,000 missions per executor; rows measured now replace the
+    rows of the same size and executor, the others keep their text."""
+    rows: dict[tuple[str, str], list[str]] = {}
+    for line in old[2:]:
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) == len(SCALE_HEADER) + 2:
+            rows[cells[0], cells[1]] = cells
+    runs = (
+        [("--missions", "40", "--executors", "inprocess", "--report")] if ctx.tiny else SCALE_RUNS
+    )
+    for args in () if ctx.saved else runs:
+        out = ctx.bench("bench_sweep.py", *args)
+        print(out, file=sys.stderr)  # the targets' lines too, for the record
+        rows.update(scale_rows(out))
+    for path in ctx.saved:
+        found = scale_rows(path.read_text())
+        if not found:
+            raise SystemExit(f"--saved {path}: no bench_sweep.py --missions lines in it")
+        rows.update(found)
+    order = sorted(rows, key=lambda k: (int(k[0].replace(",", "")), k[1].startswith("`"), k[1]))
+    header = [*SCALE_HEADER, "peak RSS [MiB]", "load"]
+    return markdown(header, list("rlrrrrrr"), [rows[k] for k in order])
+
+
+def _bound_mbit(out: Path) -> tuple[float, float | None]:
+    """(bound, no-hover bound) [Mbit] of a compare folder's bound.json."""
+    record = json.loads((out / "bound.json").read_text())
+    return record["upper_bound_mbit"], record["no_hover_upper_bound_mbit"]
+
+
+def bounds_table(ctx: Context, old: list[str]) -> list[str]:
+    """The bound and each policy's gap to it on the fixed presets."""
+    rows = []
+    for preset in ("paper-sim-fixed", "aadm-default"):
+        name = f"bounds-{preset}"
+        table = _compare(ctx, name, preset, "--policies", "greedy,hgad,optimal-fixed")
+        bound, no_hover = _bound_mbit(ctx.work / name)
+        cells = [preset, f"{bound:.1f} ({no_hover:.1f})"]
+        for i, (_, r) in enumerate(table.iterrows()):
+            gap = f"{100 * r['gap_to_bound_frac']:.2f}%"
+            cells.append(f"{r['total_downloaded_mbit']:.1f} ({'gap ' if i == 0 else ''}{gap})")
+        rows.append(cells)
+    header = ["preset", "bound [Mbit] (no hover)", "greedy", "hgad", "optimal-fixed"]
+    return markdown(header, list("lrrrr"), rows)
+
+
+PLANNER_CASES = (
+    ("paper-sim-autonomous", ()),
+    ("same, 300 s", ("--set", "mission.duration_s=300")),
+    (
+        "same, 1500 Mbit per tower",
+        tuple(a for i in range(4) for a in ("--set", f"sensors[{i}].buffer_mbit=1500")),
+    ),
+)
+
+
+def planner_table(ctx: Context, old: list[str]) -> list[str]:
+    """HGAD and the planner against the autonomous bound: as specified, shorter, larger."""
+    rows = []
+    for label, args in PLANNER_CASES:
+        name = f"planner-{len(rows)}"
+        table = _compare(ctx, name, "paper-sim-autonomous", "--policies", "hgad,planner", *args)
+        cells = [label]
+        for _, r in table.iterrows():
+            down = r["total_downloaded_mbit"]
+            if r["aadm_complete"]:  # everything downloaded: when, and the score it earns
+                cells.append(
+                    f"{down:.1f} Mbit, done at {r['aadm_t1_s']:.0f} s, AADM {r['aadm_score']:.0f}"
+                )
+            else:
+                cells.append(f"{down:.1f}")
+        rows.append([*cells, f"{_bound_mbit(ctx.work / name)[0]:.1f}"])
+    return markdown(["autonomous", "hgad", "planner", "bound"], list("lrrr"), rows)
+
+
+TABLE_II = (
+    ((700, 500, 800, 1000), "LW4, LW3, LW1, LW2"),
+    ((500, 800, 1000, 700), "LW3, LW2, LW4, LW1"),
+    ((800, 500, 700, 1000), "LW4, LW1, LW3, LW2"),
+    ((500, 1000, 700, 800), "LW2, LW4, LW3, LW1"),
+)
+"""The paper's Table II: buffers LW1..LW4 [Mbit] and HGAD's navigation order (published)."""
+
+
+def table_ii_table(ctx: Context, old: list[str]) -> list[str]:
+    """HGAD's visit order on paper-sim-autonomous for the paper's Table II buffers."""
+    rows = []
+    for buffers, paper in TABLE_II:
+        sets = [
+            a for i, b in enumerate(buffers) for a in ("--set", f"sensors[{i}].buffer_mbit={b}")
+        ]
+        out, _ = ctx.skymule("run", "paper-sim-autonomous", "--policy", "hgad", *sets, "--json")
+        order = ", ".join(json.loads(out)["visit_order"])
+        rows.append(["/".join(map(str, buffers)), paper, order])
+    return markdown(["buffers LW1..LW4 [Mbit]", "paper", "skymule"], list("lll"), rows)
+
+
 def _numbers(pattern: str, text: str) -> list[tuple[str, ...]]:
     found = re.findall(pattern, text)
     if not found:
@@ -178,18 +327,15 @@ def _f(text: str) -> float:
     return float(text.replace(",", ""))
 
 
-BASELINE_REV = "v0.1"
-"""The release the speed rows' "previous implementation" figures are measured against (the
-code before the one-engine-core rewrite), run in the same benchmark run."""
-
-
 def _m(text: str) -> float:
     return _f(text) / 1e6
 
 
 PREVIOUS_REV = "4ddfba8"
-"""The last revision with the scalar reference engines: ``bench_autonomous.py`` times its
-autonomous reference engine in the same run (``--reference-rev``)."""
+"""The last revision before the one engine (scalar reference engines beside fused batched
+ones): the speed rows' "previous" figures (``bench_autonomous.py --reference-rev``,
+``bench_sweep.py --old-rev``, ``bench_planner.py --before``) are measured against it in the
+same benchmark run. (Revisions, not tags: a fresh clone has no tags.)"""
 
 
 def engine_cells(out: str) -> dict[str, str]:
@@ -269,7 +415,7 @@ def policies_cells(out: str) -> dict[str, str]:
 
 
 def sweep_cells(out: str) -> dict[str, str]:
-    """Sweep rows from ``bench_sweep.py --old-rev BASELINE_REV`` (100k only with --all)."""
+    """Sweep rows from ``bench_sweep.py --old-rev PREVIOUS_REV`` (100k only with --all)."""
     line = r"(\S+)\s+(\d+) missions:\s+([\d.]+) s CPU .*?(\d+) us CPU/mission, peak\s+(\d+) MiB"
     cases = {
         case: (int(n), _f(cpu), int(us), int(mib)) for case, n, cpu, us, mib in _numbers(line, out)
@@ -278,7 +424,7 @@ def sweep_cells(out: str) -> dict[str, str]:
     previous = dict(re.findall(r"(\S+)\s+\d+ missions:.*\| previous\s+([\d.]+) s CPU", out))
     cells = {}
     _, cpu, us, mib = cases["sample-10k"]
-    old = f"previous implementation ({BASELINE_REV}) in the same run: "
+    old = f"previous implementation ({PREVIOUS_REV}) in the same run: "
     if "sample-10k" in previous:
         old += f"{_f(previous['sample-10k']):.1f} s, **×{_f(previous['sample-10k']) / cpu:.1f}**"
     cells["^sweep, 10,000 missions"] = (
@@ -401,21 +547,43 @@ def planner_cells(out: str) -> dict[str, str]:
     ((plain,),) = _numbers(r"no numba\): ([\d.]+)", out)
     return {
         "^planner": (
-            f"{_f(now):.1f} missions per CPU-s ({BASELINE_REV} in the same run: {_f(before):.1f}, "
+            f"{_f(now):.1f} missions per CPU-s ({PREVIOUS_REV} in the same run: {_f(before):.1f}, "
             f"×{_f(now) / _f(before):.1f}; {_f(plain):.1f} without numba); identical plans in "
             f"{same} of {total} missions"
         )
     }
 
 
+def startup_cells(out: str) -> dict[str, str]:
+    """Start-up of ``skymule --help``, ``run``, ``bound`` and ``compare`` of a preset, from
+    ``bench_startup.py`` (wall and CPU medians; the target is 3x ``--help``)."""
+    ((runs, load),) = _numbers(r"median of (\d+) runs \(load ([\d.]+) ->", out)
+    found = {
+        label: (_f(wall), _f(cpu))
+        for label, wall, cpu in _numbers(
+            r"(?m)^  (--help|run|bound|compare)\s+wall\s+([\d.]+) s \(min [\d.]+\), CPU ([\d.]+) s",
+            out,
+        )
+    }
+    help_wall, help_cpu = found["--help"]
+    parts = [f"`--help` {help_wall:.2f} s ({help_cpu:.2f} s CPU)"]
+    parts += [
+        f"`{label}` {wall:.2f} s (×{wall / help_wall:.1f}; {cpu:.2f} s CPU, ×{cpu / help_cpu:.1f})"
+        for label, (wall, cpu) in found.items()
+        if label != "--help"
+    ]
+    return {"^start-up": f"{', '.join(parts)}; median of {runs}, load {_f(load):.1f} on 2 cores"}
+
+
 SPEED_BENCHES: dict[str, tuple[tuple[str, ...], Callable[[str], dict[str, str]]]] = {
     "bench_engine.py": ((), engine_cells),
-    "bench_sweep.py": (("--old-rev", BASELINE_REV), sweep_cells),
+    "bench_sweep.py": (("--old-rev", PREVIOUS_REV), sweep_cells),
     "bench_channel.py": ((), channel_cells),
     "bench_bound.py": ((), bound_cells),
     "bench_autonomous.py": (("--reference-rev", PREVIOUS_REV), autonomous_cells),
     "bench_policies.py": ((), policies_cells),
-    "bench_planner.py": (("--speed", "20", "--before", BASELINE_REV), planner_cells),
+    "bench_planner.py": (("--speed", "20", "--before", PREVIOUS_REV), planner_cells),
+    "bench_startup.py": ((), startup_cells),
 }
 """Benchmark -> (its arguments for the README, the parser of its output into speed cells).
 ``tests/test_benchmarks_smoke.py`` feeds each parser the tiny run's output, so none rots."""
@@ -430,16 +598,28 @@ def speed_rows(ctx: Context) -> dict[str, str]:
         if name == "bench_sweep.py" and not ctx.slow:
             args = (*args, "--quick")
         if ctx.tiny and name == "bench_planner.py":
-            args = ("--speed", "2", "--before", BASELINE_REV)
+            args = ("--speed", "2", "--before", PREVIOUS_REV)
         cells.update(parse(ctx.bench(name, *args)))
     return cells
 
 
+NEW_SPEED_ROWS = {
+    "^start-up": (
+        "start-up: `skymule --help`, and `run`, `bound`, `compare` of paper-sim-fixed, wall "
+        "time of a fresh process (×: against `--help`)",
+        "`python benchmarks/bench_startup.py`",
+    ),
+}
+"""Rows a measured pattern adds when the table has none yet: pattern -> (what, command)."""
+
+
 def speed_table(ctx: Context, old: list[str]) -> list[str]:
     """Rewrite the figure cell of each row whose ``what`` matches a measured row's pattern;
-    a row no benchmark measured this time (the 100k sweep without --all) keeps its text."""
+    a row no benchmark measured this time (the 100k sweep without --all) keeps its text, and
+    a measured pattern of :data:`NEW_SPEED_ROWS` that no row matches is added as a row."""
     cells = speed_rows(ctx)
     out = []
+    matched = set()
     for line in old:
         parts = line.split(" | ")
         what = parts[0].lstrip("| ")
@@ -447,7 +627,11 @@ def speed_table(ctx: Context, old: list[str]) -> list[str]:
         if key is not None and len(parts) >= 3:
             parts[1] = cells[key]
             line = " | ".join(parts)
+            matched.add(key)
         out.append(line)
+    for key, (what, command) in NEW_SPEED_ROWS.items():
+        if key in cells and key not in matched:
+            out.append(f"| {what} | {cells[key]} | {command} |")
     return out
 
 
@@ -493,9 +677,9 @@ def _fields(line: str) -> dict[str, str]:
 def learned_table(ctx: Context, old: list[str]) -> list[str]:
     """The learned policy against the others, per fault condition and sensor count, and its
     speed, from ``bench_learned.py`` (or its saved output)."""
-    if ctx.learned_output is not None:
-        out = ctx.learned_output.read_text()
-    else:
+    saved = [path.read_text() for path in ctx.saved]
+    out = next((text for text in saved if "vs-hgad: " in text), None)
+    if out is None:
         out = ctx.bench("bench_learned.py")
     rows = [_fields(line) for line in out.splitlines() if line.startswith("row: ")]
     versus = [_fields(line) for line in out.splitlines() if line.startswith("vs-hgad: ")]
@@ -561,11 +745,48 @@ def learned_table(ctx: Context, old: list[str]) -> list[str]:
     return lines
 
 
+SIM2REAL_LINE = re.compile(
+    r"^  (?P<map>\S.*?\S)\s{2,}(?P<split>(?:time|flight) \(.*?\))\s+(?P<rmse>[\d.]+)\s+"
+    r"(?P<over>[+-][\d.]+)\s+(?P<bias>[+-][\d.]+)\s+(?P<cover>\d+%|n/a)\s+(?P<greedy>\S+)\s+"
+    r"(?P<hgad>\S+)\s+(?P<fit>[\d.]+)$",
+    re.M,
+)
+
+
+def sim2real_rows(out: str) -> list[list[str]]:
+    """The rows of the "mean over N worlds" block of ``bench_sim2real.py``."""
+    mean = out.split("mean over", 1)
+    if len(mean) < 2:
+        raise SystemExit(f"bench_sim2real.py printed no mean block:\n{out[-3000:]}")
+    block = mean[1].split("\nlearned twin", 1)[0]
+    rows = [
+        [m["map"], m["split"], m["rmse"], m["over"], m["bias"], m["cover"],
+         m["greedy"], m["hgad"], m["fit"]]
+        for m in SIM2REAL_LINE.finditer(block)
+    ]  # fmt: skip
+    if not rows:
+        raise SystemExit(f"bench_sim2real.py: no rows in the mean block:\n{block}")
+    return rows
+
+
+def sim2real_table(ctx: Context, old: list[str]) -> list[str]:
+    """Maps and learned twins against a held-out "real" flight, mean over synthetic worlds."""
+    rows = sim2real_rows(ctx.bench("bench_sim2real.py"))
+    header = ["map", "held out", "SNR RMSE [dB]", "over the noise floor [dB]", "bias [dB]"]
+    header += ["in the 95% interval", "Greedy Mbit error", "HGAD Mbit error", "fit CPU [s]"]
+    return markdown(header, list("llrrrrrrr"), rows)
+
+
 TABLES: dict[str, Callable[[Context, list[str]], list[str]]] = {
     "presets": presets_table,
     "autonomous": autonomous_table,
+    "table-ii": table_ii_table,
     "sources": sources_table,
+    "bounds": bounds_table,
+    "planner": planner_table,
     "sweep-example": sweep_example_table,
+    "sweep-scale": sweep_scale_table,
+    "sim2real": sim2real_table,
     "speed": speed_table,
     "learned": learned_table,
     "suite": suite_table,
@@ -601,7 +822,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--tiny", action="store_true")
     parser.add_argument("--benches", default="")
     parser.add_argument("--readme", type=Path, default=ROOT / "README.md")
-    parser.add_argument("--learned-output", type=Path, default=None)
+    parser.add_argument("--saved", default="")
     args = parser.parse_args(argv)
     names = [n.strip() for n in args.only.split(",") if n.strip()]
     unknown = [n for n in names if n not in TABLES]
@@ -614,7 +835,8 @@ def main(argv: list[str] | None = None) -> int:
         unknown_benches = sorted(benches - set(SPEED_BENCHES))
         if unknown_benches:
             parser.error(f"--benches {unknown_benches[0]}: allowed: {', '.join(SPEED_BENCHES)}")
-        ctx = Context(Path(scratch), args.tiny, args.all, benches, args.learned_output)
+        saved = tuple(Path(p.strip()) for p in args.saved.split(",") if p.strip())
+        ctx = Context(Path(scratch), args.tiny, args.all, benches, saved)
         for name in names:
             start = time.perf_counter()
             text = rewrite(text, name, lambda old, n=name: TABLES[n](ctx, old))

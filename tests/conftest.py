@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import json
 import os
 import subprocess
 import sys
@@ -133,4 +134,17 @@ def write(tmp_path: Path, text: str, name: str = "sweep.toml") -> Path:
     """``text`` saved as ``tmp_path / name``; the path."""
     path = tmp_path / name
     path.write_text(text)
+    return path
+
+
+def tiny_scenario(folder: Path, policy: str, params: str = "", name: str = "shared") -> Path:
+    """``folder/<name>.toml``: one sensor, a 100-m fixed path, 20 s, under ``policy`` with the
+    TOML lines ``params`` after its ``[policy]`` table (a file someone shared)."""
+    path = folder / f"{name}.toml"
+    path.write_text(
+        f'name = "{name}"\n[mission]\nduration_s = 20\n'
+        '[[sensors]]\nname = "A"\nx_m = 50.0\ny_m = 0.0\nbuffer_mbit = 5\n'
+        "[trajectory]\nwaypoints = [[0, 0, 30], [100, 0, 30]]\n"
+        f"[policy]\nname = {json.dumps(policy)}\n{params}"
+    )
     return path

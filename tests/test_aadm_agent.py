@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import re
 import subprocess
@@ -135,7 +136,7 @@ def test_plain_script_agent_through_the_files(small: Path, tmp_path: Path) -> No
         with serve_controller(core) as server:
             comm = threading.Thread(
                 target=run_comm,
-                args=(folder, server.host, server.port),
+                args=(folder, server.host, server.port, 2),
                 kwargs={"poll_s": 0.03, "max_polls": 2000, "should_stop": stop.is_set},
             )
             comm.start()
@@ -172,7 +173,7 @@ def test_skymule_agent_through_the_files(small: Path, tmp_path: Path) -> None:
     with serve_controller(core) as server:
         comm = threading.Thread(
             target=run_comm,
-            args=(folder, server.host, server.port),
+            args=(folder, server.host, server.port, 2),
             kwargs={"poll_s": 0.01, "max_polls": 3000, "should_stop": stop.is_set},
         )
         comm.start()
@@ -189,7 +190,12 @@ def test_controller_and_agent_as_separate_processes(small: Path, tmp_path: Path)
     env = {**os.environ, "PYTHONPATH": str(SRC)}
     command = [sys.executable, "-c", "from skymule.cli import main; main()", "aadm"]
     controller = subprocess.Popen(
-        [*command, "controller", str(small), "--port", "0", "--exit-on-disarm", "--log", "dl.csv"],
+        [
+            *command,
+            "controller",
+            str(small),
+            *("--port", "0", "--telemetry-port", "0", "--exit-on-disarm", "--log", "dl.csv"),
+        ],
         cwd=tmp_path,
         env=env,
         stdout=subprocess.PIPE,
@@ -198,20 +204,17 @@ def test_controller_and_agent_as_separate_processes(small: Path, tmp_path: Path)
     )
     try:
         assert controller.stdout is not None
-        line = controller.stdout.readline()
-        match = re.match(r"listening on 127\.0\.0\.1:(\d+)", line)
-        assert match, line
+        polls, telemetry = (controller.stdout.readline() for _ in range(2))
+        match = re.match(r"listening on 127\.0\.0\.1:(\d+) \(UAV polls\)", polls)
+        told = re.match(r"listening on 127\.0\.0\.1:(\d+) \(telemetry\)", telemetry)
+        assert match and told, polls + telemetry
         done = subprocess.run(
             [
                 *command,
                 "agent",
                 str(small),
-                "--policy",
-                "hgad",
-                "--port",
-                match.group(1),
-                "--poll-s",
-                "0",
+                *("--policy", "hgad", "--port", match.group(1)),
+                *("--telemetry-port", told.group(1)),
             ],
             cwd=tmp_path,
             env=env,
@@ -221,6 +224,7 @@ def test_controller_and_agent_as_separate_processes(small: Path, tmp_path: Path)
         )
         assert done.returncode == 0, done.stderr
         assert "landed 0.0 m from the launch point" in done.stdout
+        assert "controller: T1: " in done.stdout  # the score line the telemetry got back
         out, _ = controller.communicate(timeout=30)
     finally:
         if controller.poll() is None:
@@ -229,6 +233,154 @@ def test_controller_and_agent_as_separate_processes(small: Path, tmp_path: Path)
     assert controller.returncode == 0
     assert "downloaded 100.0 Mbit" in out
     assert files.read_download_log(tmp_path / "dl.csv").cumulative_mbit[-1].tolist() == [60, 40]
+
+
+FIXED_SMALL = """
+name = "aadm-small-fixed"
+[mission]
+duration_s = 80
+[site]
+origin = { lat = 35.7274824, lon = -78.6962749 }
+geofence = "lake-wheeler"
+[[sensors]]
+name = "LW1"
+lat = 35.727451
+lon = -78.695974
+height_m = 10.0
+buffer_mbit = 150
+[[sensors]]
+name = "LW3"
+lat = 35.724933
+lon = -78.691912
+height_m = -0.23
+buffer_mbit = 120
+[trajectory]
+mode = "fixed"
+speed_mps = 10.0
+waypoints = [[0, 0, 30], [300, -300, 30], [0, -300, 30]]
+[policy]
+name = "optimal-fixed"
+"""
+
+
+@pytest.mark.parametrize(
+    "policy", ["greedy", "hgad", "hgad-robust", "planner", "planner-robust", "optimal-fixed"]
+)
+def test_two_process_flight_equals_aadm_fly(policy: str, tmp_path: Path) -> None:
+    # the agent command, with its defaults, against a controller in another thread: the same
+    # polls, downloads and score as `aadm fly`. Before the agent took the scenario's altitude
+    # it climbed to 25 m where `aadm fly` flew at 30 m, and the planner split at poll 19.
+    path = tmp_path / "scenario.toml"
+    text = FIXED_SMALL if policy == "optimal-fixed" else SMALL.format(lw1=300, lw3=250)
+    path.write_text(text)
+    scenario = load_scenario(str(path))
+    fly = fly_loopback(scenario, policy, poll_s=0.0)
+    core = ControllerCore(build_mission(scenario))
+    with serve_controller(core) as server:
+        done = run_cli(
+            *("aadm", "agent", str(path), "--policy", policy, "--port", str(server.port)),
+            *("--telemetry-port", str(server.telemetry_port)),
+        )
+    assert done.returncode == 0, done.stderr
+    fly_polls = fly.flight_per_poll_bit
+    assert core.served_polls == len(fly_polls) > 0, done.stderr
+    assert core.per_poll_bit == fly_polls, done.stderr  # poll by poll, to the bit
+    assert core.score() == fly.flight_score
+
+
+def _lost_after(core: ControllerCore, polls: int) -> None:
+    """The controller stops answering (its connection closes) after ``polls`` polls."""
+    answer = core.request
+
+    def request(text: str, peer: str = "") -> tuple[str, object]:
+        if core.served_polls >= polls:
+            raise OSError("controller gone")
+        return answer(text, peer)
+
+    core.request = request  # type: ignore[method-assign,assignment]
+
+
+def test_agent_retries_then_returns_to_launch(small: Path) -> None:
+    from skymule.aadm.agent import fly_tcp
+    from skymule.aadm.loopback import kinematic_vehicle
+    from skymule.errors import SkymuleError
+    from skymule.policies import make_policy
+
+    scenario = load_scenario(str(small))
+    mission = build_mission(scenario)
+    agent = AadmAgent(mission, make_policy(scenario.policy))
+    vehicle = kinematic_vehicle(agent)
+    core = ControllerCore(mission)
+    _lost_after(core, 8)
+    with (
+        serve_controller(core) as server,
+        pytest.raises(SkymuleError, match=r"gave up after 2 retries, returned to launch"),
+    ):
+        fly_tcp(
+            agent,
+            vehicle,
+            server.host,
+            server.port,
+            server.telemetry_port,
+            pace_s=0.0,
+            altitude_m=30.0,
+            retries=2,
+            retry_wait_s=0.0,
+        )
+    assert not vehicle.armed  # landed, not left hovering
+    assert np.hypot(*vehicle.position_m()[:2]) <= 0.5 and core.served_polls == 8
+
+
+def test_a_report_lost_after_the_controller_counted_the_poll(small: Path) -> None:
+    # the controller credits poll 12, then the connection breaks before the report: the agent
+    # tries again naming the same tower (its policy is not asked twice for one slot) and
+    # takes the controller's totals from the next reply
+    from skymule.aadm.agent import fly_tcp
+    from skymule.aadm.loopback import kinematic_vehicle
+    from skymule.policies import make_policy
+
+    scenario = load_scenario(str(small))
+    mission = build_mission(scenario)
+    agent = AadmAgent(mission, make_policy(scenario.policy))
+    core = ControllerCore(mission)
+    account = core.choose
+
+    def choose(text: str, snapshot: object) -> str:
+        report = account(text, snapshot)  # type: ignore[arg-type]
+        if core.served_polls == 12 and not lost:
+            lost.append(report)
+            raise OSError("link lost before the report")
+        return report
+
+    lost: list[str] = []
+    core.choose = choose  # type: ignore[method-assign,assignment]
+    with serve_controller(core) as server:
+        address = (server.host, server.port, server.telemetry_port)
+        record = fly_tcp(agent, kinematic_vehicle(agent), *address, pace_s=0.0, retry_wait_s=0.0)
+    assert lost and record.share_poll is not None
+    np.testing.assert_allclose(core.received_mbit(), [60.0, 40.0])
+    # one decision a slot: the poll tried again did not ask the policy (or the pilot) again
+    assert len(record.towers) == record.polls
+
+
+def test_a_restarted_agent_rejoins_the_session(small: Path) -> None:
+    from skymule.aadm.agent import fly_tcp
+    from skymule.aadm.loopback import kinematic_vehicle
+    from skymule.policies import make_policy
+
+    scenario = load_scenario(str(small))
+    mission = build_mission(scenario)
+    core = ControllerCore(mission)
+    with serve_controller(core) as server:
+        address = (server.host, server.port, server.telemetry_port)
+        first = AadmAgent(mission, make_policy(scenario.policy))
+        fly_tcp(first, kinematic_vehicle(first), *address, pace_s=0.0, max_polls=15)  # killed
+        before = core.served_polls
+        second = AadmAgent(mission, make_policy(scenario.policy))
+        record = fly_tcp(second, kinematic_vehicle(second), *address, pace_s=0.0)
+    assert before > 0 and record.rejoined and record.share_poll is not None
+    np.testing.assert_allclose(core.received_mbit(), [60.0, 40.0])  # finished by the second
+    assert core.disarmed and record.score_line is not None
 
 
 def test_cli_fly_prints_the_comparison(small: Path) -> None:
@@ -244,7 +396,13 @@ def test_cli_fly_prints_the_comparison(small: Path) -> None:
         (["aadm", "fly", "no-such-preset"], "no-such-preset"),
         (["aadm", "fly", "{small}", "--policy", "nope"], "unknown policy 'nope'"),
         (["aadm", "controller", "{small}", "--volumes", "{vol}"], "3 volume line(s) for 2 towers"),
-        (["aadm", "agent", "{small}", "--policy", "hgad", "--port", "{port}"], "no controller"),
+        (
+            [
+                *("aadm", "agent", "{small}", "--policy", "hgad", "--retries", "0"),
+                *("--port", "{port}", "--telemetry-port", "{port}"),
+            ],
+            "no controller listening; gave up after 0 retries, returned to launch",
+        ),
         (["aadm", "agent", "{small}", "--policy", "hgad", "--vehicle", "mavsdk"], "skymule[fly]"),
         (
             ["aadm", "agent", "{small}", "--policy", "hgad", "--vehicle", "boat"],
@@ -256,6 +414,8 @@ def test_cli_fly_prints_the_comparison(small: Path) -> None:
 def test_cli_bad_input_is_one_line_and_exit_2(
     small: Path, tmp_path: Path, args: list[str], problem: str
 ) -> None:
+    if "mavsdk" in args and importlib.util.find_spec("mavsdk_grpc") is not None:
+        pytest.skip("the fly extra is installed: tests/test_aadm_mavlink.py flies --vehicle mavsdk")
     (tmp_path / "vol.txt").write_text("10\n30\n90\n")
     with __import__("socket").socket() as probe:  # a port nobody listens on
         probe.bind(("127.0.0.1", 0))

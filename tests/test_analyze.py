@@ -130,3 +130,27 @@ def test_digital_twin_export_is_replayed_too(tmp_path: Path) -> None:
     flight = report.runs[0].slots
     assert list(flight["served"][:3]) == ["LW1", "", "LW3"]
     assert report.runs[1].summary["per_sensor_buffer_mbit"]["LW4"] == 50.0
+
+
+def test_an_impossible_controller_log_is_refused_tower_by_tower(tmp_path: Path) -> None:
+    # LW1 holds 500 Mbit: a log crediting it 99,999 Mbit is not of this flight (it used to
+    # score "complete at t1 = 1 s": 599)
+    samples = Path(__file__).parents[1] / "examples" / "samples"
+    rows = (samples / "flight_downloads.csv").read_text().splitlines()
+    for at in range(3, len(rows)):  # a running total: from row 4 on
+        cells = rows[at].split(",")
+        rows[at] = ",".join([cells[0], "99999", *cells[2:]])
+    (tmp_path / "dl.csv").write_text("\n".join(rows) + "\n")
+    done = skymule(
+        "analyze",
+        str(samples / "flight_merged.csv"),
+        *("--volumes", str(samples / "volumes.txt"), "--download-log", "dl.csv"),
+        *("--out", "an", "--no-pdf"),
+        cwd=tmp_path,
+    )
+    assert done.returncode == 2, done.stdout
+    assert done.stderr.strip() == (
+        "skymule: error: dl.csv: row 4, column dl_lw1: 99999 Mbit downloaded, more than the "
+        "tower's volume of 500 Mbit; a tower can give at most its volume"
+    )
+    assert not (tmp_path / "an" / "summary.json").exists()

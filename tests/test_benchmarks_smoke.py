@@ -34,6 +34,8 @@ EXPECTED = {
     "bench_planner.py": ["planner gain over hgad", "mean gap to bound", "above the bound: 0"],
     "bench_resilience.py": ["robust - plain", "hgad-robust", "planner-robust", "ended home"],
     "bench_single.py": ["paper-sim-fixed", "aadm-default", "slots/s"],
+    "bench_sim2real.py": ["neural + DT prior", "noise floor", "fit time", "twin (DT map)"],
+    "bench_startup.py": ["--help", "run", "x --help in wall time", "CPU"],
     "bench_sweep.py": ["sample-10k", "us CPU/mission", "process executor", "seed axis"],
     "train_ppo.py": ["hgad", "bound", "PPO - HGAD"],
     "bench_learned.py": ["learned vs hgad", "row: condition=faults", "inference, one mission"],
@@ -72,3 +74,27 @@ def test_benchmark_runs_at_tiny_size(
         _, parse = README_TABLES["SPEED_BENCHES"][name]
         cells = parse(out)
         assert cells and all(cells.values()), f"{name}: README speed cells {cells}"
+    if name == "bench_sim2real.py":  # its README table is parsed from this output
+        rows = README_TABLES["sim2real_rows"](out)
+        labels = [r[0] for r in rows]
+        assert labels[0] == "twin (DT map)" and labels[-2:] == [
+            "neural + DT prior",
+            "oracle: twin - bias",
+        ], labels
+
+
+def test_the_sweep_scale_mode_runs_and_fills_the_readme_rows(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``bench_sweep.py --missions N --report`` (the 10-million-mission benchmark at a tiny
+    size): wall, CPU and peak RSS per executor and the report's, parsed into the README's
+    sweep-scale rows."""
+    monkeypatch.syspath_prepend(str(BENCHMARKS))
+    script = str(BENCHMARKS / "bench_sweep.py")
+    monkeypatch.setattr(
+        sys, "argv", [script, "--missions", "40", "--executors", "inprocess", "--report"]
+    )
+    runpy.run_path(script, run_name="__main__")
+    rows = README_TABLES["scale_rows"](capsys.readouterr().out)
+    assert set(rows) == {("40", "inprocess"), ("40", "`skymule report` of it")}
+    assert all(cell for cell in rows["40", "inprocess"])

@@ -119,3 +119,41 @@ def test_compare_without_a_bound_still_runs(tmp_path: Path) -> None:
     done = skymule("compare", str(path), "--policies", "greedy,optimal-fixed")
     assert done.returncode == 0, done.stderr
     assert "no upper bound" in done.stdout and "radio.fading" in done.stdout
+
+
+def test_the_grid_bound_warns_when_the_snr_breaks_its_condition(tmp_path: Path) -> None:
+    """Strong shadowing varies by more than 1 dB within 3.5 m: the grid bound says so on
+    stderr and in bound.json (it is still computed); free space keeps it quiet."""
+    shadowed = ("--set", "radio.shadowing_std_db=8", "--set", "radio.shadowing_decorrelation_m=20")
+    done = skymule("bound", "paper-sim-autonomous", *shadowed, "--out", str(tmp_path / "b"))
+    assert done.returncode == 0, done.stderr
+    (line,) = done.stderr.strip().splitlines()
+    assert line.startswith("skymule: warning: the grid bound's condition fails here")
+    assert "within 3.5 m" in line
+    record = json.loads((tmp_path / "b" / "bound.json").read_text())
+    assert record["warnings"] == [line.removeprefix("skymule: warning: ")]
+    assert "warnings" not in done.stdout  # in the table's place: stderr
+    clean = skymule("bound", "paper-sim-autonomous", "--json")
+    assert clean.stderr == "" and json.loads(clean.stdout)["warnings"] == []
+    compared = skymule("compare", "paper-sim-autonomous", *shadowed, "--policies", "greedy")
+    assert "skymule: warning: upper bound: the grid bound's condition fails" in compared.stderr
+
+
+def test_steepest_step_ignores_points_off_the_grid_and_dead_links() -> None:
+    from skymule.bounds.autonomous import steepest_step_db
+
+    snr = np.array([[10.0, 12.5, np.nan], [11.0, -np.inf, 40.0]])[:, :, None]
+    assert steepest_step_db(snr) == 2.5  # 10 -> 12.5 across, 10 -> 11 down; 40 has no neighbour
+    assert steepest_step_db(np.full((2, 2, 1), np.nan)) == 0.0
+
+
+def test_the_python_bound_reads_in_mbit_like_every_summary() -> None:
+    from skymule.tasks.compare import compare_policies, scenario_bound
+
+    scenario = load_scenario("paper-sim-fixed")
+    upper = scenario_bound(scenario)
+    assert upper.upper_bound_mbit == pytest.approx(3000.0) and upper.total_buffer_mbit == 3000.0
+    assert upper.upper_bound_mbit == upper.to_json_dict()["upper_bound_mbit"]
+    assert 2500.0 < (upper.no_hover_upper_bound_mbit or 0.0) < 3000.0
+    (row,) = compare_policies(scenario, ["hgad"]).rows()
+    assert row["upper_bound_mbit"] - row["total_downloaded_mbit"] == row["gap_to_bound_mbit"]

@@ -14,7 +14,7 @@ from rich.console import Console
 
 from conftest import run_cli
 from skymule.cli import output
-from skymule.cli.tables import fmt
+from skymule.cli.tables import cells, fmt, fmt_mean_ci
 from skymule.io.traces import write_dt_export
 from skymule.tasks.radiomaps import RadioMapFit
 
@@ -45,7 +45,10 @@ def assert_intact(text: str, values: list[Any], width: int | None) -> None:
             continue
         shown = fmt(value)
         if isinstance(value, int | float) and not isinstance(value, bool):
-            assert shown in tokens, f"{shown} missing or cut at width {width}:\n{text}"
+            # a column shows all its numbers with the same decimals: a whole 3000.0 next to
+            # 2756.4 reads "3000.0"; never fewer decimals than the value needs
+            forms = {fmt(value, places) for places in (1, 3)} | {shown}
+            assert forms & tokens, f"{shown} missing or cut at width {width}:\n{text}"
         else:
             assert "".join(shown.split()) in squeezed, f"{shown!r} cut at width {width}:\n{text}"
     if width is not None:  # tables fit; a "wrote PATH" line is never folded (test below)
@@ -79,8 +82,9 @@ def test_bound_table(width: int | None) -> None:
     record = json.loads(run_cli("bound", "paper-sim-fixed", "--json", check=True).stdout)
     text = run_cli("bound", "paper-sim-fixed", check=True).stdout
     assert record["upper_bound_mbit"] == pytest.approx(3000.0)
-    values = [v for k, v in record.items() if k != "solve_time_s"]  # timing differs per run
-    assert_intact(text, [*values, *record], width)
+    shown = {k: v for k, v in record.items() if k != "warnings"}  # those go to stderr
+    values = [v for k, v in shown.items() if k != "solve_time_s"]  # timing differs per run
+    assert_intact(text, [*values, *shown], width)
 
 
 @pytest.fixture(scope="module")
@@ -123,3 +127,20 @@ def test_written_paths_are_never_folded(tmp_path: Path, width: int | None) -> No
         "run", "paper-sim-fixed", "--set", "mission.duration_s=20", "--out", out, check=True
     )
     assert f"wrote {out}/summary.json" in done.stdout
+
+
+def test_a_column_shows_its_numbers_alike() -> None:
+    """Counts without decimals (not ``4.000``); one quantity with one number of decimals
+    (hover ``0`` and ``155``, not ``0.000`` next to ``155.0``); ``mean ± CI`` alike."""
+    table = run_cli("compare", "paper-sim-fixed", "--policies", "greedy,hgad", check=True)
+    lines = table.stdout.splitlines()
+    header = lines[1].split()
+    rows = {line.split()[0]: line.split() for line in lines[3:5]}
+    hover = header.index("hover")  # "hover s": the words before it are one column each
+    assert [rows[p][hover] for p in ("greedy", "hgad")] == ["0", "155"]
+    assert cells([{"n": 4.0}, {"n": 7.0}], ["n"]) == [["4"], ["7"]]
+    assert cells([{"x": 0.0}, {"x": 155.5}], ["x"]) == [["0.0"], ["155.5"]]
+    assert cells([{"x": 0.8125}, {"x": 1.0}], ["x"]) == [["0.812"], ["1.000"]]
+    assert fmt_mean_ci(134.7, 2.838) == "134.7 ± 2.8"
+    assert fmt_mean_ci(0.849, 0.0101) == "0.849 ± 0.010"
+    assert fmt_mean_ci(0.0, 0.0) == "0 ± 0"

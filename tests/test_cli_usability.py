@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import run_cli
+from conftest import SMALL_SWEEP, run_cli
 from skymule.scenario import presets
 
 ROOT = Path(__file__).parents[1]
@@ -129,6 +129,49 @@ def test_output_folders_are_not_overwritten_or_mixed(tmp_path: Path) -> None:
     (other / "thesis.txt").write_text("mine")
     one_line_error(run_cli("compare", "paper-sim-fixed", "--out", other), "other files")
     assert (other / "thesis.txt").read_text() == "mine"
+
+
+def test_a_source_comparison_and_a_policy_comparison_never_share_a_folder(
+    tmp_path: Path,
+) -> None:
+    mix = tmp_path / "mix"
+    sources = ("--sources", "fspl,two-ray", "--policies", "greedy")
+    run_cli("compare", "paper-sim-fixed", *sources, "--out", mix, check=True)
+    run_cli("compare", "paper-sim-fixed", *sources, "--out", mix, check=True)  # the same again
+    (mix / "notes.txt").write_text("mine")
+    refused = run_cli("compare", "paper-sim-fixed", "--policies", "greedy", "--out", mix)
+    # each name once, though comparison.csv has a row per source and policy
+    one_line_error(refused, "holds a comparison of greedy under sources fspl, two-ray on")
+    one_line_error(run_cli("bound", "paper-sim-fixed", "--out", mix), "under sources")
+    assert not (mix / "bound.json").exists()
+    one_line_error(run_cli("compare", "paper-sim-fixed", "--sources", "fspl", "--out", mix))
+
+    # --force replaces the comparison: nothing of the source comparison is left behind
+    run_cli("compare", "paper-sim-fixed", "--policies", "greedy,hgad", "--out", mix, "--force")
+    left = sorted(p.name for p in mix.iterdir())
+    assert left == ["bound.json", "comparison.csv", "greedy", "hgad", "notes.txt"]
+    # a comparison of a subset of the policies would leave the others' folders: refused
+    one_line_error(run_cli("compare", "paper-sim-fixed", "--policies", "hgad", "--out", mix))
+    run_cli("compare", "paper-sim-fixed", "--policies", "hgad,greedy", "--out", mix, check=True)
+
+
+def test_plot_points_a_sweep_folder_to_report_and_draws_a_source_comparison(
+    tmp_path: Path,
+) -> None:
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(SMALL_SWEEP.format(n=1))
+    swept = tmp_path / "swept"
+    run_cli("sweep", sweep, "--out", swept, "--executor", "inprocess", "--quiet", check=True)
+    one_line_error(run_cli("plot", swept), f"`skymule report {swept}`")
+    sources = tmp_path / "sources"
+    run_cli(
+        "compare", "paper-sim-fixed", "--sources", "fspl,two-ray", "--policies", "greedy",
+        "--out", sources, check=True,
+    )  # fmt: skip
+    drawn = run_cli("plot", sources, check=True).stdout
+    for source in ("fspl", "two-ray"):
+        assert f"{sources / source / 'greedy' / 'download.png'}" in drawn
+        assert (sources / source / "greedy" / "download.png").stat().st_size > 1000
 
 
 def test_report_without_pdf_leaves_no_stale_pdfs(tmp_path: Path) -> None:

@@ -335,6 +335,10 @@ def test_presets_have_no_faults_and_serialise_as_before() -> None:
         ('kind = "wind"\nparams = { speed_mps = 12 }', "must be below the UAV's speed (10.0"),
         ('kind = "missed-polls"\nparams = { p_good_to_bad = 0.1 }', "need both p_good_to_bad"),
         ('kind = "battery"', "battery: params.capacity_wh is required"),
+        (
+            'kind = "battery"\nparams = { capacity_wh = 1 }',  # ignored there, so refused
+            "faults[0] (battery): a battery limit needs trajectory.mode = 'autonomous'",
+        ),
     ],
 )
 def test_bad_fault_entries_are_one_line(tmp_path: Path, faults: str, expected: str) -> None:
@@ -345,8 +349,10 @@ def test_bad_fault_entries_are_one_line(tmp_path: Path, faults: str, expected: s
 
 def test_one_battery_only(tmp_path: Path) -> None:
     battery = '[[faults]]\nkind = "battery"\nparams = { capacity_wh = 10 }\n'
+    autonomous = 'trajectory.mode = "autonomous"\n'
     with pytest.raises(ScenarioError, match="at most one 'battery' entry"):
-        load_scenario(_scenario(tmp_path, battery * 2))
+        load_scenario(_scenario(tmp_path, battery * 2), [autonomous.strip()])
+    assert load_scenario(_scenario(tmp_path, battery), [autonomous.strip()]).faults
 
 
 # --- any valid parameters draw, quickly, arrays of the documented shapes ---------------------

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import matplotlib.colors as mcolors
 import numpy as np
+import pandas as pd
+import pyarrow.parquet as pq
 import pytest
 from matplotlib.figure import Figure
 from PIL import Image
@@ -20,22 +22,31 @@ from PIL import Image
 from conftest import run_cli
 from skymule.errors import SkymuleError
 from skymule.report.channel import plot_snr_cdf_by_source
-from skymule.report.figures import draw_snr_cdf
+from skymule.report.figures import draw_cumulative_download, draw_snr_cdf
+from skymule.report.html import share_twin_axes
 from skymule.report.inputs import load_run, score_breakdown
-from skymule.report.panels import draw_flight_map, draw_score
+from skymule.report.panels import draw_flight_map, draw_policy_bars, draw_score, draw_snr_time
 from skymule.report.plot import plot_run
+from skymule.report.resilience import plot_resilience
 from skymule.report.style import (
     DISTANCE_STYLE,
     NEUTRAL,
     PANEL_WIDTH_IN,
     TOTAL_STYLE,
     _legend_entries,
+    grid_shape,
+    label_height,
+    label_outer_panels,
     panel_figure,
     parameter_label,
     parse_formats,
+    policy_styles,
     scenario_description,
     sensor_colours,
+    wrap_title,
 )
+from skymule.report.sweep import STRIP_POINTS, Results, strip_sample, sweep_title
+from skymule.report.sweep_query import results_query
 
 SCENARIO = """
 name = "my-scenario-id"
@@ -222,3 +233,118 @@ def test_plot_command_writes_the_formats_asked_for_and_refuses_bad_ones(tmp_path
     for args in (("--format", "gif"), ("--dpi", "5")):
         bad = run_cli("plot", out, *args)
         assert bad.returncode == 2 and bad.stderr.count("\n") == 1
+
+
+# --- issue 25 item 7: each flaw an IEEE reviewer saw, pinned --------------------------------
+
+
+def test_many_panels_wrap_into_rows_of_two(runs: Path, tmp_path: Path) -> None:
+    """Four sources made a 14-inch row; two a row fit a two-column page (7 in), with one y
+    label a row and one x label a column."""
+    greedy = load_run(runs / "greedy")
+    panels = [(name, greedy.slots) for name in ("fspl", "two-ray", "al-hourani", "3gpp")]
+    out = plot_snr_cdf_by_source(panels, tmp_path / "four.png", dpi=100)
+    with Image.open(out) as image:
+        assert image.size[0] < 1.1 * 2 * PANEL_WIDTH_IN * 100
+    assert grid_shape(4) == (2, 2) and grid_shape(3) == (2, 2) and grid_shape(1) == (1, 1)
+    fig, axes = panel_figure(3, 2.6, sharex=True, sharey=True)
+    for ax in axes:
+        draw_snr_cdf(ax, greedy.slots)
+    label_outer_panels(axes)
+    assert [ax.get_ylabel() for ax in axes] == ["empirical CDF", "", "empirical CDF"]
+    assert [ax.get_xlabel() for ax in axes] == ["", "SNR [dB]", "SNR [dB]"]  # 2nd: lowest
+    assert len(fig.axes) == 3  # the empty fourth place is left blank
+
+
+def test_side_by_side_distance_axes_share_one_scale(runs: Path) -> None:
+    greedy, hgad = load_run(runs / "greedy"), load_run(runs / "hgad")
+    longer = hgad.slots.copy()
+    longer["distance_m"] *= 3.0
+    fig, axes = panel_figure(2, 2.9, sharex=True, sharey=True)
+    draw_cumulative_download(axes[0], greedy.slots)
+    draw_cumulative_download(axes[1], longer)
+    share_twin_axes(fig, axes)
+    twins = [a for a in fig.axes if a not in axes]
+    assert len(twins) == 2 and twins[0].get_ylim() == twins[1].get_ylim()
+    assert twins[0].get_ylabel() == "" and twins[1].get_ylabel() == "distance flown [m]"
+
+
+def test_score_legend_names_the_aadm_window_not_completion(runs: Path) -> None:
+    loaded = [load_run(runs / p) for p in ("greedy", "hgad")]
+    scores = [score_breakdown(r) for r in loaded]
+    labels = _legend_labels(draw_score, [r.label for r in loaded], scores, 500.0)
+    assert labels[0] == "S2: 100 × share downloaded in the first 500 s"
+    assert not any("completion" in label for label in labels)
+
+
+def test_snr_legend_explains_the_thick_lines(runs: Path) -> None:
+    labels = _legend_labels(draw_snr_time, load_run(runs / "hgad"))
+    assert {"served (thick)", "not served (thin)"} <= set(labels)
+
+
+def test_policy_bars_show_the_bound_and_keep_labels_off_the_lines(runs: Path) -> None:
+    loaded = [load_run(runs / p) for p in ("greedy", "hgad")]
+    labels = _legend_labels(draw_policy_bars, loaded, "", 290.0)
+    assert "upper bound" in labels and "total buffer" in labels
+    assert label_height(2756.0, [3000.0], 3000.0) == 3000.0  # within 10 %: above the line
+    assert label_height(2438.0, [3000.0, None], 3000.0) == 2438.0
+    assert label_height(2438.0, [float("nan")], 3000.0) == 2438.0
+
+
+def test_a_long_title_is_folded_to_the_figure_not_cut(runs: Path) -> None:
+    words = "Lake Wheeler, four towers, the lawnmower path flown at 30 m in free space, 500 s"
+    folded = wrap_title(words, PANEL_WIDTH_IN).splitlines()
+    assert len(folded) > 1 and " ".join(folded) == words
+    assert wrap_title("4 sensors, fixed path", PANEL_WIDTH_IN) == "4 sensors, fixed path"
+
+
+def test_the_report_shows_the_bound_and_each_gap(tmp_path: Path) -> None:
+    out = tmp_path / "cmp"
+    run_cli("compare", "paper-sim-fixed", "--out", out, check=True)
+    run_cli("report", out, "--no-pdf", check=True)
+    page = (out / "report.html").read_text()
+    table = page[page.index('<table id="gap-table">') :]
+    table = table[: table.index("</table>")]
+    compared = pd.read_csv(out / "comparison.csv").set_index("policy")
+    for policy in ("greedy", "hgad"):
+        gap = compared.loc[policy, "gap_to_bound_mbit"]
+        assert f"<td>{policy}</td>" in table and f"<td>{gap:.1f}</td>" in table
+    assert "<td>3000.0</td>" in table and "upper bound" in page
+
+
+def test_resilience_figure_tells_every_policy_apart(tmp_path: Path) -> None:
+    frame = pd.DataFrame(
+        {
+            "policy": ["hgad", "hgad", "hgad-robust", "hgad-robust"],
+            "level": [0.0, 60.0, 0.0, 60.0],
+            "mbit_mean": [2500.0, 2400.0, 2500.0, 2400.0],  # on top of each other
+            "mbit_ci95": [50.0, 60.0, 50.0, 60.0],
+            "bound_mbit_mean": [2900.0] * 4,
+        }
+    )
+    path = plot_resilience(frame, "mean outage [s]", tmp_path / "r.png", "4 sensors", dpi=100)
+    with Image.open(path) as image:
+        assert image.size[0] < 1.1 * PANEL_WIDTH_IN * 100
+    styles = policy_styles(["hgad", "hgad-robust"])
+    assert styles["hgad"]["marker"] != styles["hgad-robust"]["marker"]
+    assert styles["hgad"]["ls"] != styles["hgad-robust"]["ls"]
+
+
+def test_sweep_strips_draw_a_sample_and_titles_name_the_scenario(tmp_path: Path) -> None:
+    rng = np.random.default_rng(1)
+    many = rng.normal(size=10_000)
+    shown = strip_sample(many, np.random.default_rng(0))
+    assert shown.size == STRIP_POINTS and np.isin(shown, many).all()
+    assert strip_sample(many[:10], rng).size == 10
+    results = pd.DataFrame(
+        {
+            "scenario": ["paper-sim-fixed"] * 3,
+            "mission_time_s": [500.0] * 3,
+            "per_sensor_buffer_mbit.LW1": [1.0] * 3,
+            "per_sensor_buffer_mbit.LW2": [1.0] * 3,
+        }
+    )
+    results.to_parquet(tmp_path / "results.parquet", index=False)
+    stored = Results(tmp_path / "results.parquet", pq.read_schema(tmp_path / "results.parquet"), 3)
+    with results_query(stored.path, stored.schema) as query:  # queried, not loaded
+        assert sweep_title(query, stored) == "paper-sim-fixed, 2 sensors, 500 s: 3 missions"

@@ -214,6 +214,20 @@ def _more_download(slots: pd.DataFrame) -> pd.DataFrame:
     return slots
 
 
+def _download_moved_to_another_uav(slots: pd.DataFrame) -> pd.DataFrame:
+    """Same totals per sensor and for the fleet; one UAV's slot given to the other."""
+    down = slots["downloaded_mbit"].astype(float)
+    south = set(slots.loc[slots["uav"] == "south", "served"]) - {""}
+    north = (slots["uav"] == "north") & (down > 0) & slots["served"].isin(south)
+    row = int(north.to_numpy().argmax())
+    other = (slots["uav"] == "south") & (slots["served"] == slots.loc[row, "served"])
+    target = int(other.to_numpy().argmax())
+    assert north[row] and other[target]
+    slots.loc[target, "downloaded_mbit"] = str(down[target] + down[row])
+    slots.loc[row, "downloaded_mbit"] = "0"
+    return slots
+
+
 DAMAGE: dict[str, tuple[Callable[[Path], None], str, str]] = {
     "uav column dropped": (
         _slots_edit(lambda s: s.drop(columns="uav")),
@@ -249,6 +263,11 @@ DAMAGE: dict[str, tuple[Callable[[Path], None], str, str]] = {
     ),
     "download edited": (
         _slots_edit(_more_download),
+        "slots.csv",
+        "column downloaded_mbit adds up to 950 Mbit but summary.json says",
+    ),
+    "download moved to another uav": (
+        _slots_edit(_download_moved_to_another_uav),
         "slots.csv",
         "UAV 'north' downloaded",
     ),

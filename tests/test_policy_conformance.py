@@ -108,11 +108,15 @@ def test_user_policy_by_import_path(monkeypatch: pytest.MonkeyPatch) -> None:
     result = simulate(load_scenario("paper-sim-fixed"), "my_policies:LargestBufferFirst")
     assert result.summary["policy"] == "largest-buffer-first"
     assert_slot_contract(result.mission, result.log)
-    assert unknown_policies(["my_policies:LargestBufferFirst", "greedy"]) == []
-    assert unknown_policies(["my_policies:Nope", "no_such_module:X"]) == [
-        "my_policies:Nope",
-        "no_such_module:X",
+    # names are checked without importing anything: a bad import shows when the policy runs
+    assert unknown_policies(["my_policies:Nope", "no_such_module:X", "greedy"]) == []
+    assert unknown_policies(["my_policies", "no such:X", "greedx"]) == [
+        "my_policies",
+        "no such:X",
+        "greedx",
     ]
+    with pytest.raises(SkymuleError, match="has no 'Nope'"):
+        simulate(load_scenario("paper-sim-fixed"), "my_policies:Nope")
     with pytest.raises(SkymuleError, match="has no reset, act"):
         simulate(load_scenario("paper-sim-fixed"), "my_policies:NotAPolicy")
 
@@ -238,3 +242,19 @@ def test_every_policy_serves_nothing_and_ends_when_no_rate_is_usable(
     assert (log.served == NO_SENSOR).all()
     assert not log.downloaded_bit.any()
     assert_slot_contract(mission, log)
+
+
+def test_docs_list_every_field_a_policy_is_given_and_returns() -> None:
+    """docs/policies.md has a row for each field of MissionContext, Observation and Action,
+    and no row for a field that does not exist."""
+    import dataclasses
+    import re
+
+    from skymule.policies.base import Action, MissionContext, Observation
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "policies.md").read_text()
+    sections = re.split(r"^## ", text, flags=re.M)
+    for cls in (MissionContext, Observation, Action):
+        (section,) = [s for s in sections if s.startswith(cls.__name__)]
+        rows = re.findall(r"^\| `(\w+)` \|", section, flags=re.M)
+        assert rows == [f.name for f in dataclasses.fields(cls)], cls.__name__

@@ -51,3 +51,24 @@ def test_a_single_run_through_the_public_api() -> None:
     assert float(log.downloaded_bit.sum()) / 1e6 == pytest.approx(
         result.summary["total_downloaded_mbit"], rel=1e-12
     )
+
+
+def test_a_batch_s_stacked_context_fields_are_each_mission_s() -> None:
+    """``stacked(contexts, field)`` (the engine's own arrays, no context made per mission)
+    equals the field of every mission's own context, for missions on different tracks."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from skymule.policies.base import stacked
+    from skymule.sim.fixed import FixedEngine
+
+    fixed = skymule.build_mission(skymule.load_scenario("paper-sim-fixed"))
+    other = skymule.build_mission(skymule.load_scenario("paper-sim-fixed", ["mission.slot_s=2"]))
+    missions = [fixed, replace(fixed, buffers_bit=fixed.buffers_bit * 0.5), other]
+    contexts = FixedEngine(missions).contexts()
+    for field in ("slot_s", "n_slots", "peak_rate_bps", "buffers_bit"):
+        each = np.array([getattr(context, field) for context in contexts])
+        np.testing.assert_array_equal(stacked(contexts, field), each)
+        assert not stacked(contexts, field).flags.writeable
+    assert stacked(list(contexts), "slot_s").tolist() == [1.0, 1.0, 2.0]  # any sequence

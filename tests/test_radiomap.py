@@ -26,6 +26,7 @@ from skymule.radio.radiomap import fit_radiomap, read_radiomap
 from skymule.radio.shadowing import shadowing_field
 from skymule.radio.sources import model_source
 from skymule.scenario import RadioSpec
+from skymule.tasks.radiomaps import fit_warnings
 
 ROOT = Path(__file__).parents[1]
 FRAME = LocalFrame(35.7274824, -78.6962749)
@@ -92,6 +93,7 @@ def test_cli_fit_score_and_compare_sources(synthetic: Path, tmp_path: Path) -> N
     out = tmp_path / "map.json"
     fit = run_cli("fit-radiomap", synthetic, "--out", out, "--scenario", scenario, check=True)
     assert "LW2" in fit.stdout
+    assert "warning" not in fit.stderr  # shadowing with structure: a sound fit
     assert read_radiomap(out).names == ("LW1", "LW2")
     scored = run_cli("score-radiomap", out, synthetic, "--json", check=True)
     scores = json.loads(scored.stdout)
@@ -191,3 +193,24 @@ def test_bulk_query_matches_dense_reference() -> None:
     # small query sets take the dense path unchanged
     few = flat[:10]
     assert np.allclose(krige(few, train, weights, vario), dense[:10], rtol=0, atol=1e-12)
+
+
+def test_a_degenerate_fit_is_flagged(tmp_path: Path) -> None:
+    """A residual without spatial structure (the sample DT flight's LW2) fits sigma 0.001 dB
+    and range 1 m: the map is its trend alone there, and fit-radiomap says so, one line."""
+    flight = ROOT / "examples" / "samples" / "dt_flight.csv"
+    done = run_cli("fit-radiomap", flight, "--out", tmp_path / "map.json", check=True)
+    warnings = done.stderr.strip().splitlines()
+    assert len(warnings) == 1 and warnings[0].startswith("skymule: warning: LW2: degenerate fit")
+    assert "sigma 0.001 dB, range 1.0 m" in warnings[0]
+    shown = json.loads(
+        run_cli("fit-radiomap", flight, "--out", tmp_path / "m.json", "--json").stdout
+    )
+    assert [w.split(":")[0] for w in shown["warnings"]] == ["LW2"]
+    sound = {"sensor": "A", "sigma_db": 4.0, "range_m": 30.0}
+    assert fit_warnings([sound]) == ()
+    assert len(fit_warnings([{**sound, "range_m": 1.0}])) == 1  # shortest range tried
+    assert len(fit_warnings([{**sound, "sigma_db": 0.001}])) == 1  # no sill
+    flat = {**sound, "sigma_db": 0.0, "range_m": 1.0}
+    assert fit_warnings([flat], "log-distance") == ()  # it kriges nothing: nothing to flag
+    assert "learned model alone" in fit_warnings([flat], "neural")[0]

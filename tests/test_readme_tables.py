@@ -29,3 +29,8 @@ def test_every_table_the_script_knows_is_marked_in_the_readme() -> None:
 def test_readme_result_tables_are_what_the_commands_give_today() -> None:
     """The deterministic tables (no timings) match a fresh run: they have not drifted."""
     assert SCRIPT["main"](["--check", "--only", "presets,autonomous"]) == 0
+
+
+def test_readme_planner_table_is_what_the_commands_give_today() -> None:
+    """HGAD and the planner against the autonomous bound (its AADM scores once drifted)."""
+    assert SCRIPT["main"](["--check", "--only", "planner"]) == 0

@@ -141,6 +141,10 @@ def test_readme_own_policy_example_runs_as_written(
     assert compared == {"greedy", "hgad", "largest-buffer-first"}
     # the parameters come from the file: a stricter SNR floor downloads less
     assert json.loads(outputs[2])["total_downloaded_mbit"] < mine["total_downloaded_mbit"]
+    # on an autonomous mission it flies (to the largest buffer's hover point), not sits at home
+    autonomous = ("run", "paper-sim-autonomous", "--policy", "largest_buffer:LargestBufferFirst")
+    flown = json.loads(run_cli(*autonomous, "--json", check=True).stdout)
+    assert flown["distance_m"] > 1000 and flown["total_downloaded_mbit"] > 2000
     typo = (tmp_path / "my-mission.toml").read_text().replace("min_snr_db =", "min_snr =")
     (tmp_path / "typo.toml").write_text(typo)
     done = run_cli("run", "typo.toml")

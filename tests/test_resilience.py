@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -15,7 +16,7 @@ from skymule.policies import make_policy
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.run import run_mission
-from skymule.tasks.resilience import leveled, run_study
+from skymule.tasks.resilience import LEVELS, leveled, run_study
 from skymule.world import Mission, build_mission
 
 
@@ -154,3 +155,14 @@ def test_resilience_command_mistakes_are_one_line(
     assert result.returncode == 2
     assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "r").exists()
+
+
+def test_levels_help_gives_each_fault_its_unit() -> None:
+    """``--levels`` means seconds for an outage and dB for an SNR error: the help names the
+    unit of every fault kind as the study labels its axis (LEVELS)."""
+    shown = " ".join(run_cli("resilience", "--help", check=True).stdout.split())
+    for kind, (meaning, _) in LEVELS.items():
+        unit = re.search(r"\[(.+?)\]", meaning)
+        expected = rf"{kind} [^,]*\[{re.escape(unit.group(1))}\]" if unit else kind
+        assert re.search(expected, shown), (kind, meaning, shown)
+    assert "(dB)" not in shown

@@ -10,6 +10,7 @@ import pytest
 from skymule.errors import SkymuleError
 from skymule.policies import make_policy, resolve_policy
 from skymule.scenario import PolicySpec, Scenario, load_scenario
+from skymule.trust import trusting
 
 
 def short_mission() -> Scenario:
@@ -46,7 +47,8 @@ def test_a_saved_model_loads_as_a_policy_and_flies_as_in_the_env(tiny_model: Pat
     from skymule.envs.datamule import DataMuleEnv
     from skymule.sim.run import run_mission
 
-    policy = make_policy(PolicySpec(name=f"rl:{tiny_model}"))
+    with trusting([tiny_model]):  # the model this test has just trained
+        policy = make_policy(PolicySpec(name=f"rl:{tiny_model}"))
     assert policy.name == "rl:tiny"
     env = DataMuleEnv(short_mission(), scaled=True)
     log = run_mission(env.mission, policy)
@@ -70,6 +72,7 @@ def test_a_model_for_another_sensor_count_is_refused(tiny_model: Path) -> None:
 
     base = short_mission()
     three = base.model_copy(update={"sensors": base.sensors[:3]})
-    policy = make_policy(PolicySpec(name=f"rl:{tiny_model}"))
+    with trusting([tiny_model]):
+        policy = make_policy(PolicySpec(name=f"rl:{tiny_model}"))
     with pytest.raises(SkymuleError, match=r"MultiDiscrete\(\[4, 9\]\) \(3 sensors"):
         run_mission(build_mission(three), policy)

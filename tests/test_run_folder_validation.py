@@ -185,31 +185,89 @@ def test_statistics_that_do_not_apply_may_be_nan(run_dir: Path) -> None:
 
 
 def test_served_column_all_empty_or_numeric_names(run_dir: Path) -> None:
-    """A run that served nothing (every cell empty), and sensors named by numbers."""
-    slots = (run_dir / "slots.csv").read_text().splitlines()
-    header = slots[0].split(",")
-    column = header.index("served")
-    rows = []
-    for line in slots[1:]:
-        cells = line.split(",")
-        cells[column] = "" if len(rows) % 2 else "1"
-        rows.append(",".join(cells))
-    (run_dir / "slots.csv").write_text("\n".join([slots[0].replace("LW1", "1"), *rows]) + "\n")
+    """Sensors named by numbers, and a run that served nothing (every cell empty)."""
+    lines = (run_dir / "slots.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    served, down = header.index("served"), header.index("downloaded_mbit")
+    renamed = [",".join("1" if (i == served and c == "LW1") else c
+                        for i, c in enumerate(line.split(","))) for line in lines[1:]]  # fmt: skip
+    (run_dir / "slots.csv").write_text("\n".join([lines[0].replace("LW1", "1"), *renamed]) + "\n")
     summary = json.loads((run_dir / "summary.json").read_text())
     for key in ("per_sensor_downloaded_mbit", "per_sensor_buffer_mbit"):
         summary[key] = {("1" if k == "LW1" else k): v for k, v in summary[key].items()}
     (run_dir / "summary.json").write_text(json.dumps(summary))
+    _edit_json(run_dir / "scenario.json", sensors__0__name="1")
     _, table = read_run(run_dir)
-    assert table["served"].tolist()[:4] == ["1", "", "1", ""]
-    _edit_lines(
-        run_dir / "slots.csv",
-        lambda lines: (
-            [lines[0]]
-            + [
-                ",".join("" if i == column else c for i, c in enumerate(line.split(",")))
-                for line in lines[1:]
-            ]
-        ),
-    )
+    assert "1" in set(table["served"]) and "LW1" not in set(table["served"])
+    nothing = [",".join("" if i == served else "0" if i == down else c
+                        for i, c in enumerate(line.split(","))) for line in renamed]  # fmt: skip
+    (run_dir / "slots.csv").write_text("\n".join([lines[0].replace("LW1", "1"), *nothing]) + "\n")
+    zero = {k: 0.0 for k in summary["per_sensor_downloaded_mbit"]}
+    _edit_json(run_dir / "summary.json", per_sensor_downloaded_mbit=zero, total_downloaded_mbit=0)
     _, table = read_run(run_dir)
     assert set(table["served"]) == {""}
+
+
+# --- the folder as a whole (issue 24): each file valid, together inconsistent --------------
+
+
+def test_a_total_beyond_the_buffers_is_refused(run_dir: Path) -> None:
+    """The audit's summary.json claiming 1e9 Mbit against 3,000 Mbit of buffers."""
+    _edit_json(run_dir / "summary.json", total_downloaded_mbit=1e9)
+    assert "summary.json: total_downloaded_mbit = 1e+09 but per_sensor_downloaded_mbit adds" in (
+        _error(run_dir)
+    )
+    summary = json.loads((run_dir / "summary.json").read_text())
+    per = {k: 1e9 / 4 for k in summary["per_sensor_downloaded_mbit"]}
+    _edit_json(run_dir / "summary.json", per_sensor_downloaded_mbit=per)
+    assert "summary.json: sensor 'LW1' gave 2.5e+08 Mbit, more than its buffer of" in (
+        _error(run_dir)
+    )
+
+
+def test_downloads_multiplied_in_the_slot_table_are_refused(run_dir: Path) -> None:
+    """The audit's slots.csv with every download times 10."""
+    lines = (run_dir / "slots.csv").read_text().splitlines()
+    column = lines[0].split(",").index("downloaded_mbit")
+
+    def times_ten(line: str) -> str:
+        cells = line.split(",")
+        cells[column] = repr(float(cells[column]) * 10)
+        return ",".join(cells)
+
+    (run_dir / "slots.csv").write_text("\n".join([lines[0], *map(times_ten, lines[1:])]) + "\n")
+    message = _error(run_dir)
+    assert "slots.csv: column downloaded_mbit adds up to" in message
+    assert "but summary.json says total_downloaded_mbit" in message
+
+
+def test_one_slot_moved_to_another_sensor_is_refused(run_dir: Path) -> None:
+    lines = (run_dir / "slots.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    row = next(
+        i for i, line in enumerate(lines[1:], 1) if line.split(",")[header.index("served")] == "LW1"
+    )
+    _edit_lines(run_dir / "slots.csv", _set_cell(row, "served", "LW2"))
+    assert "slots.csv: the slots serving 'LW1' download" in _error(run_dir)
+
+
+def test_a_scenario_listing_other_sensors_is_refused(run_dir: Path) -> None:
+    """The audit's scenario.json listing 2 of the 4 sensors."""
+    scenario = json.loads((run_dir / "scenario.json").read_text())
+    scenario["sensors"] = scenario["sensors"][:2]
+    (run_dir / "scenario.json").write_text(json.dumps(scenario))
+    assert "scenario.json: sensors LW1, LW2 do not match the run's sensors LW1, LW2, LW3, LW4" in (
+        _error(run_dir)
+    )
+
+
+@pytest.mark.parametrize("command", [("plot",), ("report", "--no-pdf"), ("export", "--kml")])
+def test_every_reader_refuses_an_inconsistent_folder(
+    run_dir: Path, command: tuple[str, ...]
+) -> None:
+    _edit_json(run_dir / "summary.json", total_downloaded_mbit=1e9)
+    done = run_cli(command[0], str(run_dir), *command[1:])
+    assert done.returncode == 2, done.stderr
+    [line] = done.stderr.strip().splitlines()
+    assert "total_downloaded_mbit = 1e+09" in line
+    assert not any(run_dir.glob("*.png")) and not (run_dir / "flight.kml").exists()

@@ -17,6 +17,7 @@ SAMPLES = ROOT / "examples" / "samples"
 FILES = (
     "dt_flight.csv",
     "flight_merged.csv",
+    "flight2_merged.csv",
     "flight_downloads.csv",
     "flight_downloads_tower.csv",
     "volumes.txt",
@@ -30,6 +31,12 @@ def test_samples_are_small_and_in_their_formats() -> None:
     twin = read_trace(SAMPLES / "dt_flight.csv")
     assert flight.columns == twin.columns == ("LW1", "LW2", "LW3", "LW4")
     assert flight.n_samples == twin.n_samples == 360
+    second = read_trace(SAMPLES / "flight2_merged.csv")
+    assert second.columns == flight.columns and second.n_samples == 360
+    # another day on the same route: slower, so it covers less ground in the same time
+    step = np.linalg.norm(np.diff(np.c_[second.lat_deg, second.lon_deg], axis=0), axis=1)
+    first_step = np.linalg.norm(np.diff(np.c_[flight.lat_deg, flight.lon_deg], axis=0), axis=1)
+    assert np.median(step) < np.median(first_step)
     assert np.allclose(np.diff(flight.time_s), 1.0, atol=0.02)  # one poll a second
     assert np.isnan(twin.snr_db).any() and not np.isnan(flight.snr_db).any()
     assert read_volumes(SAMPLES / "volumes.txt").tolist() == [500, 800, 700, 1000]

@@ -41,8 +41,10 @@ def test_rows_equal_single_mission_runs(tmp_path):
     hgad = results[results["policy"] == "hgad"].reset_index(drop=True)
     pd.testing.assert_series_equal(greedy["total_buffer_mbit"], hgad["total_buffer_mbit"])
     summary = pd.read_csv(tmp_path / "out" / "summary.csv")
-    assert summary["policy"].tolist() == ["greedy", "hgad"]
-    assert summary["missions"].tolist() == [6, 6]
+    # one row per policy and duration (the list axis; seeds are replicates)
+    assert summary["policy"].tolist() == ["greedy", "greedy", "hgad", "hgad"]
+    assert summary["mission.duration_s"].tolist() == [120, 200, 120, 200]
+    assert summary["missions"].tolist() == [3, 3, 3, 3]
 
 
 def test_missions_are_reproducible_and_keep_ids_when_axes_grow(tmp_path):

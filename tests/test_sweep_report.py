@@ -82,15 +82,41 @@ def test_summary_table_is_summary_csv(sweep_dir: Path) -> None:
     table = re.search(r'<table id="sweep-summary-table">(.*?)</table>', page(sweep_dir))
     assert table
     rows = re.findall(r"<tr><td>(.*?)</td></tr>", table.group(1))
-    assert len(rows) == len(summary) == 2
+    # one row per policy and swept duration (the list axis), 8 seeds each
+    assert len(rows) == len(summary) == 4
+    assert list(summary.columns[:3]) == ["policy", "mission.duration_s", "missions"]
     for row, (_, want) in zip(rows, summary.iterrows(), strict=True):
         cells = row.split("</td><td>")
-        assert cells[0] == want["policy"] and int(cells[1]) == want["missions"] == 16
-        assert cells[2] == (
+        assert cells[0] == want["policy"] and int(cells[2]) == want["missions"] == 8
+        assert float(cells[1]) == want["mission.duration_s"]
+        assert cells[3] == (
             f"{want['total_downloaded_mbit_mean']:.1f} ± {want['total_downloaded_mbit_ci95']:.1f}"
         )
-        assert cells[3] == f"{want['completion_mean']:.3f} ± {want['completion_ci95']:.3f}"
-        assert len(cells) == 2 + 7  # the seven headline metrics
+        assert cells[4] == f"{want['completion_mean']:.3f} ± {want['completion_ci95']:.3f}"
+        assert len(cells) == 3 + 7  # the seven headline metrics
+    results = pd.read_parquet(sweep_dir / "results.parquet")
+    mine = results[(results["policy"] == "hgad") & (results["mission.duration_s"] == 160)]
+    row = summary[(summary["policy"] == "hgad") & (summary["mission.duration_s"] == 160)]
+    assert float(row["total_downloaded_mbit_mean"].iloc[0]) == pytest.approx(
+        mine["total_downloaded_mbit"].mean()
+    )
+
+
+def test_without_summary_csv_the_rows_give_the_same_table(sweep_dir: Path, tmp_path: Path) -> None:
+    """summary.csv lost: the table comes from results.parquet, split by the list axis as
+    summary.csv is (the drawn buffers, varying per mission, are no level)."""
+    copy = tmp_path / "sw"
+    shutil.copytree(sweep_dir, copy)
+    (copy / "summary.csv").unlink()
+    assert run_cli("report", copy, "--no-pdf").returncode == 0
+
+    def rows(text: str) -> list[str]:
+        table = re.search(r'<table id="sweep-summary-table">(.*?)</table>', text)
+        assert table
+        return re.findall(r"<tr><td>(.*?)</td></tr>", table.group(1))
+
+    assert "no complete summary.csv" in page(copy)
+    assert rows(page(copy)) == rows(page(sweep_dir)) and len(rows(page(copy))) == 4
 
 
 def independent_gain(results: pd.DataFrame, policy: str, baseline: str) -> dict[str, float]:
@@ -185,3 +211,37 @@ def test_broken_and_foreign_folders_get_one_line(tmp_path: Path) -> None:
     done = run_cli("report", empty)
     assert done.returncode == 2 and "not a run folder" in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1
+
+
+def test_large_ecdfs_and_dots_come_from_a_histogram_and_a_sample(tmp_path: Path) -> None:
+    """Past EXACT_VALUES a policy's ECDF is read at the upper edges of equal bins (the
+    fraction of values at or below each edge, exactly) and its dots are a sample of DOTS."""
+    from skymule.report import sweep_query
+    from skymule.report.sweep import read_results
+
+    folder = synthetic(tmp_path / "big", ["greedy", "hgad"], paired=True)
+    rng = np.random.default_rng(3)
+    values = rng.lognormal(5.0, 1.0, 50_000)
+    frame = pd.DataFrame(
+        {
+            "mission_index": np.arange(values.size),
+            "policy": np.where(np.arange(values.size) % 2 == 0, "greedy", "hgad"),
+            "total_downloaded_mbit": values,
+        }
+    )
+    frame.to_parquet(folder / "results.parquet", index=False)
+    results = read_results(folder)
+    with sweep_query.results_query(results.path, results.schema) as query:
+        found = query.distribution("total_downloaded_mbit", "policy")
+    for policy, dist in found.items():
+        mine = frame.loc[frame["policy"] == policy, "total_downloaded_mbit"].to_numpy()
+        assert dist.n == mine.size > sweep_query.EXACT_VALUES
+        assert dist.ecdf_x.size <= sweep_query.ECDF_BINS and dist.ecdf_y[-1] == 1.0
+        at_or_below = (mine[None, :] <= dist.ecdf_x[:-1, None]).mean(axis=1)
+        np.testing.assert_allclose(dist.ecdf_y[:-1], at_or_below, atol=1 / mine.size)
+        assert dist.dots.size == sweep_query.DOTS and np.isin(dist.dots, mine).all()
+        q1, med, q3 = np.percentile(mine, [25, 50, 75])
+        assert (dist.box["q1"], dist.box["med"], dist.box["q3"]) == pytest.approx((q1, med, q3))
+        inside = mine[(mine >= q1 - 1.5 * (q3 - q1)) & (mine <= q3 + 1.5 * (q3 - q1))]
+        assert (dist.box["whislo"], dist.box["whishi"]) == (inside.min(), inside.max())
+        assert dist.mean == pytest.approx(mine.mean(), rel=1e-12)

@@ -11,33 +11,90 @@ path is accepted.
 from __future__ import annotations
 
 import functools
+import math
 import tomllib
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+import numpy as np
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    model_validator,
+)
 from pydantic_core import ErrorDetails, PydanticCustomError
 
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.faults.specs import SINGLE_KINDS, fault_params
 from skymule.io.textfiles import read_text
+from skymule.limits import (
+    ALTITUDE_LIMIT,
+    COORDINATE_LIMIT,
+    MAX_ALTITUDE_M,
+    MAX_BUFFER_MBIT,
+    MAX_COORDINATE_M,
+    MAX_DURATION_S,
+    MAX_SPEED_MPS,
+    SPEED_LIMIT,
+    waypoint_problem,
+)
 from skymule.overrides import apply_override
-from skymule.policies.registry import POLICIES, policy_params_model
+from skymule.policies.registry import (
+    LEARNED_PREFIX,
+    POLICIES,
+    NoParams,
+    check_policy_name,
+    is_plugin,
+    policy_params_model,
+)
 from skymule.radio.pathloss import PATHLOSS_MODELS
 from skymule.registry import Registry, did_you_mean, unknown_name_message
 
 PositiveFloat = Annotated[float, Field(gt=0)]
 
-MAX_BUFFER_MBIT = 1e12
-"""Largest sensor buffer [Mbit] (10^18 bit): sums over sensors and slots stay far from overflow."""
-MAX_DURATION_S = 1e7
-"""Longest mission [s] (about 116 days): one row a slot must still fit in memory."""
-MAX_COORDINATE_M = 1e7
-"""Largest |x|, |y| or height [m] in the local frame (the Earth's radius is 6.4e6 m)."""
+
+def _at_most(limit: float, words: str) -> AfterValidator:
+    def check(value: float) -> float:
+        if value > limit:
+            raise ValueError(words)
+        return value
+
+    return AfterValidator(check)
+
 
 Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE_M, le=MAX_COORDINATE_M)]
+Speed = Annotated[float, Field(gt=0), _at_most(MAX_SPEED_MPS, SPEED_LIMIT)]
+"""A UAV speed [m/s], within :data:`skymule.limits.MAX_SPEED_MPS`."""
+Altitude = Annotated[float, Field(gt=0), _at_most(MAX_ALTITUDE_M, ALTITUDE_LIMIT)]
+"""A flight altitude above take-off [m], within :data:`skymule.limits.MAX_ALTITUDE_M`."""
+Distance = Annotated[float, Field(gt=0), _at_most(MAX_COORDINATE_M, COORDINATE_LIMIT)]
+
+
+def _check_point(value: LatLon | list[float] | None) -> LatLon | list[float] | None:
+    """A home point: lat/lon (bounded by its model) or ``[x_m, y_m]`` within the local frame."""
+    if isinstance(value, list):
+        if len(value) != 2:
+            raise ValueError("give [x_m, y_m] (two numbers) or a {lat, lon} table")
+        for number in value:
+            if not math.isfinite(number) or abs(number) > MAX_COORDINATE_M:
+                raise ValueError(f"{number!r}: {COORDINATE_LIMIT}")
+    return value
+
+
+def _check_waypoints(value: list[list[float]] | str | None) -> list[list[float]] | str | None:
+    if isinstance(value, list):
+        if any(len(point) != 3 for point in value):
+            raise ValueError("every waypoint must be [x_m, y_m, z_m]")
+        problem = waypoint_problem(np.asarray(value, float))
+        if problem is not None:
+            raise ValueError(problem)
+    return value
 
 
 class _Spec(BaseModel):
@@ -171,17 +228,32 @@ class SignalSpec(_Spec):
 
 class TrajectorySpec(_Spec):
     mode: Literal["fixed", "autonomous"] = "fixed"
-    waypoints: list[list[float]] | str | None = None
+    waypoints: Annotated[list[list[float]] | str | None, AfterValidator(_check_waypoints)] = None
     """Fixed path: [[x, y, z], ...] metres, or a CSV path (x_m,y_m,z_m or lat,lon,alt)."""
-    speed_mps: PositiveFloat = 10.0
+    flight: Annotated[str, Field(min_length=1)] | None = None
+    """Fixed path: a recorded flight (any trace format: AADM merged log, digital-twin export)
+    whose positions over time are flown, resampled to the slots by time; its SNR columns are
+    ignored (the signal source gives the SNR). Instead of ``waypoints``."""
+    speed_mps: Speed = 10.0
     """Nominal speed along a fixed path [m/s]."""
-    home: LatLon | list[float] | None = None
+    home: Annotated[LatLon | list[float] | None, AfterValidator(_check_point)] = None
     """Autonomous: home point, lat/lon or [x, y] metres (default: the site origin)."""
-    altitude_m: PositiveFloat = 30.0
+    altitude_m: Altitude = 30.0
     """Autonomous: flight altitude [m]."""
-    max_speed_mps: PositiveFloat = 10.0
+    max_speed_mps: Speed = 10.0
     return_home: bool = True
-    visit_radius_m: PositiveFloat = 50.0
+    visit_radius_m: Distance = 50.0
+
+    @model_validator(mode="after")
+    def _one_path(self) -> TrajectorySpec:
+        if self.flight is not None and self.waypoints is not None:
+            raise ValueError("give either waypoints or flight (a recorded flight), not both")
+        if self.flight is not None and self.mode != "fixed":
+            raise ValueError(
+                "flight flies a recorded path: it needs mode = 'fixed' (an autonomous UAV "
+                "chooses its own path)"
+            )
+        return self
 
 
 class PolicySpec(_Spec):
@@ -192,7 +264,9 @@ class PolicySpec(_Spec):
 
     HGAD's ``hover_threshold`` and ``max_hover_s`` may also be written directly in
     ``[policy]`` (older files) and then override ``params``; parameters of *other*
-    registered policies are kept and ignored, so one file can run under several policies."""
+    registered policies are kept and ignored, so one file can run under several policies.
+    When a command runs other policies than the file's (``--policy``, ``--policies``, a sweep's
+    ``policy.name`` axis), each gets the keys it declares (:func:`route_policy_params`)."""
 
     @model_validator(mode="before")
     @classmethod
@@ -200,21 +274,40 @@ class PolicySpec(_Spec):
         return _lift_flat_params(data, _policy_param_names())
 
     @model_validator(mode="after")
-    def _check_params(self) -> PolicySpec:
+    def _check_params(self, info: ValidationInfo) -> PolicySpec:
+        # a plug-in's module is not imported to check a file (it may never run: an override,
+        # `bound`): its name is checked here, its parameters when it is made
         try:
-            self.policy_params()
-        except SkymuleError as exc:  # unknown name, plug-in that does not import
+            check_policy_name(self.name)
+        except SkymuleError as exc:
             raise _component_error(str(exc)) from None
+        if self.name in POLICIES:
+            # the policies the command runs (validation context), else this one: a key may be
+            # a plug-in's among them, which only running it can tell (route_policy_params)
+            running = (info.context or {}).get(RUNNING, (self.name,))
+            keys_known = not any(is_plugin(name) for name in running)
+            self._validated(POLICIES.meta(self.name, "params", NoParams), keys_known)
         return self
 
+    def _validated(self, model: type[BaseModel], keys_known: bool = True) -> BaseModel:
+        shared = _policy_param_names()
+        if not keys_known:  # only this policy's own values are checked here
+            shared = shared.union(self.params)
+        return validate_params(model, self.params, shared, f"policy {self.name!r}")
+
     def policy_params(self) -> BaseModel | None:
-        """The policy's validated parameters, or None for a plug-in without a ``Params`` model."""
+        """The policy's validated parameters, or None for a plug-in without a ``Params`` model.
+
+        For a plug-in this imports its module (call it for a policy that runs); a problem is
+        one :class:`SkymuleError` line.
+        """
         from_policy = policy_params_model(self.name)
         if from_policy is None:
             return None
-        return validate_params(
-            from_policy, self.params, _policy_param_names(), f"policy {self.name!r}"
-        )
+        try:
+            return self._validated(from_policy)
+        except PydanticCustomError as exc:
+            raise SkymuleError(f"policy.{exc.message()}") from None
 
     def param(self, name: str) -> Any:
         """One parameter of the policy (its default when not given).
@@ -296,6 +389,63 @@ def _param(validated: BaseModel, name: str, owner: str) -> Any:
     return getattr(validated, name)
 
 
+RUNNING = "running"
+"""Validation-context key: the policy names a command runs (``load_scenario(policies=...)``)."""
+
+
+def policy_param_names(name: str) -> frozenset[str] | None:
+    """The parameters policy ``name`` declares (None: a plug-in without ``Params``, which takes
+    the whole table). A plug-in's module is imported: call it for a policy that runs."""
+    if name.startswith(LEARNED_PREFIX):
+        return frozenset()
+    try:
+        model = policy_params_model(name)
+    except SkymuleError as exc:
+        raise ScenarioError(str(exc)) from None
+    return None if model is None else frozenset(model.model_fields)
+
+
+def policy_shares(
+    keys: Iterable[str], names: Sequence[str], owner: str | None = None
+) -> list[frozenset[str] | None]:
+    """The ``[policy.params]`` keys each of ``names`` keeps (None: all of them), for the
+    policies that run (a plug-in among them is imported).
+
+    A policy keeps the keys it declares and those of the registered policies (kept and
+    ignored, as ever); a plug-in without ``Params`` keeps the whole table. A key that none of
+    ``names`` nor any registered policy declares is one line with a "did you mean", unless
+    ``owner`` (the file's own policy) is a plug-in that does not run: its keys cannot be known
+    without importing it, which the override makes pointless.
+    """
+    registered = _policy_param_names()
+    declared = [policy_param_names(name) for name in names]
+    fields: set[str] = set()
+    for own in declared:
+        fields.update(own or ())
+    owner_unknown = owner is not None and is_plugin(owner) and owner not in names
+    if not owner_unknown and all(own is not None for own in declared):
+        unknown = [key for key in keys if key not in fields and key not in registered]
+        if unknown:
+            who = "policy" if len(names) == 1 else "policies"
+            its = "its" if len(names) == 1 else "their"
+            raise ScenarioError(
+                f"policy.params.{unknown[0]}: unknown parameter of {who} "
+                f"{', '.join(map(repr, names))}; {its} parameters: "
+                f"{', '.join(sorted(fields)) or 'none'}{did_you_mean(unknown[0], sorted(fields))}"
+            )
+    return [None if own is None else own | registered for own in declared]
+
+
+def route_policy_params(
+    params: dict[str, Any], names: Sequence[str], owner: str | None = None
+) -> list[dict[str, Any]]:
+    """Each of ``names``' share of one ``[policy.params]`` table (:func:`policy_shares`)."""
+    return [
+        dict(params) if keep is None else {k: v for k, v in params.items() if k in keep}
+        for keep in policy_shares(params, names, owner)
+    ]
+
+
 def _pathloss_param_names() -> frozenset[str]:
     return _param_names_of_models(tuple(kind.params for _, kind in PATHLOSS_MODELS.items()))
 
@@ -329,13 +479,13 @@ class UavSpec(_Spec):
     """One UAV of a fleet (``[[uavs]]``); unset fields come from ``[trajectory]``/``[policy]``."""
 
     name: Annotated[str, Field(min_length=1)]
-    home: LatLon | list[float] | None = None
+    home: Annotated[LatLon | list[float] | None, AfterValidator(_check_point)] = None
     """Home point, lat/lon or [x, y] metres (default: ``trajectory.home``)."""
-    altitude_m: PositiveFloat | None = None
+    altitude_m: Altitude | None = None
     """Autonomous flight altitude [m] (default: ``trajectory.altitude_m``)."""
-    max_speed_mps: PositiveFloat | None = None
+    max_speed_mps: Speed | None = None
     """Speed cap (autonomous) or speed along the path (fixed) [m/s]."""
-    waypoints: list[list[float]] | str | None = None
+    waypoints: Annotated[list[list[float]] | str | None, AfterValidator(_check_waypoints)] = None
     """Fixed path of this UAV (as ``trajectory.waypoints``)."""
     policy: PolicySpec | None = None
     """This UAV's own policy (default: the scenario's ``[policy]``)."""
@@ -393,6 +543,11 @@ class Scenario(_Spec):
                     f"faults[{index}] ({fault.kind}): sensor {unknown[0]!r} is not in the "
                     f"scenario; allowed: {', '.join(names)}"
                 )
+            if fault.kind == "battery" and self.trajectory.mode == "fixed":
+                raise ValueError(
+                    f"faults[{index}] (battery): a battery limit needs trajectory.mode = "
+                    "'autonomous' (a fixed path cannot turn home when the energy runs low)"
+                )
             if fault.kind == "wind" and not self.uavs:  # a fleet checks each UAV (sim.fleet)
                 uav = (
                     self.trajectory.max_speed_mps
@@ -415,22 +570,23 @@ class Scenario(_Spec):
         return path if path.is_absolute() else Path(self.base_dir) / path
 
     def with_policy(self, name: str) -> Scenario:
-        """This scenario under another policy (its parameters carried over where they fit)."""
-        params = self.policy.params
-        if name != self.policy.name:
+        """This scenario under policy ``name`` (its parameters carried over where they fit)."""
+        return self.with_policies([name])[0]
+
+    def with_policies(self, names: Sequence[str]) -> list[Scenario]:
+        """This scenario under each of ``names``, which are about to run (a plug-in among them
+        is imported): ``[policy.params]`` is shared out by :func:`route_policy_params`."""
+        shares = route_policy_params(self.policy.params, names, self.policy.name)
+        scenarios = []
+        for name, params in zip(names, shares, strict=True):
             try:
-                model = policy_params_model(name)
-            except SkymuleError as exc:
-                raise ScenarioError(str(exc)) from None
-            if model is not None:  # carry over only what the other policy declares
-                params = {k: v for k, v in params.items() if k in model.model_fields}
-        try:
-            policy = PolicySpec.model_validate({"name": name, "params": params})
-        except ValidationError as exc:
-            message = _first_error(exc)["msg"]
-            where = "policy." if message.startswith("params.") else ""
-            raise ScenarioError(f"{where}{message}") from None
-        return self.model_copy(update={"policy": policy})
+                policy = PolicySpec.model_validate({"name": name, "params": params})
+            except ValidationError as exc:
+                message = _first_error(exc)["msg"]
+                where = "policy." if message.startswith("params.") else ""
+                raise ScenarioError(f"{where}{message}") from None
+            scenarios.append(self.model_copy(update={"policy": policy}))
+        return scenarios
 
     def to_toml_dict(self) -> dict[str, Any]:
         return self.model_dump(mode="json", exclude_none=True)
@@ -508,9 +664,14 @@ def format_validation_error(source: str, error: ValidationError) -> str:
     return f"{source}: {where or 'scenario'}{shown}: {message}"
 
 
-def scenario_from_dict(data: dict[str, Any], source: str, base_dir: Path) -> Scenario:
+def scenario_from_dict(
+    data: dict[str, Any], source: str, base_dir: Path, *, policies: Sequence[str] | None = None
+) -> Scenario:
+    """The validated scenario of a TOML/JSON table; ``policies``: the ones the caller will run
+    instead of the file's own (their parameters may sit in ``[policy.params]``)."""
+    context = None if policies is None else {RUNNING: tuple(policies)}
     try:
-        return Scenario.model_validate({**data, "base_dir": str(base_dir)})
+        return Scenario.model_validate({**data, "base_dir": str(base_dir)}, context=context)
     except ValidationError as exc:
         raise ScenarioError(format_validation_error(source, exc)) from None
 
@@ -530,11 +691,15 @@ def preset_names() -> list[str]:
     return presets().names()
 
 
-def load_scenario(spec: str | Path, overrides: Sequence[str] = ()) -> Scenario:
+def load_scenario(
+    spec: str | Path, overrides: Sequence[str] = (), *, policies: Sequence[str] | None = None
+) -> Scenario:
     """Load a scenario from a TOML path or a built-in preset name.
 
     ``overrides`` are ``key=value`` strings (``--set``): a dotted scenario key such as
-    ``sensors[2].buffer_mbit`` and a TOML value, applied before validation.
+    ``sensors[2].buffer_mbit`` and a TOML value, applied before validation. ``policies``: the
+    policies the caller runs instead of the file's own (``--policy``, ``--policies``); a key of
+    ``[policy.params]`` may then be any of theirs (:meth:`Scenario.with_policies` shares it out).
     """
     path = Path(spec)
     if not path.exists():
@@ -549,7 +714,7 @@ def load_scenario(spec: str | Path, overrides: Sequence[str] = ()) -> Scenario:
     data = _toml(text, source)
     for override in overrides:
         data = apply_override(data, override)
-    return scenario_from_dict(data, source, base_dir)
+    return scenario_from_dict(data, source, base_dir, policies=policies)
 
 
 def _toml(text: str, source: str) -> dict[str, Any]:

@@ -14,13 +14,14 @@ from pathlib import Path
 import numpy as np
 from shapely.geometry import Point, Polygon, box
 
-from skymule.aadm.score import AADM_WINDOW_S
+from skymule.aadm.rules import AADM_WINDOW_S
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.faults.draws import FaultDraws, draw_faults, fault_rng
 from skymule.flight.navigation import Navigator, hover_point
 from skymule.flight.paths import Track, path_length_m, read_waypoints_csv, sample_path
 from skymule.geo import LocalFrame, covers, sensor_positions_m
 from skymule.io.qgc_plan import is_plan, plan_waypoints_m, scenario_fence
+from skymule.limits import waypoint_problem
 from skymule.radio.channel import mission_fading_db, signal_source
 from skymule.radio.rates import RateTable, rate_bps, resolve_rate_table
 from skymule.radio.sources import SignalSource
@@ -266,6 +267,9 @@ def _waypoints(scenario: Scenario, frame: LocalFrame) -> np.ndarray:
         raise ScenarioError(
             f"trajectory.waypoints has {len(waypoints)} point(s); a fixed path needs at least 2"
         )
+    problem = waypoint_problem(waypoints)
+    if problem is not None:  # a CSV or .plan file: the inline list was checked on loading
+        raise ScenarioError(f"trajectory.waypoints ({spec}): {problem}")
     return waypoints
 
 
@@ -304,10 +308,49 @@ def _trace_track(scenario: Scenario, frame: LocalFrame) -> Track:
     if "slot_s" in scenario.mission.model_fields_set and trace.n_samples > 1:
         # resample the recording at the requested slot length (sample-and-hold)
         slot_s = scenario.mission.slot_s
-        times = np.arange(0.0, trace.time_s[-1] + 1e-9, slot_s)
+        times = flight_slot_times_s(trace.time_s, slot_s)
         index = np.searchsorted(trace.time_s, times + 1e-9, side="right") - 1
         positions, snr = positions[index], snr[index]
     return Track(position_m=positions, snr_db=snr, hold_at_end=False)
+
+
+def flight_slot_times_s(time_s: np.ndarray, slot_s: float) -> np.ndarray:
+    """(K,) start times [s] of the slots a recording of sample times ``time_s`` spans.
+
+    Slot k starts at k * slot_s; the last slot starts at or before the last sample.
+    """
+    return np.arange(int(np.floor(time_s[-1] / slot_s + 1e-9)) + 1) * slot_s
+
+
+def resample_positions(time_s: np.ndarray, positions_m: np.ndarray, slot_s: float) -> np.ndarray:
+    """(K, 3) positions [m] at the slots' start times, linear in time between recorded samples.
+
+    A recorded flight's positions over time, at the slots of the mission (whatever the
+    recording's own sample rate: 1-s AADM polls, a 10-Hz GPS log, a gap of several seconds).
+    """
+    times = flight_slot_times_s(time_s, slot_s)
+    return np.column_stack([np.interp(times, time_s, positions_m[:, axis]) for axis in range(3)])
+
+
+def _flight_track(scenario: Scenario, frame: LocalFrame, source: SignalSource) -> Track:
+    """The recorded flight of ``trajectory.flight``, resampled to the slots, under ``source``."""
+    from skymule.io.traces import TraceError, positions_local, read_trace
+
+    assert scenario.trajectory.flight is not None
+    path = scenario.resolve_path(scenario.trajectory.flight)
+    try:
+        trace = read_trace(path)
+    except TraceError as exc:
+        raise ScenarioError(f"trajectory.flight: {exc}") from None
+    recorded = positions_local(trace, frame.to_local)
+    slots = len(flight_slot_times_s(trace.time_s, scenario.mission.slot_s))
+    if slots > MAX_SLOTS:
+        raise ScenarioError(
+            f"trajectory.flight = {str(path)!r} lasts {trace.time_s[-1]:g} s: {slots:,} slots of "
+            f"{scenario.mission.slot_s:g} s; at most {MAX_SLOTS:,} are allowed"
+        )
+    positions = resample_positions(trace.time_s, recorded, scenario.mission.slot_s)
+    return Track(position_m=positions, snr_db=source.snr_db(positions), hold_at_end=False)
 
 
 def mission_faults(
@@ -344,6 +387,13 @@ def build_mission(scenario: Scenario) -> Mission:
     source: SignalSource | None = None
     track: Track | None = None
     if scenario.signal.source == "trace":
+        if scenario.trajectory.flight is not None:
+            raise ScenarioError(
+                "trajectory.flight flies a recorded path under a signal source that gives the "
+                "SNR anywhere; signal.source = 'trace' replays its own trace's path: use "
+                "source = 'radiomap' with traces = [...] to fly it under another flight's "
+                "measurements"
+            )
         if scenario.trajectory.mode != "fixed":
             raise ScenarioError(
                 "signal.source = 'trace' replays a recorded path: it needs trajectory.mode = "
@@ -359,11 +409,20 @@ def build_mission(scenario: Scenario) -> Mission:
                 f"sensors {', '.join(missing)}: a model signal source needs a position "
                 "(lat/lon or x_m/y_m)"
             )
-        if scenario.mission.duration_s is None:
-            raise ScenarioError("mission.duration_s is required with signal.source = 'model'")
-        n_slots = _n_slots(scenario.mission.duration_s, slot_s)
+        duration_s = scenario.mission.duration_s
+        if duration_s is None and scenario.trajectory.flight is None:
+            raise ScenarioError(
+                f"mission.duration_s is required with signal.source = "
+                f"{scenario.signal.source!r} (or fly a recorded trajectory.flight)"
+            )
         source = signal_source(scenario, frame, sensor_m, fence)
-        if scenario.trajectory.mode == "fixed":
+        if scenario.trajectory.flight is not None:
+            track = _flight_track(scenario, frame, source)
+            n_slots = track.n_samples if duration_s is None else _n_slots(duration_s, slot_s)
+        else:
+            assert duration_s is not None
+            n_slots = _n_slots(duration_s, slot_s)
+        if scenario.trajectory.mode == "fixed" and track is None:
             waypoints = _waypoints(scenario, frame)
             _check_inside(fence, waypoints, "trajectory.waypoints")
             _check_path_samples(waypoints, scenario.trajectory.speed_mps, slot_s)

@@ -11,8 +11,9 @@ becomes home whenever flying on would leave too little time to get back (the inv
 :mod:`skymule.sim.autonomous`). On a fixed trajectory it flies the scenario's path one sample
 a slot, holding where the policy hovers.
 
-Two transports drive it with a :class:`~skymule.aadm.vehicle.Vehicle`: the TCP comm protocol
-(:func:`fly_tcp`) and the challenge's agent<->comm files (:func:`run_file_agent`).
+Two transports drive it with a :class:`~skymule.aadm.vehicle.Vehicle`: the challenge's TCP
+bytes (:func:`fly_tcp`: telemetry, then the poll, as the testbed's UAV and its controller
+exchange them) and the challenge's agent<->comm files (:func:`run_file_agent`).
 """
 
 from __future__ import annotations
@@ -25,10 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
-from skymule.aadm import files
-from skymule.aadm.controller import poll_once
+from skymule.aadm import files, protocol
+from skymule.aadm.controller import poll_once, send_telemetry
 from skymule.aadm.protocol import NOT_HEARD_DB, Reply
-from skymule.aadm.score import UNREADABLE_SNR_DB
+from skymule.aadm.score import UNREADABLE_SNR_DB, poll_download_bit
 from skymule.aadm.vehicle import Vehicle
 from skymule.errors import SkymuleError
 from skymule.policies.base import BatchObservation, BatchPolicy, MissionContext, Policy
@@ -111,12 +112,15 @@ class AadmAgent:
         downloaded_mbit: np.ndarray,
         position_m: np.ndarray,
         volumes_mbit: np.ndarray | None = None,
+        *,
+        remaining_bit: np.ndarray | None = None,
     ) -> AgentStep:
         """One slot: SNR per tower [dB] (-99: not heard; NaN: unreadable, 0 dB), cumulative
         Mbit downloaded per tower, UAV position [m] -> tower id and goal.
 
         The first call starts the mission with ``volumes_mbit`` (default: the scenario's
-        buffers) unless :meth:`start` was called.
+        buffers) unless :meth:`start` was called. ``remaining_bit`` (N,), when given, is the
+        data left per tower to the bit and takes the place of volume - downloaded.
         """
         if self.volumes_bit is None:
             default = self.mission.buffers_bit / BITS_PER_MBIT
@@ -125,9 +129,9 @@ class AadmAgent:
         snr = np.asarray(snr_db, float).reshape(self.n_towers)
         heard = np.where(np.isnan(snr), UNREADABLE_SNR_DB, snr)
         seen = np.where(heard <= NOT_HEARD_DB, -np.inf, heard)
-        remaining = np.maximum(
-            self.volumes_bit - np.asarray(downloaded_mbit, float) * BITS_PER_MBIT, 0.0
-        )
+        if remaining_bit is None:
+            remaining_bit = self.volumes_bit - np.asarray(downloaded_mbit, float) * BITS_PER_MBIT
+        remaining = np.maximum(np.asarray(remaining_bit, float).reshape(self.n_towers), 0.0)
         position = np.asarray(position_m, float).reshape(3)
         action = self.policy.act(
             BatchObservation(
@@ -175,6 +179,13 @@ class AadmAgent:
 # Driving a vehicle
 # ---------------------------------------------------------------------------
 
+#: Failed polls in a row the agent tries again before it returns to launch.
+POLL_RETRIES = 5
+#: Wall seconds between those tries.
+RETRY_WAIT_S = 0.5
+#: Slots the vehicle may take to fly home and land once the controller is lost.
+LANDING_SLOTS = 2000
+
 
 @dataclass
 class FlightRecord:
@@ -185,10 +196,55 @@ class FlightRecord:
     reports: list[str] = field(default_factory=list)
     polls: int = 0
     share_poll: int | None = None
+    rejoined: bool = False
+    score_line: str | None = None  # the controller's "T1: ..., Score:..." telemetry reply
 
     def end_distance_to(self, home_xy: tuple[float, float]) -> float:
         last = self.positions_m[-1] if self.positions_m else np.zeros(3)
         return float(np.hypot(last[0] - home_xy[0], last[1] - home_xy[1]))
+
+
+@dataclass
+class Ledger:
+    """The data left per tower [bit], kept by the UAV from the controller's reports.
+
+    The testbed reports the downloads with 2 decimals of Mbit, too coarse for a policy that
+    plans to the bit; each served report names the tower and the rate it credited, so the
+    UAV redoes the controller's own sum (:func:`~skymule.aadm.score.poll_download_bit` at
+    the SNR the poll reported) and takes the report's total instead whenever the two
+    disagree at the report's precision.
+    """
+
+    volumes_bit: np.ndarray
+    remaining_bit: np.ndarray
+
+    @classmethod
+    def start(cls, volumes_mbit: np.ndarray, downloaded_mbit: np.ndarray | None = None) -> Ledger:
+        volumes = np.asarray(volumes_mbit, float) * BITS_PER_MBIT
+        got = np.zeros_like(volumes) if downloaded_mbit is None else downloaded_mbit
+        return cls(volumes, np.maximum(volumes - np.asarray(got, float) * BITS_PER_MBIT, 0.0))
+
+    def sync(self, downloaded_mbit: np.ndarray) -> None:
+        """Take the ``download:`` reply's totals where the ledger is off by more than their
+        2 decimals (a report lost with a failed poll that the controller still counted)."""
+        reported = np.asarray(downloaded_mbit, float) * BITS_PER_MBIT
+        kept = self.volumes_bit - self.remaining_bit
+        off = np.abs(kept - reported) > 0.0051 * BITS_PER_MBIT
+        self.remaining_bit = np.where(
+            off, np.maximum(self.volumes_bit - reported, 0.0), self.remaining_bit
+        )
+
+    def credit(self, report: protocol.Report, snr_db: np.ndarray, slot_s: float) -> None:
+        if not report.served or report.tower is None or not 1 <= report.tower <= len(snr_db):
+            return
+        index = report.tower - 1
+        left = self.remaining_bit[index]
+        bits = float(poll_download_bit(snr_db[index], left, slot_s))
+        if f"{bits / BITS_PER_MBIT / slot_s:.2f}" == f"{report.rate_mbit:.2f}":
+            self.remaining_bit[index] = left - bits
+        else:  # an SNR on a CQI step at the report's 6 decimals: trust the controller's sum
+            got = report.received_mbit * BITS_PER_MBIT
+            self.remaining_bit[index] = max(float(self.volumes_bit[index]) - got, 0.0)
 
 
 class _Pilot:
@@ -201,19 +257,21 @@ class _Pilot:
         self.record = FlightRecord()
 
     def decide(
-        self, kind: str, snr: np.ndarray, volumes: np.ndarray | None, downloaded: np.ndarray
+        self,
+        kind: str,
+        snr: np.ndarray | None,
+        volumes_mbit: np.ndarray | None,
+        remaining_bit: np.ndarray,
     ) -> int:
         position = self.vehicle.position_m()
         goto: tuple[float, float] | None = None
-        if kind in ("wait", "") or self.done:
-            tower = int(np.nanargmax(snr)) + 1  # not served: any tower will do
+        if kind in ("wait", "error", "") or self.done or snr is None or volumes_mbit is None:
+            tower = 1  # not served: any tower will do
         else:
             if self.agent.volumes_bit is None:
                 self.record.share_poll = self.record.polls
-                if volumes is None:
-                    raise SkymuleError("the controller never shared the volumes")
-                self.agent.start(volumes)
-            step = self.agent.step(snr, downloaded, position)
+                self.agent.start(volumes_mbit)
+            step = self.agent.step(snr, np.zeros(len(snr)), position, remaining_bit=remaining_bit)
             tower, goto = step.tower_id, step.goto_m
             if kind == "download_complete" or self.agent.finished:
                 self.done = True
@@ -236,63 +294,144 @@ class _Pilot:
         self.vehicle.tick(dt_s)
         return self.done and not self.vehicle.armed
 
+    def return_to_launch(self, dt_s: float, pace_s: float) -> None:
+        """Fly home and land without the controller (bounded: ``LANDING_SLOTS``)."""
+        self.done = True
+        for _ in range(LANDING_SLOTS):
+            if not self.vehicle.armed:
+                return
+            self.vehicle.goto(self.agent.home_xy())
+            self.advance(dt_s)
+            time.sleep(pace_s)
+
+
+class _AgentFailed(Exception):
+    """The agent itself failed inside a poll (not the link): land, then report it."""
+
+    def __init__(self, error: SkymuleError) -> None:
+        super().__init__(str(error))
+        self.error = error
+
+
+def telemetry_message(agent: AadmAgent, vehicle: Vehicle) -> str:
+    """The vehicle's state as the testbed's telemetry line (lat/lon from the local frame)."""
+    where = vehicle.position_m()
+    lat, lon = agent.mission.frame.to_latlon(where[0], where[1])
+    return protocol.format_telemetry(float(where[2]), vehicle.armed, float(lat), float(lon))
+
 
 def fly_tcp(
     agent: AadmAgent,
     vehicle: Vehicle,
     host: str,
     port: int,
+    telemetry_port: int | None,
     *,
     poll_s: float = 1.0,
     pace_s: float | None = None,
     altitude_m: float = 25.0,
     max_polls: int = 100_000,
+    retries: int = POLL_RETRIES,
+    retry_wait_s: float = RETRY_WAIT_S,
 ) -> FlightRecord:
-    """Fly a mission against a controller over TCP: take off, poll, decide, fly, land.
+    """Fly a mission against a controller over the challenge's TCP bytes.
 
+    Each poll sends the vehicle's telemetry to ``telemetry_port`` (None: the controller knows
+    the position another way), then polls ``port`` with a bare ``snr_dd`` and names a tower.
     ``poll_s`` is the time each poll stands for (the vehicle advances that much); the loop
-    waits ``pace_s`` of wall time between polls (default ``poll_s``; 0 = as fast as possible).
-    The UAV's position and armed state go with every request (``pos``/``armed``).
+    waits ``pace_s`` of wall time between polls (default ``poll_s``; 0 = as fast as
+    possible). A failed poll is tried again up to ``retries`` times (``retry_wait_s`` apart);
+    then the vehicle returns to launch and lands, and a one-line SkymuleError says why.
+    A restarted agent rejoins a running session: without the ``vol:`` reply it takes the
+    scenario's buffers as the volumes and the reply's downloads as done.
     """
     if poll_s <= 0:
         raise SkymuleError(f"poll_s = {poll_s:g}: each poll must stand for > 0 s")
     pilot = _Pilot(agent, vehicle, altitude_m)
     vehicle.takeoff(altitude_m)
-    state: dict[str, np.ndarray | None] = {"volumes": None}
+    wait_s = poll_s if pace_s is None else pace_s
+    n_towers = agent.n_towers
+    book: list[Ledger] = []
+    decided: list[int] = []  # this slot's tower, once the policy chose it
 
     def choose(reply: Reply) -> int:
-        assert reply.snr_db is not None
-        if reply.kind == "vol":
-            state["volumes"] = reply.values
-        volumes = state["volumes"]
-        if reply.kind == "download" and reply.values is not None:
-            downloaded = reply.values
-        elif reply.kind == "download_complete" and volumes is not None:
-            downloaded = volumes
-        else:
-            downloaded = np.zeros(agent.n_towers)
-        return pilot.decide(reply.kind, reply.snr_db, volumes, downloaded)
+        if decided:  # a poll tried again: the same tower, the policy is not asked twice
+            return decided[0]
+        try:
+            decided.append(decide(reply))
+        except SkymuleError as exc:  # the policy's own error: no retry, but land first
+            raise _AgentFailed(exc) from exc
+        return decided[0]
 
-    wait_s = poll_s if pace_s is None else pace_s
+    def decide(reply: Reply) -> int:
+        if reply.kind == "vol" and reply.values is not None and not book:
+            book.append(Ledger.start(reply.values))
+        elif reply.kind == "download" and book and reply.values is not None:
+            book[0].sync(reply.values)
+        elif reply.kind == "download" and not book:  # rejoining a running session
+            book.append(Ledger.start(agent.mission.buffers_bit / BITS_PER_MBIT, reply.values))
+            pilot.record.rejoined = True
+            log.warning(
+                "rejoined a running session: volumes from the scenario, downloads so far "
+                "from the controller's reply"
+            )
+        ledger = book[0] if book else None
+        volumes = None if ledger is None else ledger.volumes_bit / BITS_PER_MBIT
+        remaining: np.ndarray = np.zeros(n_towers)
+        if ledger is not None:
+            remaining = ledger.remaining_bit.copy()
+        if reply.kind == "download_complete":
+            remaining = np.zeros(n_towers)
+        return pilot.decide(reply.kind, reply.snr_db, volumes, remaining)
+
+    def one_poll() -> tuple[Reply, str]:
+        if telemetry_port is not None:
+            answer = send_telemetry(host, telemetry_port, telemetry_message(agent, vehicle))
+            if answer.startswith("T1:"):
+                pilot.record.score_line = answer
+        reply, report = poll_once(host, port, choose, n_towers)
+        if reply.kind == "error":
+            raise SkymuleError(f"controller {host}:{port} refused the poll: {reply.text}")
+        if book and reply.snr_db is not None:
+            book[0].credit(protocol.parse_report(report), reply.snr_db, agent.mission.slot_s)
+        return reply, report
+
+    failures = 0
     for _ in range(max_polls):
         started = time.monotonic()
         try:
-            reply, report = poll_once(host, port, choose, vehicle.position_m(), armed=vehicle.armed)
-        except OSError as exc:
-            if not pilot.done:
+            _, report = one_poll()
+            failures = 0
+        except _AgentFailed as failed:
+            pilot.return_to_launch(poll_s, wait_s)
+            raise failed.error from None
+        except (OSError, SkymuleError) as exc:
+            if pilot.done:  # the mission is over: fly home and land without the controller
+                pilot.return_to_launch(poll_s, wait_s)
+                break
+            failures += 1
+            if failures > retries:
+                pilot.return_to_launch(poll_s, wait_s)
                 why = "no controller listening" if isinstance(exc, ConnectionRefusedError) else exc
-                raise SkymuleError(f"controller {host}:{port}: {why}") from None
-            # the mission is over: fly home and land even if the controller went away
-            reply, report = Reply("download_complete", None, None), ""
-            vehicle.goto(agent.home_xy())
-        if reply.kind == "error":
-            raise SkymuleError(f"controller {host}:{port} refused the poll: {reply.text}")
+                away = pilot.record.end_distance_to(agent.home_xy())
+                raise SkymuleError(
+                    f"controller {host}:{port}: {why}; gave up after {retries} retries, "
+                    f"returned to launch and landed {away:.1f} m from it"
+                ) from None
+            log.warning("poll failed (%s); trying again (%d of %d)", exc, failures, retries)
+            time.sleep(retry_wait_s)
+            continue
         pilot.record.reports.append(report)
+        decided.clear()
         if pilot.advance(poll_s):
-            try:  # tell the controller the UAV disarmed: the session is over
-                poll_once(host, port, lambda _: 1, vehicle.position_m(), armed=False)
-            except OSError:
-                log.info("controller gone before the final poll")
+            if telemetry_port is not None:  # the controller sees the disarm: session over
+                try:
+                    answer = send_telemetry(host, telemetry_port, telemetry_message(agent, vehicle))
+                    pilot.record.score_line = pilot.record.score_line or (
+                        answer if answer.startswith("T1:") else None
+                    )
+                except OSError:
+                    log.info("controller gone before the final telemetry")
             break
         time.sleep(max(0.0, wait_s - (time.monotonic() - started)))
     return pilot.record
@@ -332,11 +471,14 @@ def run_file_agent(
             volumes = _optional(lambda: files.read_tower_file(folder / files.VOLUME_FILE, n_towers))
             done = bool(_optional(lambda: files.read_done_file(folder / files.DONE_FILE)))
             got = _optional(lambda: files.read_tower_file(folder / files.DOWNLOADED_FILE, n_towers))
+            if volumes is not None and not volumes.any():  # the comm process's reset: not shared
+                volumes = None
             kind = "wait" if volumes is None else ("download_complete" if done else "download")
             downloaded = got if got is not None else np.zeros(n_towers)
-            if done and volumes is not None:
-                downloaded = volumes
-            tower = pilot.decide(kind, snr, volumes, downloaded)
+            remaining = np.zeros(n_towers)
+            if volumes is not None and not done:
+                remaining = (volumes - downloaded) * BITS_PER_MBIT
+            tower = pilot.decide(kind, snr, volumes, remaining)
             files.write_choice_file(folder / files.CHOICE_FILE, tower)
         if pilot.advance(poll_s):
             break

@@ -7,15 +7,31 @@ raise :class:`~skymule.errors.SkymuleError` (one line, exit 2 through ``skymule.
 from __future__ import annotations
 
 import logging
+import signal
 import sys
 import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from skymule.aadm.score import AADM_POLL_S, AADM_WINDOW_S
+from skymule.aadm.rules import (
+    AADM_POLL_S,
+    AADM_WINDOW_S,
+    FIRST_TOWER_PORT,
+    TELEMETRY_PORT,
+    TOWERS_TELEMETRY_PORT,
+    UAV_PORT,
+)
 from skymule.errors import SkymuleError
+from skymule.trust import TRUST_HELP, trust_option
+
+#: Seconds a running session may go without a poll before the controller calls it lost.
+AGENT_TIMEOUT_S = 30.0
+#: Failed polls the agent tries again (:data:`skymule.aadm.agent.POLL_RETRIES`).
+POLL_RETRIES = 5
 
 if TYPE_CHECKING:
     from skymule.aadm.agent import AadmAgent
@@ -23,11 +39,17 @@ if TYPE_CHECKING:
 
 aadm_app = typer.Typer(
     no_args_is_help=True,
-    help="AADM challenge: emulated controller, policy agent, comm stand-in, loopback flight.",
+    help=(
+        "AADM challenge: emulated controller and towers, policy agent, comm stand-in, "
+        "loopback flight."
+    ),
 )
 
 ScenarioArg = Annotated[str, typer.Argument(help="Scenario TOML path or preset name.")]
 HostOpt = Annotated[str, typer.Option("--host", help="Controller address.")]
+TrustOption = Annotated[
+    list[Path] | None, typer.Option("--trust-model", help=TRUST_HELP, callback=trust_option)
+]
 
 
 def _say(text: str) -> None:
@@ -38,7 +60,12 @@ def _say(text: str) -> None:
 def controller(
     scenario: ScenarioArg,
     host: HostOpt = "127.0.0.1",
-    port: Annotated[int, typer.Option("--port", help="TCP port (0: any free port).")] = 0,
+    port: Annotated[int, typer.Option("--port", help="UAV poll port (0: any free port).")] = (
+        UAV_PORT
+    ),
+    telemetry_port: Annotated[
+        int, typer.Option("--telemetry-port", help="Telemetry port (0: any free port).")
+    ] = TELEMETRY_PORT,
     poll_s: Annotated[
         float, typer.Option("--poll-s", help="Seconds each poll stands for (AADM: 1).")
     ] = AADM_POLL_S,
@@ -53,32 +80,61 @@ def controller(
         bool,
         typer.Option("--exit-on-disarm", help="Exit once the UAV reports itself disarmed."),
     ] = False,
+    agent_timeout: Annotated[
+        float,
+        typer.Option("--agent-timeout", help="Seconds without a poll before the flight is lost."),
+    ] = AGENT_TIMEOUT_S,
 ) -> None:
-    """Serve the AADM controller protocol with SNR from the scenario's signal source."""
+    """Serve the AADM controller's bytes with SNR from the scenario's signal source."""
     from skymule.aadm.controller import ControllerCore, serve_controller
     from skymule.aadm.files import read_volume_file
     from skymule.scenario import load_scenario
     from skymule.world import build_mission
 
-    if poll_s <= 0 or window_s <= 0:
-        raise SkymuleError(f"--poll-s {poll_s:g} / --window-s {window_s:g}: both must be > 0")
+    if poll_s <= 0 or window_s <= 0 or agent_timeout <= 0:
+        raise SkymuleError(
+            f"--poll-s {poll_s:g} / --window-s {window_s:g} / --agent-timeout "
+            f"{agent_timeout:g}: each must be > 0"
+        )
     logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s", stream=sys.stderr)
     mission = build_mission(load_scenario(scenario))
     shared = None if volumes is None else read_volume_file(volumes, mission.n_sensors)
     core = ControllerCore(mission, shared, poll_s=poll_s, window_s=window_s, log_path=log)
+    lost: float | None = None
+    with _until_stopped() as stopped, serve_controller(core, host, port, telemetry_port) as server:
+        _say(f"listening on {server.host}:{server.port} (UAV polls)")
+        _say(f"listening on {server.host}:{server.telemetry_port} (telemetry)")
+        while not stopped.wait(0.1):
+            if exit_on_disarm and core.disarmed:
+                break
+            idle = core.idle_s()
+            if idle is not None and idle > agent_timeout:
+                lost = idle
+                core.stop("UAV lost")
+                break
+    parts = core.score()
+    summary = (
+        f"downloaded {core.received_mbit().sum():.1f} Mbit in {core.served_polls} polls; "
+        f"t1 {parts['aadm_t1_s']:g} s; score {parts['aadm_score']:.1f}"
+    )
+    if lost is not None:
+        _say(f"no poll from the UAV for {lost:.0f} s: the flight was cut off")
+        _say(f"{summary} (INCOMPLETE: the UAV was lost)")
+        raise typer.Exit(1)
+    _say(summary)
+
+
+@contextmanager
+def _until_stopped() -> Iterator[threading.Event]:
+    """An event set by SIGTERM or Ctrl-C, so that either ends the session like the other."""
     stopped = threading.Event()
+    previous = signal.signal(signal.SIGTERM, lambda *_: stopped.set())
     try:
-        with serve_controller(core, host, port) as server:
-            _say(f"listening on {server.host}:{server.port}")
-            while not stopped.wait(0.2):
-                if exit_on_disarm and core.disarmed:
-                    break
+        yield stopped
+    except KeyboardInterrupt:
+        stopped.set()
     finally:
-        parts = core.score()
-        _say(
-            f"downloaded {core.received_mbit().sum():.1f} Mbit in {core.served_polls} polls; "
-            f"t1 {parts['aadm_t1_s']:g} s; score {parts['aadm_score']:.1f}"
-        )
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _make_vehicle(kind: str, agent: AadmAgent, address: str) -> Vehicle:
@@ -97,7 +153,10 @@ def agent(
     scenario: ScenarioArg,
     policy: Annotated[str, typer.Option("--policy", help="Policy name or module:Class.")],
     host: HostOpt = "127.0.0.1",
-    port: Annotated[int, typer.Option("--port", help="Controller TCP port.")] = 8005,
+    port: Annotated[int, typer.Option("--port", help="Controller UAV poll port.")] = UAV_PORT,
+    telemetry_port: Annotated[
+        int, typer.Option("--telemetry-port", help="Where the vehicle's telemetry goes.")
+    ] = TELEMETRY_PORT,
     files_dir: Annotated[
         Path | None,
         typer.Option("--files", help="Use the agent<->comm files in DIR instead of TCP."),
@@ -105,45 +164,62 @@ def agent(
     vehicle: Annotated[str, typer.Option("--vehicle", help="kinematic or mavsdk.")] = "kinematic",
     mavsdk_address: Annotated[
         str, typer.Option("--mavsdk-address", help="MAVSDK system address.")
-    ] = "udp://:14540",
+    ] = "udpin://0.0.0.0:14540",
     poll_s: Annotated[
-        float, typer.Option("--poll-s", help="Wall seconds between polls (each is a 1-s slot).")
-    ] = 1.0,
-    altitude: Annotated[float, typer.Option("--altitude", help="Take-off altitude [m].")] = 25.0,
+        float | None,
+        typer.Option(
+            "--poll-s",
+            help="Wall seconds between polls (default: 0 kinematic, 1 mavsdk; each is a 1-s slot).",
+        ),
+    ] = None,
+    altitude: Annotated[
+        float | None,
+        typer.Option("--altitude", help="Take-off altitude [m] (default: the scenario's)."),
+    ] = None,
+    retries: Annotated[
+        int, typer.Option("--retries", help="Failed polls tried again before returning home.")
+    ] = POLL_RETRIES,
+    trust_model: TrustOption = None,
 ) -> None:
-    """Run a skymule policy as the UAV-side agent (TCP comm protocol or the file protocol)."""
+    """Run a skymule policy as the UAV-side agent (the challenge's TCP bytes, or its files)."""
     from skymule.aadm.agent import AadmAgent, fly_tcp, run_file_agent
+    from skymule.aadm.loopback import takeoff_altitude_m
     from skymule.policies import make_policy
     from skymule.scenario import load_scenario
     from skymule.world import build_mission
 
-    if poll_s < 0:
+    if poll_s is not None and poll_s < 0:
         raise SkymuleError(f"--poll-s {poll_s:g}: must be >= 0")
-    spec = load_scenario(scenario).with_policy(policy)
-    the_agent = AadmAgent(build_mission(spec), make_policy(spec.policy))
+    if retries < 0:
+        raise SkymuleError(f"--retries {retries}: must be >= 0")
+    spec = load_scenario(scenario, policies=[policy]).with_policy(policy)
+    mission = build_mission(spec)
+    the_agent = AadmAgent(mission, make_policy(spec.policy))
     craft = _make_vehicle(vehicle, the_agent, mavsdk_address)
-    if files_dir is not None:
-        if not files_dir.is_dir():
-            raise SkymuleError(f"--files {files_dir}: no such folder")
-        record = run_file_agent(
-            the_agent,
-            craft,
-            files_dir,
-            pace_s=poll_s,
-            altitude_m=altitude,
-        )
-    else:
-        try:
+    pace = poll_s if poll_s is not None else (0.0 if vehicle == "kinematic" else 1.0)
+    climb = takeoff_altitude_m(spec, mission) if altitude is None else altitude
+    try:
+        if files_dir is not None:
+            if not files_dir.is_dir():
+                raise SkymuleError(f"--files {files_dir}: no such folder")
+            record = run_file_agent(the_agent, craft, files_dir, pace_s=pace, altitude_m=climb)
+        else:
             record = fly_tcp(
                 the_agent,
                 craft,
                 host,
                 port,
-                pace_s=poll_s,
-                altitude_m=altitude,
+                telemetry_port,
+                pace_s=pace,
+                altitude_m=climb,
+                retries=retries,
             )
-        except ConnectionRefusedError:
-            raise SkymuleError(f"--port {port}: no controller listening on {host}") from None
+            if record.score_line:
+                _say(f"controller: {record.score_line}")
+    finally:
+        close = getattr(craft, "close", None)
+        if callable(close):
+            close()
     _say(
         f"{record.polls} polls; landed {record.end_distance_to(the_agent.home_xy()):.1f} m "
         "from the launch point"
@@ -153,19 +229,73 @@ def agent(
 @aadm_app.command()
 def comm(
     files_dir: Annotated[Path, typer.Option("--files", help="Agent working folder.")],
-    port: Annotated[int, typer.Option("--port", help="Controller TCP port.")],
+    towers: Annotated[int, typer.Option("--towers", help="Number of towers.")] = 4,
+    port: Annotated[int, typer.Option("--port", help="Controller UAV poll port.")] = UAV_PORT,
     host: HostOpt = "127.0.0.1",
     poll_s: Annotated[float, typer.Option("--poll-s", help="Seconds between polls.")] = 1.0,
     max_polls: Annotated[int, typer.Option("--max-polls", help="Stop after N polls.")] = 100_000,
 ) -> None:
-    """Stand in for the challenge's comm process: plain snr_dd polls <-> ss/dv/dd/tn/bc files."""
+    """Stand in for the challenge's comm process: bare snr_dd polls <-> ss/dv/dd/tn/bc files."""
     from skymule.aadm.comm import run_comm
 
+    if towers < 1:
+        raise SkymuleError(f"--towers {towers}: must be >= 1")
     try:
-        polls = run_comm(files_dir, host, port, poll_s=poll_s, max_polls=max_polls)
+        polls = run_comm(files_dir, host, port, towers, poll_s=poll_s, max_polls=max_polls)
     except ConnectionRefusedError:
         raise SkymuleError(f"--port {port}: no controller listening on {host}") from None
     _say(f"{polls} polls")
+
+
+@aadm_app.command()
+def towers(
+    scenario: ScenarioArg,
+    host: HostOpt = "127.0.0.1",
+    first_port: Annotated[
+        int,
+        typer.Option("--first-port", help="Tower 1's port; tower k on the k-th after (0: any)."),
+    ] = FIRST_TOWER_PORT,
+    telemetry_port: Annotated[
+        int, typer.Option("--telemetry-port", help="Telemetry port (0: any free port).")
+    ] = TOWERS_TELEMETRY_PORT,
+    forward: Annotated[
+        str | None,
+        typer.Option("--forward", help="Pass telemetry on to the controller's HOST:PORT."),
+    ] = f"127.0.0.1:{TELEMETRY_PORT}",
+    write_env: Annotated[
+        Path | None,
+        typer.Option("--write-env", help="Write an experiment-environment file here."),
+    ] = None,
+) -> None:
+    """Answer as the AADM towers (00,<snr>,<rate>) so the challenge's own controller runs."""
+    from skymule.aadm.towers import TowerRadio, experiment_env, serve_towers
+    from skymule.io import atomic
+    from skymule.scenario import load_scenario
+    from skymule.world import build_mission
+
+    target = None if not forward else _host_port(forward)
+    mission = build_mission(load_scenario(scenario))
+    n_towers = mission.n_sensors
+    ports = [0 if first_port == 0 else first_port + k for k in range(n_towers)]
+    logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s", stream=sys.stderr)
+    with (
+        _until_stopped() as stopped,
+        serve_towers(TowerRadio(mission), host, ports, telemetry_port, target) as served,
+    ):
+        for name, port in zip(mission.sensor_names, served.ports, strict=True):
+            _say(f"listening on {host}:{port} (tower {name})")
+        _say(f"listening on {host}:{served.telemetry_port} (telemetry)")
+        if write_env is not None:
+            atomic.write_text(write_env, experiment_env(n_towers, host))
+            _say(f"wrote {write_env}")
+        stopped.wait()
+
+
+def _host_port(text: str) -> tuple[str, int]:
+    host, sep, port = text.rpartition(":")
+    if not sep or not host or not port.isdigit():
+        raise SkymuleError(f"--forward {text!r}: expected HOST:PORT, like 127.0.0.1:8006")
+    return host, int(port)
 
 
 @aadm_app.command()
@@ -178,6 +308,7 @@ def fly(
         float, typer.Option("--poll-s", help="Wall seconds between polls (0: flat out).")
     ] = 0.01,
     log: Annotated[Path | None, typer.Option("--log", help="Download log to write.")] = None,
+    trust_model: TrustOption = None,
 ) -> None:
     """Offline AADM flight on loopback (controller + agent + kinematic vehicle) vs skymule run."""
     from skymule.aadm.loopback import fly_loopback
@@ -185,7 +316,12 @@ def fly(
 
     if poll_s < 0:
         raise SkymuleError(f"--poll-s {poll_s:g}: must be >= 0")
-    result = fly_loopback(load_scenario(scenario), policy, poll_s=poll_s, log_path=log)
+    spec = load_scenario(scenario, policies=None if policy is None else [policy])
+    if policy is None:
+        from skymule.cli.missions import announce_imports
+
+        announce_imports([spec.policy.name], scenario)
+    result = fly_loopback(spec, policy, poll_s=poll_s, log_path=log)
     _say(f"{result.policy}: {result.polls} polls, volumes shared at poll {result.share_poll}")
     _say(f"{'':14}{'flight':>12}{'skymule run':>14}{'difference':>12}")
     for index, name in enumerate(result.sensor_names):

@@ -16,9 +16,7 @@ from __future__ import annotations
 
 import csv
 import math
-import os
 import re
-import tempfile
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
@@ -26,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from skymule.errors import SkymuleError
+from skymule.io import atomic
 from skymule.io.traces import read_volumes
 
 #: ``time`` column format of the controller's download log.
@@ -45,18 +44,6 @@ DONE = -1
 _PAIR_RE = re.compile(r"^\s*(\d+)\s*:\s*(\S+)\s*$")
 
 
-def write_atomic(path: Path, text: str) -> None:
-    """Replace ``path`` with ``text`` in one step (temporary file + ``os.replace``)."""
-    handle, temp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8") as out:
-            out.write(text)
-        os.replace(temp, path)
-    except BaseException:
-        Path(temp).unlink(missing_ok=True)
-        raise
-
-
 # ---------------------------------------------------------------------------
 # Volume files
 # ---------------------------------------------------------------------------
@@ -74,7 +61,7 @@ def read_volume_file(path: Path, n_towers: int | None = None) -> np.ndarray:
 
 
 def write_volume_file(path: Path, volumes_mbit: np.ndarray) -> None:
-    write_atomic(path, "".join(f"{float(v):g}\n" for v in volumes_mbit))
+    atomic.write_text(path, "".join(f"{float(v):g}\n" for v in volumes_mbit))
 
 
 # ---------------------------------------------------------------------------
@@ -237,7 +224,7 @@ def read_tower_file(path: Path, n_towers: int | None = None) -> np.ndarray:
 
 
 def write_tower_file(path: Path, values: np.ndarray) -> None:
-    write_atomic(path, format_tower_values(values) + "\n")
+    atomic.write_text(path, format_tower_values(values) + "\n")
 
 
 def read_done_file(path: Path) -> bool:
@@ -252,7 +239,7 @@ def read_done_file(path: Path) -> bool:
 
 
 def write_done_file(path: Path, done: bool) -> None:
-    write_atomic(path, f"{DONE if done else NOT_DONE}\n")
+    atomic.write_text(path, f"{DONE if done else NOT_DONE}\n")
 
 
 def parse_tower_id(text: str, n_towers: int, where: str) -> int:
@@ -272,4 +259,4 @@ def read_choice_file(path: Path, n_towers: int) -> int:
 
 
 def write_choice_file(path: Path, tower_id: int) -> None:
-    write_atomic(path, f"{int(tower_id)}\n")
+    atomic.write_text(path, f"{int(tower_id)}\n")

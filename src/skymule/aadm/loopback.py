@@ -1,9 +1,10 @@
 """One offline AADM flight: the emulated controller, the agent and the kinematic vehicle.
 
-:func:`fly_loopback` serves the controller on a loopback port (port 0: any free port), flies
-the scenario's policy as the agent with a :class:`~skymule.aadm.vehicle.KinematicVehicle`
-over the TCP protocol, then runs the same scenario and policy through the engine
-(``skymule run``) and scores both by the rule in force.
+:func:`fly_loopback` serves the controller on two loopback ports (any free ones), flies the
+scenario's policy as the agent with a :class:`~skymule.aadm.vehicle.KinematicVehicle` over
+the challenge's TCP bytes (telemetry, then the poll: the same code path as ``skymule aadm
+agent`` against ``skymule aadm controller`` in two processes), then runs the same scenario
+and policy through the engine (``skymule run``) and scores both by the rule in force.
 
 Why they may differ: the engine starts at slot 0 already at altitude; the flight takes off
 from the ground at 2.5 m/s and the volumes are shared (t1 = 0, slot 0 of the policy) at the
@@ -28,7 +29,7 @@ from skymule.flight.navigation import Navigator
 from skymule.policies import make_policy
 from skymule.scenario import Scenario
 from skymule.units import BITS_PER_MBIT
-from skymule.world import build_mission, fence_or_box
+from skymule.world import Mission, build_mission, fence_or_box
 
 
 @dataclass(frozen=True)
@@ -42,6 +43,7 @@ class LoopbackResult:
     policy: str
     flight_mbit: np.ndarray
     flight_score: dict[str, Any]
+    flight_per_poll_bit: list[float]
     engine_mbit: np.ndarray
     engine_mission_mbit: float
     engine_score: dict[str, Any]
@@ -56,6 +58,20 @@ def kinematic_vehicle(agent: AadmAgent) -> KinematicVehicle:
     mission = agent.mission
     navigator = mission.navigator or Navigator(fence_or_box(mission.fence))
     return KinematicVehicle(navigator, agent.home_xy())
+
+
+def takeoff_altitude_m(scenario: Scenario, mission: Mission) -> float:
+    """The altitude the agent takes off to: the scenario's flight altitude (autonomous), the
+    path's own altitude if above 25 m (fixed path), else the challenge's 25 m.
+
+    One rule for ``aadm fly`` and ``aadm agent`` (an agent that climbed to 25 m while
+    ``aadm fly`` flew at the scenario's 30 m saw other SNRs: the planner split at poll 19).
+    """
+    if scenario.trajectory.mode == "autonomous":
+        return float(scenario.trajectory.altitude_m)
+    if mission.track is not None:
+        return max(TAKEOFF_ALTITUDE_M, float(mission.track.position_m[0, 2]))
+    return TAKEOFF_ALTITUDE_M
 
 
 def fly_loopback(
@@ -73,15 +89,16 @@ def fly_loopback(
     mission = build_mission(scenario)
     agent = AadmAgent(mission, make_policy(scenario.policy))
     vehicle = kinematic_vehicle(agent)
-    altitude = TAKEOFF_ALTITUDE_M
-    if scenario.trajectory.mode == "autonomous":
-        altitude = scenario.trajectory.altitude_m
-    elif mission.track is not None:  # climb to the path's own altitude, if it is above 24 m
-        altitude = max(TAKEOFF_ALTITUDE_M, float(mission.track.position_m[0, 2]))
     core = ControllerCore(mission, log_path=log_path)
     with serve_controller(core) as server:
         record = fly_tcp(
-            agent, vehicle, server.host, server.port, pace_s=poll_s, altitude_m=altitude
+            agent,
+            vehicle,
+            server.host,
+            server.port,
+            server.telemetry_port,
+            pace_s=poll_s,
+            altitude_m=takeoff_altitude_m(scenario, mission),
         )
     engine = simulate(scenario, mission=mission)
     total = float(mission.buffers_bit.sum())
@@ -91,6 +108,7 @@ def fly_loopback(
         policy=scenario.policy.name,
         flight_mbit=core.received_mbit(),
         flight_score=core.score(),
+        flight_per_poll_bit=list(core.per_poll_bit),
         engine_mbit=(mission.buffers_bit - left) / BITS_PER_MBIT,
         engine_mission_mbit=float(engine.log.downloaded_bit.sum()) / BITS_PER_MBIT,
         engine_score=aadm_score_one(engine.log.downloaded_bit, total, mission.slot_s),

@@ -22,21 +22,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from skymule.aadm.rules import AADM_BANDWIDTH_HZ as AADM_BANDWIDTH_HZ
+from skymule.aadm.rules import AADM_POLL_S as AADM_POLL_S
+from skymule.aadm.rules import AADM_WINDOW_S as AADM_WINDOW_S
+from skymule.aadm.rules import SHARE_ALTITUDE_M as SHARE_ALTITUDE_M
+from skymule.aadm.rules import UNREADABLE_SNR_DB as UNREADABLE_SNR_DB
 from skymule.radio.rates import BUILTIN_RATE_TABLES
 from skymule.sim.contract import served_bits, window_slots
-
-#: The challenge's download window since the volumes were shared [s].
-AADM_WINDOW_S = 500.0
-
-#: The controller's channel bandwidth [Hz] and nominal poll length [s].
-AADM_BANDWIDTH_HZ = 1.4e6
-AADM_POLL_S = 1.0
-
-#: SNR the controller uses for a tower whose SNR cannot be read [dB].
-UNREADABLE_SNR_DB = 0.0
-
-#: The controller shares the volumes (and starts t1) at the first poll above this height [m].
-SHARE_ALTITUDE_M = 24.0
 
 #: Relative tolerance under which a buffer counts as emptied (float round-off of Mbit sums).
 COMPLETE_RTOL = 1e-9

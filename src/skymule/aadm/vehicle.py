@@ -5,9 +5,10 @@
   ``climb_mps``, flies at most ``max_speed_mps`` along the shortest path inside the geofence
   (:class:`~skymule.flight.navigation.Navigator`), descends at ``descent_mps`` and disarms on
   touching down.
-* :class:`MavsdkVehicle`: a real vehicle or SITL through MAVSDK (``pip install 'skymule[fly]'``),
-  GUIDED-style ``goto_location``; time is real time and ``tick`` does nothing. It is written
-  against the MAVSDK-Python API but has not been run against SITL here.
+* :class:`MavsdkVehicle`: a real vehicle or SITL through MAVSDK-Python (``pip install
+  'skymule[fly]'``), GUIDED-style ``goto_location``; time is real time and ``tick`` does
+  nothing. The test suite flies it against :mod:`skymule.aadm.mavlink_vehicle`, a kinematic
+  MAVLink stand-in, not against PX4 or ArduPilot (their SITL is the real check).
 
 Positions are local metres of the scenario's frame: x east, y north, z above the launch point.
 """
@@ -115,6 +116,24 @@ class KinematicVehicle:
             self._z, self._armed = 0.0, False
 
 
+def _mavsdk_python() -> Any:
+    """MAVSDK-Python's gRPC API: ``mavsdk_grpc`` (its name since MAVSDK 4), or ``mavsdk``
+    below 4 (``mavsdk`` 4 and later is the native binding, another API)."""
+    for name in ("mavsdk_grpc", "mavsdk"):
+        try:
+            module = importlib.import_module(name)
+        except ImportError:
+            continue
+        if name == "mavsdk_grpc" or _below_4(module):
+            return module
+    raise SkymuleError("--vehicle mavsdk needs MAVSDK-Python: pip install 'skymule[fly]'")
+
+
+def _below_4(module: Any) -> bool:
+    version = str(getattr(module, "__version__", "0"))
+    return version.split(".")[0].isdigit() and int(version.split(".")[0]) < 4
+
+
 def _point(xy: tuple[float, float]) -> Any:
     from shapely.geometry import Point
 
@@ -125,16 +144,12 @@ class MavsdkVehicle:
     """MAVSDK-Python behind the :class:`Vehicle` interface (optional extra ``fly``).
 
     A private asyncio loop in a background thread runs MAVSDK; every method blocks until
-    MAVSDK acknowledged the command. Not tested against SITL in this repository.
+    MAVSDK acknowledged the command. Tested against the kinematic MAVLink stand-in of
+    :mod:`skymule.aadm.mavlink_vehicle` only, not against PX4 or ArduPilot SITL.
     """
 
     def __init__(self, address: str, frame: LocalFrame, timeout_s: float = 30.0) -> None:
-        try:
-            system_module = importlib.import_module("mavsdk")
-        except ImportError:
-            raise SkymuleError(
-                "--vehicle mavsdk needs the MAVSDK package: pip install 'skymule[fly]'"
-            ) from None
+        system_module = _mavsdk_python()
         self.frame = frame
         self.timeout_s = timeout_s
         self._loop = asyncio.new_event_loop()
@@ -142,7 +157,19 @@ class MavsdkVehicle:
         self._thread.start()
         self._drone: Any = system_module.System()
         self._home_amsl_m = 0.0
-        self._run(self._connect(address))
+        # the latest telemetry, kept by two subscriptions (a new one per call costs a round
+        # trip through mavsdk_server each time)
+        self._latest_position: np.ndarray | None = None
+        self._latest_armed: bool | None = None
+        try:
+            self._run(self._connect(address))
+        except BaseException as exc:
+            self.close()
+            if isinstance(exc, TimeoutError):
+                raise SkymuleError(
+                    f"--mavsdk-address {address}: no vehicle answered within {timeout_s:g} s"
+                ) from None
+            raise
 
     def _run(self, coroutine: Coroutine[Any, Any, Any]) -> Any:
         return asyncio.run_coroutine_threadsafe(coroutine, self._loop).result(self.timeout_s)
@@ -155,6 +182,21 @@ class MavsdkVehicle:
         async for home in self._drone.telemetry.home():
             self._home_amsl_m = float(home.absolute_altitude_m)
             break
+        self._watchers = [
+            asyncio.ensure_future(self._watch_position()),
+            asyncio.ensure_future(self._watch_armed()),
+        ]
+
+    async def _watch_position(self) -> None:
+        async for where in self._drone.telemetry.position():
+            x_m, y_m = self.frame.to_local(where.latitude_deg, where.longitude_deg)
+            self._latest_position = np.array(
+                [float(x_m), float(y_m), float(where.relative_altitude_m)]
+            )
+
+    async def _watch_armed(self) -> None:
+        async for armed in self._drone.telemetry.armed():
+            self._latest_armed = bool(armed)
 
     async def _position(self) -> np.ndarray:
         async for where in self._drone.telemetry.position():
@@ -178,10 +220,14 @@ class MavsdkVehicle:
         await self._drone.action.goto_location(float(lat), float(lon), amsl, float("nan"))
 
     def position_m(self) -> np.ndarray:
+        if self._latest_position is not None:
+            return self._latest_position.copy()
         return np.asarray(self._run(self._position()))
 
     @property
     def armed(self) -> bool:
+        if self._latest_armed is not None:
+            return self._latest_armed
         return bool(self._run(self._armed()))
 
     def takeoff(self, altitude_m: float = TAKEOFF_ALTITUDE_M) -> None:
@@ -198,5 +244,11 @@ class MavsdkVehicle:
         """Real time: the agent's own pacing lets the vehicle fly."""
 
     def close(self) -> None:
+        """Stop MAVSDK's loop and its ``mavsdk_server`` process."""
+        for watcher in getattr(self, "_watchers", []):
+            self._loop.call_soon_threadsafe(watcher.cancel)
+        stop_server = getattr(self._drone, "_stop_mavsdk_server", None)
+        if callable(stop_server):
+            stop_server()
         self._loop.call_soon_threadsafe(self._loop.stop)
         self._thread.join(timeout=5)

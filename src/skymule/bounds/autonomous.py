@@ -77,6 +77,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
@@ -95,12 +96,15 @@ from skymule.world import Mission
 
 __all__ = [
     "REACH_MODES",
+    "BestRates",
     "autonomous_bound",
     "best_rate_bps",
+    "best_rates",
     "closest_distances_m",
     "geodesic_closest_distances_m",
     "monotone_models",
     "reach_radii_m",
+    "steepest_step_db",
 ]
 
 #: Reach-set constructions (see the module docstring); the first is the default.
@@ -307,8 +311,9 @@ def _grid_best_snr(
     hover_m: np.ndarray,
     grid_m: float,
     margin_db: float,
-) -> tuple[np.ndarray, float]:
-    """(U, N) grid max SNR [dB] + margin over the inflated reach sets; the spacing used [m]."""
+) -> tuple[np.ndarray, float, float]:
+    """(U, N) grid max SNR [dB] + margin over the inflated reach sets; the spacing used [m];
+    the largest SNR change [dB] between neighbouring grid points (:func:`steepest_step_db`)."""
     assert mission.source is not None
     region = fence.intersection(_circumscribed_disc(home_m, float(radii_m.max()) + grid_m))
     x0, y0, x1, y1 = region.bounds
@@ -324,11 +329,38 @@ def _grid_best_snr(
     )
     snr = mission.source.snr_db(np.column_stack([points, np.full(len(points), altitude_m)]))
     snr = seen_snr_db(snr)
+    on_grid = np.full((gx.size, snr.shape[1]), np.nan)
+    on_grid[keep] = snr[: int(keep.sum())]
+    steepest = steepest_step_db(on_grid.reshape(*gx.shape, snr.shape[1]))
     order = np.argsort(np.hypot(*(points - home_m).T))
     dist_sorted = np.hypot(*(points[order] - home_m).T)
     running = np.maximum.accumulate(snr[order], axis=0)
     index = np.searchsorted(dist_sorted, radii_m + spacing / math.sqrt(2.0), side="right") - 1
-    return running[np.maximum(index, 0)] + margin_db, spacing
+    return running[np.maximum(index, 0)] + margin_db, spacing, steepest
+
+
+def steepest_step_db(snr_db: np.ndarray) -> float:
+    """The largest SNR change [dB] between neighbouring points (along either axis) of a grid
+    ``(rows, columns, N)``; NaN marks points off the grid, -inf a dead link (not a step).
+
+    The grid method assumes the SNR varies by less than ``margin_db`` within ``s / sqrt(2)``
+    of any point (``s`` the spacing). Two neighbours ``s`` apart that differ by more than
+    ``2 margin_db`` break it for sure: the point halfway, ``s / 2`` from each, differs from
+    one of them by more than ``margin_db``.
+    """
+    finite = np.where(np.isfinite(snr_db), snr_db, np.nan)
+    steps = [np.abs(np.diff(finite, axis=axis)) for axis in (0, 1)]
+    found = [float(np.nanmax(step)) for step in steps if np.isfinite(step).any()]
+    return max(found, default=0.0)
+
+
+@dataclass(frozen=True)
+class BestRates:
+    """What :func:`best_rates` finds: (T, N) rates [bit/s], how, and what may break it."""
+
+    rate_bps: np.ndarray
+    how: str
+    warnings: tuple[str, ...] = ()
 
 
 def best_rate_bps(
@@ -338,12 +370,27 @@ def best_rate_bps(
     grid_m: float = GRID_M,
     margin_db: float = MARGIN_DB,
 ) -> tuple[np.ndarray, str]:
-    """(T, N) best rate [bit/s] any policy can have to each sensor in each slot, and how.
+    """(T, N) best rate [bit/s] any policy can have to each sensor in each slot, and how
+    (:func:`best_rates` without its warnings)."""
+    found = best_rates(mission, reach=reach, grid_m=grid_m, margin_db=margin_db)
+    return found.rate_bps, found.how
+
+
+def best_rates(
+    mission: Mission,
+    *,
+    reach: str = "geodesic",
+    grid_m: float = GRID_M,
+    margin_db: float = MARGIN_DB,
+) -> BestRates:
+    """(T, N) best rate [bit/s] any policy can have to each sensor in each slot, how, and a
+    warning when the grid method's condition visibly fails (:func:`steepest_step_db`).
 
     ``reach`` is ``"geodesic"`` (in-fence travel distance, the default) or ``"euclidean"``
     (straight-line disc, never tighter); the grid method always uses the straight-line disc.
     Raises SkymuleError (one line) for missions this bound does not cover.
     """
+    warnings: list[str] = []
     if reach not in REACH_MODES:
         raise SkymuleError(
             f"autonomous bound: reach = {reach!r}; allowed: {', '.join(REACH_MODES)}"
@@ -371,7 +418,7 @@ def best_rate_bps(
         snr = _exact_best_snr(mission, mission.altitude_m, unique, navigator, home_m, reach)
         how = f"exact reach sets, {reach} reach ({radio.model} is distance-monotone)"
     else:
-        snr, spacing = _grid_best_snr(
+        snr, spacing, steepest = _grid_best_snr(
             mission,
             mission.altitude_m,
             unique,
@@ -381,14 +428,22 @@ def best_rate_bps(
             grid_m,
             margin_db,
         )
+        within = spacing / math.sqrt(2)
         how = (
             f"grid reach sets, euclidean reach ({spacing:g} m grid + {margin_db:g} dB margin; "
-            f"valid if the SNR varies < {margin_db:g} dB within {spacing / math.sqrt(2):.1f} m)"
+            f"valid if the SNR varies < {margin_db:g} dB within {within:.1f} m)"
         )
+        if steepest > 2 * margin_db:
+            warnings.append(
+                f"the grid bound's condition fails here: the SNR changes by up to "
+                f"{steepest:.1f} dB between grid points {spacing:g} m apart, so by more than "
+                f"{margin_db:g} dB within {within:.1f} m somewhere (shadowing or a fast-varying "
+                "model); the bound may be below what a policy can download"
+            )
     snr_t = snr[inverse]
     if mission.fading_db is not None:
         snr_t = snr_t + mission.fading_db
-    return mission.rate_bps(snr_t), how
+    return BestRates(mission.rate_bps(snr_t), how, tuple(warnings))
 
 
 def _al_hourani_monotone(mission: Mission) -> bool:
@@ -437,14 +492,15 @@ def autonomous_bound(mission: Mission, *, reach: str = "geodesic") -> BoundResul
     ``last_sample`` is -1.
     """
     start = time.perf_counter()
-    rate, how = best_rate_bps(mission, reach=reach)
-    bits, status = time_sharing_lp(rate, mission.buffers_bit, mission.slot_s)
+    found = best_rates(mission, reach=reach)
+    bits, status = time_sharing_lp(found.rate_bps, mission.buffers_bit, mission.slot_s)
     return BoundResult(
         upper_bound_bit=bits,
-        method=f"autonomous time-expanded reach LP: {how}; HiGHS",
+        method=f"autonomous time-expanded reach LP: {found.how}; HiGHS",
         status=status,
         solve_time_s=time.perf_counter() - start,
         served_time_s=np.zeros((0, mission.n_sensors)),
         dwell_time_s=np.zeros(0),
         last_sample=-1,
+        warnings=found.warnings,
     )

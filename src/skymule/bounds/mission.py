@@ -32,6 +32,7 @@ def _autonomous_mission_bound(mission: Mission) -> MissionBound:
         status=result.status,
         solve_time_s=float(result.solve_time_s),
         total_buffer_bit=float(np.sum(mission.buffers_bit)),
+        warnings=result.warnings,
     )
 
 

@@ -28,6 +28,7 @@ class BoundResult:
             optimal relaxed solution.
         dwell_time_s: ``(K,)`` seconds spent at sample ``k``.
         last_sample: index of the last sample reached.
+        warnings: conditions of the method that visibly fail for this mission (one line each).
     """
 
     upper_bound_bit: float
@@ -37,11 +38,13 @@ class BoundResult:
     served_time_s: np.ndarray
     dwell_time_s: np.ndarray
     last_sample: int
+    warnings: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
 class MissionBound:
-    """An upper bound for one scenario, as ``skymule bound`` reports it (SI units).
+    """An upper bound for one scenario, as ``skymule bound`` reports it: bits inside (SI, as
+    every engine), Mbit at the edge (``upper_bound_mbit``, ``to_json_dict``).
 
     Attributes:
         scenario: scenario name.
@@ -53,6 +56,8 @@ class MissionBound:
         total_buffer_bit: sum of the initial buffers (bit).
         no_hover_upper_bound_bit: fixed trajectories: the paper's formulation with ``r_t``
             fixed (no pausing), in bit; None for autonomous ones.
+        warnings: conditions of the method that visibly fail for this mission (one line
+            each); ``skymule bound`` and ``compare`` print them.
     """
 
     scenario: str
@@ -63,17 +68,33 @@ class MissionBound:
     solve_time_s: float
     total_buffer_bit: float
     no_hover_upper_bound_bit: float | None = None
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def upper_bound_mbit(self) -> float:
+        """The bound in Mbit, as summaries, comparisons and ``bound.json`` give data."""
+        return self.upper_bound_bit / BITS_PER_MBIT
+
+    @property
+    def no_hover_upper_bound_mbit(self) -> float | None:
+        """The paper's no-pause bound in Mbit (fixed paths; None for autonomous ones)."""
+        no_hover = self.no_hover_upper_bound_bit
+        return None if no_hover is None else no_hover / BITS_PER_MBIT
+
+    @property
+    def total_buffer_mbit(self) -> float:
+        return self.total_buffer_bit / BITS_PER_MBIT
 
     def to_json_dict(self) -> dict[str, Any]:
         """The ``bound.json`` record (Mbit at the edge)."""
-        no_hover = self.no_hover_upper_bound_bit
         return {
             "scenario": self.scenario,
             "mode": self.mode,
-            "upper_bound_mbit": self.upper_bound_bit / BITS_PER_MBIT,
-            "no_hover_upper_bound_mbit": None if no_hover is None else no_hover / BITS_PER_MBIT,
-            "total_buffer_mbit": self.total_buffer_bit / BITS_PER_MBIT,
+            "upper_bound_mbit": self.upper_bound_mbit,
+            "no_hover_upper_bound_mbit": self.no_hover_upper_bound_mbit,
+            "total_buffer_mbit": self.total_buffer_mbit,
             "method": self.method,
             "status": self.status,
             "solve_time_s": self.solve_time_s,
+            "warnings": list(self.warnings),
         }

@@ -31,8 +31,12 @@ app.command()(files.export)
 app.command()(files.analyze)
 app.command("fit-radiomap")(files.fit_radiomap_command)
 app.command("score-radiomap")(files.score_radiomap_command)
+app.command("sim2real")(files.sim2real_command)
 
 __all__ = ["app", "main"]
+
+INTERRUPTED = "skymule: interrupted; every file is left whole (the previous one, or none)"
+"""The one line a Ctrl-C prints (outputs are written atomically: :mod:`skymule.io.atomic`)."""
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -43,11 +47,15 @@ def main(argv: list[str] | None = None) -> None:
     """
     from typer.exceptions import Abort, TyperException
 
+    from skymule.trust import trusting
+
     try:
-        # standalone_mode=False: Ctrl-C reaches the handler below instead of click's
-        code = app(args=argv, standalone_mode=False)
+        # standalone_mode=False: Ctrl-C reaches the handler below instead of click's;
+        # trusting(): a --trust-model holds for this one command
+        with trusting():
+            code = app(args=argv, standalone_mode=False)
     except Abort:
-        print("skymule: interrupted", file=sys.stderr)
+        print(INTERRUPTED, file=sys.stderr)
         sys.exit(130)
     except TyperException as exc:  # usage errors: click's usage line and message
         show = getattr(exc, "show", None)
@@ -65,7 +73,9 @@ def main(argv: list[str] | None = None) -> None:
         print(f"skymule: error: {where}{exc.strerror or exc}", file=sys.stderr)
         sys.exit(2)
     except KeyboardInterrupt:
-        print("skymule: interrupted", file=sys.stderr)
+        print(INTERRUPTED, file=sys.stderr)
         sys.exit(130)
+    if code == 130:  # typer turns a Ctrl-C inside a command into this exit code, silently
+        print(INTERRUPTED, file=sys.stderr)
     if isinstance(code, int) and code != 0:
         sys.exit(code)

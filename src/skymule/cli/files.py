@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 import skymule.cli.output as output
-from skymule.cli.folders import guard_analysis
+from skymule.cli.folders import guard_analysis, inspect_folder
+from skymule.cli.missions import TrustOption
 from skymule.cli.tables import print_table
+from skymule.errors import SkymuleError
 
 
 def plot(
@@ -19,20 +22,18 @@ def plot(
     dpi: Annotated[int, typer.Option("--dpi", help="Raster resolution [dpi].")] = 300,
 ) -> None:
     """Draw a run's figures from its files (never re-simulates)."""
-    from skymule.io.runs import is_run_dir, read_run
+    from skymule.io.runs import read_run
     from skymule.report.plot import plot_run
     from skymule.report.style import check_dpi, parse_formats
 
     formats = parse_formats(fmt)
     check_dpi(dpi)
-
-    folders = (
-        [run_dir]
-        if is_run_dir(run_dir)
-        else sorted(p for p in run_dir.iterdir() if p.is_dir() and is_run_dir(p))
-        if run_dir.is_dir()
-        else []
-    )
+    if inspect_folder(run_dir).kind == "sweep":
+        raise SkymuleError(
+            f"{run_dir}: a sweep folder; its figures come with `skymule report {run_dir}` "
+            "(report.html and figures/sweep-*.png), plot draws run and compare folders"
+        )
+    folders = run_folders(run_dir)
     if not folders:
         read_run(run_dir)  # raises the clear "not a run folder" error
     for folder in folders:
@@ -41,20 +42,25 @@ def plot(
             output.say(f"wrote {path}")
 
 
-def remove_stale_pdfs(folder: Path) -> list[Path]:
-    """Delete ``folder/figures/*.pdf`` (a ``--no-pdf`` report must not keep or list old ones)."""
-    removed = sorted((folder / "figures").glob("*.pdf"))
-    for path in removed:
-        path.unlink()
-    return removed
+def run_folders(folder: Path) -> list[Path]:
+    """The run folders in ``folder``: itself, its policies (compare), or its sources'
+    policies (``compare --sources``)."""
+    from skymule.io.runs import is_run_dir
+
+    if is_run_dir(folder):
+        return [folder]
+    if not folder.is_dir():
+        return []
+    inside = sorted(p for p in folder.iterdir() if p.is_dir())
+    return [p for p in inside if is_run_dir(p)] or [
+        run for p in inside for run in sorted(p.iterdir()) if run.is_dir() and is_run_dir(run)
+    ]
 
 
 def _report(folder: Path, pdf: bool, baseline: str | None = None) -> Path:
     from skymule.report.build import build_report
 
-    if not pdf:
-        remove_stale_pdfs(folder)
-    return build_report(folder, pdf=pdf, baseline=baseline)
+    return build_report(folder, pdf=pdf, baseline=baseline)  # --no-pdf drops old PDFs
 
 
 def report(
@@ -106,6 +112,7 @@ def analyze(
     force: Annotated[
         bool, typer.Option("--force", help="Write into --out even if it holds something else.")
     ] = False,
+    trust_model: TrustOption = None,
 ) -> None:
     """Replay a recorded flight under several policies and write a compare folder + report."""
     from skymule.cli.missions import summary_columns
@@ -146,24 +153,47 @@ def fit_radiomap_command(
     drop_below: Annotated[
         float, typer.Option("--drop-below", help="SNR below this [dB] is a deep drop.")
     ] = -40.0,
+    method: Annotated[
+        str,
+        typer.Option(
+            "--method",
+            help="kriging (log-distance + kriged residual), log-distance, gp (kriging with "
+            "maximum-likelihood parameters) or neural (a learned twin).",
+        ),
+    ] = "kriging",
+    prior: Annotated[
+        str | None,
+        typer.Option(
+            "--prior",
+            help="neural: learn the residual over this twin (map .json, flight .csv, scenario).",
+        ),
+    ] = None,
+    seed: Annotated[int, typer.Option("--seed", help="neural: seed of the networks.")] = 0,
     json_out: Annotated[bool, typer.Option("--json", help="Print the fit as JSON.")] = False,
 ) -> None:
-    """Fit a radio map (log-distance + kriged residual) per sensor to recorded flights."""
+    """Fit a radio map per sensor to recorded flights (a signal source like any map)."""
     from skymule.cli.missions import _working
     from skymule.tasks.radiomaps import RadioMapFit, fit_radiomap_files, parse_origin
 
-    with _working("fitting the radio map"):
+    with _working(f"fitting the radio map ({method})"):
         fit = fit_radiomap_files(
             traces,
             scenario=scenario,
             origin=parse_origin(origin) if origin else None,
             drop_below_db=drop_below,
+            method=method,
+            prior=prior,
+            seed=seed,
         )
     fit.fitted.write(out)
+    for warning in fit.warnings:
+        print(f"skymule: warning: {warning}", file=sys.stderr)
     if json_out:
-        print(json.dumps({"map": str(out), "sensors": fit.rows}, indent=2))
+        shown = {"map": str(out), "method": method, "sensors": fit.rows}
+        print(json.dumps({**shown, "warnings": list(fit.warnings)}, indent=2))
         return
-    title = "radio map fit (cv: held-out trace segments; baseline: fspl)"
+    held_out = "last segment of each trace" if method == "neural" else "held-out trace segments"
+    title = f"radio map fit, {method} (cv: {held_out}; baseline: fspl)"
     print_table(output.console, title, fit.rows, RadioMapFit.COLUMNS)
     output.say(f"wrote {out}")
 
@@ -185,3 +215,58 @@ def score_radiomap_command(
     rows = [{"sensor": n, **{k: v[n] for k, v in scores.items()}} for n in names]
     title = f"{source} vs {trace} (predicted - measured)"
     print_table(output.console, title, rows, ("sensor", *scores))
+
+
+def sim2real_command(
+    scenario: Annotated[
+        str, typer.Argument(help="Scenario or preset: sensors, buffers, link budget, policies.")
+    ],
+    real_trace: Annotated[Path, typer.Argument(help="The real flight (merged log / DT export).")],
+    twin: Annotated[
+        list[str],
+        typer.Option(
+            "--twin",
+            help="A twin: radio map (.json), recorded flight (.csv, fitted on the fly) or "
+            "scenario/preset (its model). Repeat for several.",
+        ),
+    ],
+    policies: Annotated[
+        str, typer.Option("--policies", help="Comma-separated fixed-path policies.")
+    ] = "greedy,hgad",
+    json_out: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
+    out: Annotated[
+        Path | None, typer.Option("--out", help="Folder for the figures and report.html.")
+    ] = None,
+    pdf: Annotated[bool, typer.Option("--pdf/--no-pdf", help="Also write vector PDFs.")] = True,
+    force: Annotated[
+        bool, typer.Option("--force", help="Write into --out even if it holds something else.")
+    ] = False,
+) -> None:
+    """How wrong each twin is on a real flight: SNR per sensor and each policy's Mbit."""
+    from skymule.cli.folders import guard_sim2real
+    from skymule.cli.missions import _working
+    from skymule.tasks.sim2real import policy_rows, sim2real, snr_rows, write_sim2real
+
+    if out is not None:
+        guard_sim2real(out, force)
+    names = [p.strip() for p in policies.split(",") if p.strip()]
+    with _working("flying the real path under each twin"):
+        result = sim2real(scenario, real_trace, twin, names)
+    if out is not None:
+        write_sim2real(result, out)
+        report_path = _report(out, pdf)
+    if json_out:
+        output.print_json(result.to_json())
+    else:
+        title = f"{real_trace.name}: SNR, predicted - measured (coverage_95: inside +-1.96 sigma)"
+        rows = snr_rows(result)
+        columns = ("twin", "sensor", "rmse_db", "bias_db", "mae_db", "rate_rmse_mbps")
+        print_table(output.console, title, rows, (*columns, "coverage_95"))
+        print_table(
+            output.console,
+            f"{real_trace.name}: Mbit replaying the real flight vs the twin along its path",
+            policy_rows(result),
+            ("twin", "policy", "real_mbit", "twin_mbit", "error"),
+        )
+    if out is not None and not json_out:
+        output.say(f"wrote {out}/sim2real.json, {out}/sim2real_snr.csv, {report_path}")

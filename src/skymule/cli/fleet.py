@@ -16,7 +16,6 @@ from skymule.cli.output import print_json
 from skymule.cli.tables import print_table
 from skymule.errors import SkymuleError
 from skymule.scenario import Scenario
-from skymule.units import BITS_PER_MBIT
 
 UAV_COLUMNS = ("uav", "total_downloaded_mbit", "lost_slots", "distance_m", "landed_within_5m")
 """Columns of the per-UAV table."""
@@ -74,9 +73,7 @@ def compare_fleet_command(
         return
     shown: list[dict[str, Any]] = list(rows)
     if bound is not None:
-        shown.append(
-            {"policy": "bound", "total_downloaded_mbit": bound.upper_bound_bit / BITS_PER_MBIT}
-        )
+        shown.append({"policy": "bound", "total_downloaded_mbit": bound.upper_bound_mbit})
     title = f"{scenario.name}: {comparison.fleet.size} UAVs"
     print_table(output.console, title, shown, COMPARE_COLUMNS)
     if comparison.note:

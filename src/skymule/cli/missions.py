@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -11,7 +12,9 @@ import typer
 import skymule.cli.output as output
 from skymule.cli.folders import guard_bound, guard_compare, guard_run, guard_sweep
 from skymule.cli.output import print_json
-from skymule.cli.tables import fmt, print_table
+from skymule.cli.tables import fmt_mean_ci, print_table
+from skymule.errors import SkymuleError
+from skymule.trust import TRUST_HELP, trust_option
 
 if TYPE_CHECKING:
     from skymule.scenario import Scenario
@@ -30,8 +33,19 @@ JsonOption = Annotated[
     bool, typer.Option("--json", help="Print a machine-readable summary (JSON) instead.")
 ]
 ForceOption = Annotated[
-    bool, typer.Option("--force", help="Write into --out even if it holds something else.")
+    bool,
+    typer.Option(
+        "--force",
+        help="Write into --out even if it holds another result (which is removed first; "
+        "files skymule did not write are kept).",
+    ),
 ]
+
+TrustOption = Annotated[
+    list[Path] | None,
+    typer.Option("--trust-model", help=TRUST_HELP, callback=trust_option),
+]
+"""--trust-model PATH: for this command (:func:`skymule.cli.main` restores it) and its workers."""
 GAP_COLUMNS = ("gap_to_bound_mbit", "gap_to_bound_frac")
 
 
@@ -41,10 +55,26 @@ def summary_columns() -> tuple[str, ...]:
     return ("policy", *HEADLINE_METRICS)
 
 
-def load(scenario: str, overrides: list[str] | None) -> Scenario:
+def load(scenario: str, overrides: list[str] | None, policies: list[str] | None = None) -> Scenario:
+    """The scenario with ``--set`` applied; ``policies``: those the command runs instead of the
+    file's own (``[policy.params]`` may hold any of their parameters)."""
     from skymule.scenario import load_scenario
 
-    return load_scenario(scenario, overrides or ())
+    return load_scenario(scenario, overrides or (), policies=policies)
+
+
+def announce_imports(names: list[str], source: str | Path) -> None:
+    """One stderr line per plug-in module that policies named in a file make the command
+    import (names typed on the command line need no notice)."""
+    from skymule.policies.registry import plugin_module
+
+    for name in dict.fromkeys(names):
+        module = plugin_module(name)
+        if module is not None:
+            print(
+                f"skymule: importing module {module} for policy {name!r} (named in {source})",
+                file=sys.stderr,
+            )
 
 
 def per_sensor_rows(summary: dict[str, Any]) -> list[dict[str, Any]]:
@@ -73,21 +103,26 @@ def run(
     overrides: SetOption = None,
     json_out: JsonOption = False,
     force: ForceOption = False,
+    trust_model: TrustOption = None,
 ) -> None:
     """Run one mission and print its summary."""
     from skymule.tasks.simulate import simulate
 
-    spec = load(scenario, overrides)
+    spec = load(scenario, overrides, None if policy is None else [policy])
     if spec.uavs:  # several UAVs (docs/fleet.md)
         from skymule.cli.fleet import run_fleet_command
 
         if out is not None:
             guard_run(out, spec.name, policy or spec.policy.name, force)
+        if policy is None:
+            announce_imports(fleet_policy_names(spec), scenario)
         return run_fleet_command(spec, policy, out, json_out)
     if policy is not None:
         spec = spec.with_policy(policy)
     if out is not None:
         guard_run(out, spec.name, spec.policy.name, force)
+    if policy is None:
+        announce_imports([spec.policy.name], scenario)
     result = simulate(spec)
     if out is not None:
         result.write(out)
@@ -102,6 +137,17 @@ def run(
     print_table(output.console, "summary", [result.summary], summary_columns())
     if out is not None:
         output.say(f"wrote {out}/summary.json, slots.csv, scenario.json")
+
+
+def fleet_policy_names(spec: Scenario) -> list[str]:
+    """The policies a fleet scenario's UAVs fly: each UAV's own, else the scenario's."""
+    return [(uav.policy or spec.policy).name for uav in spec.uavs or ()]
+
+
+def warn(lines: Sequence[str]) -> None:
+    """Print each line as a warning on stderr (the result is still written and printed)."""
+    for line in lines:
+        print(f"skymule: warning: {line}", file=sys.stderr)
 
 
 def _names(text: str) -> list[str]:
@@ -125,6 +171,7 @@ def compare(
     overrides: SetOption = None,
     json_out: JsonOption = False,
     force: ForceOption = False,
+    trust_model: TrustOption = None,
 ) -> None:
     """Run one scenario under several policies on identical signal draws."""
     from skymule.policies import check_policies
@@ -135,7 +182,7 @@ def compare(
         write_compare,
     )
 
-    base = load(scenario, overrides)
+    base = load(scenario, overrides, _names(policies))
     if sources is None and base.uavs:  # several UAVs (docs/fleet.md)
         from skymule.cli.fleet import check_policy_names, compare_fleet_command
 
@@ -147,12 +194,15 @@ def compare(
     names = check_policies(_names(policies))
     source_specs = parse_sources(sources) if sources is not None else None
     if out is not None:
-        guard_compare(out, base.name, names, force)
+        guard_compare(out, base.name, names, force, source_specs)
     if source_specs is None:
         comparison = compare_policies(base, names)
     else:
         comparison = compare_sources(base, source_specs, names)
     written = write_compare(comparison, out) if out is not None else []
+    for source, upper in comparison.bounds.items():
+        where = f"{source}: " if source is not None else ""
+        warn([f"{where}upper bound: {w}" for w in upper.warnings] if upper else [])
     if json_out:
         print_json(_comparison_json(comparison))
         return
@@ -188,7 +238,9 @@ def _comparison_json(comparison: Comparison) -> dict[str, Any]:
 
 
 def bound_rows(record: dict[str, Any]) -> list[dict[str, Any]]:
-    return [{"quantity": k, "value": v} for k, v in record.items() if v is not None]
+    """The bound's quantities as table rows (its warnings go to stderr, one line each)."""
+    shown = {k: v for k, v in record.items() if v is not None and k != "warnings"}
+    return [{"quantity": k, "value": v} for k, v in shown.items()]
 
 
 def bound(
@@ -208,6 +260,7 @@ def bound(
         upper = scenario_bound(spec)
     record = upper.to_json_dict()
     path = write_bound(out, upper) if out is not None else None
+    warn(upper.warnings)
     if json_out:
         print_json(record)
         return
@@ -260,7 +313,7 @@ def scenarios(
                 "name": name,
                 "mode": spec.trajectory.mode,
                 "source": spec.signal.source,
-                "duration [s]": fmt(spec.mission.duration_s),
+                "duration [s]": spec.mission.duration_s,
                 "sensors": ", ".join(f"{s.name}:{s.buffer_mbit:g}" for s in spec.sensors),
             }
         )
@@ -275,8 +328,13 @@ def sweep(
     sweep_file: Annotated[Path, typer.Argument(help="Sweep TOML (base scenario + axes).")],
     out: Annotated[Path, typer.Option("--out", help="Sweep folder (resumed if it exists).")],
     executor: Annotated[
-        str, typer.Option("--executor", help="inprocess, process, dask-local or dask.")
-    ] = "process",
+        str,
+        typer.Option(
+            "--executor",
+            help="auto (this process for a small sweep, else a process pool: by estimated "
+            "work), inprocess, process, dask-local or dask.",
+        ),
+    ] = "auto",
     workers: Annotated[
         int | None, typer.Option("--workers", help="Workers (default: all cores).")
     ] = None,
@@ -287,46 +345,75 @@ def sweep(
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress bar.")] = False,
     overrides: SetOption = None,
     force: ForceOption = False,
+    trust_model: TrustOption = None,
 ) -> None:
     """Run many missions (resumable); results.parquet and summary.csv in --out."""
     from skymule.experiments.run import run_sweep
     from skymule.experiments.sweep import load_sweep
+    from skymule.policies import check_policies
 
     spec = load_sweep(sweep_file)
     if overrides:
         spec = _sweep_with_overrides(spec, overrides)
+    check_policies(spec.policy_names, f"{sweep_file}: policy.name")  # before any worker starts
+    chosen = sweep_executor(executor, spec, workers, scheduler)
     guard_sweep(out, sweep_file, force)
+    announce_imports(spec.policy_names, sweep_file)
     try:
         outcome = run_sweep(
             spec,
             out,
-            executor=executor,
+            executor=chosen,
             workers=workers,
             scheduler=scheduler,
             chunk_size=chunk_size,
             progress=not quiet and sys.stderr.isatty(),
         )
     except KeyboardInterrupt:
-        again = ["skymule", "sweep", str(sweep_file), "--out", str(out), "--executor", executor]
+        again = ["skymule", "sweep", str(sweep_file), "--out", str(out)]
+        again += ["--executor", executor] if executor != "auto" else []
         again += ["--workers", str(workers)] if workers is not None else []
         again += ["--scheduler", scheduler] if scheduler else []
         again += ["--chunk-size", str(chunk_size)] if chunk_size != 500 else []
         again += [f"--set={o}" for o in overrides or []]
+        again += [f"--trust-model={p}" for p in trust_model or []]
         _sweep_interrupted(out, spec, again)
+    levels = [c for c in spec.level_columns if c in outcome.summary.columns]
     rows = [
         {
             "policy": row["policy"],
+            **{c: row[c] for c in levels},
             "missions": row["missions"],
-            **{m: f"{fmt(row[f'{m}_mean'])} ± {fmt(row[f'{m}_ci95'])}" for m in SWEEP_METRICS},
+            **{m: fmt_mean_ci(row[f"{m}_mean"], row[f"{m}_ci95"]) for m in SWEEP_METRICS},
         }
         for row in outcome.summary.to_dict("records")
     ]
     title = f"{sweep_file.name}: {outcome.n_missions} missions (mean ± 95% CI)"
-    print_table(output.console, title, rows, ("policy", "missions", *SWEEP_METRICS))
+    print_table(output.console, title, rows, ("policy", *levels, "missions", *SWEEP_METRICS))
+    how = f" ({chosen}, chosen by estimated work)" if executor == "auto" else ""
     output.say(
-        f"ran {outcome.n_run} of {outcome.n_missions} missions in {outcome.seconds:.1f} s; "
-        f"wrote {out}/results.parquet and {out}/summary.csv"
+        f"ran {outcome.n_run} of {outcome.n_missions} missions in {outcome.seconds:.1f} s"
+        f"{how}; wrote {out}/results.parquet and {out}/summary.csv"
     )
+
+
+def sweep_executor(executor: str, spec: Any, workers: int | None, scheduler: str | None) -> str:
+    """The executor ``--executor`` names; for ``auto``, ``dask`` with a ``--scheduler``, else
+    the local one that finishes sooner (:func:`skymule.experiments.workload.choose_executor`)."""
+    from skymule.experiments.executors import EXECUTORS, default_workers
+
+    if executor == "auto":
+        from skymule.experiments.workload import choose_executor
+
+        if scheduler is not None:
+            return "dask"
+        return choose_executor(spec, workers or default_workers())
+    if executor not in EXECUTORS:
+        from skymule.registry import unknown_name_message
+
+        choices = ["auto", *EXECUTORS.names()]
+        raise SkymuleError(unknown_name_message("--executor", executor, choices))
+    return executor
 
 
 def _sweep_with_overrides(spec: Any, overrides: list[str]) -> Any:
@@ -340,7 +427,8 @@ def _sweep_with_overrides(spec: Any, overrides: list[str]) -> Any:
     data = spec.base.to_toml_dict()
     for override in overrides:
         data = apply_override(data, override)
-    base = scenario_from_dict(data, f"{spec.source} (--set)", Path(spec.base.base_dir))
+    source = f"{spec.source} (--set)"
+    base = scenario_from_dict(data, source, Path(spec.base.base_dir), policies=spec.policy_names)
     # the folder's sweep identity covers the overrides: resuming needs the same --set
     digest = hashlib.sha256("\0".join([spec.digest, *overrides]).encode()).hexdigest()
     return replace(spec, base=base, digest=digest)
@@ -351,10 +439,9 @@ def _sweep_interrupted(out: Path, spec: Any, again: list[str]) -> None:
     import shlex
 
     from skymule.experiments import store
-    from skymule.experiments.run import plan
 
     try:
-        kept, total = len(store.done_ids(out)), len(plan(spec))
+        kept, total = store.scan(out).count, len(spec)
         what = f"kept {kept} of {total} missions in {out / store.PARTS}"
     except Exception:  # a half-written part must not hide the resume hint
         what = f"finished chunks are kept in {out}"

@@ -3,9 +3,12 @@
 * ``inprocess``: runs each task when it is submitted (debugging, tests, tiny sweeps);
 * ``process``: a local process pool (default: all cores); its workers exit on their own when
   the sweep process dies (even by ``kill -9``), see :func:`exit_with_parent`;
-* ``dask-local``: a ``dask.distributed.LocalCluster`` on this machine;
+* ``dask-local``: a ``dask.distributed.LocalCluster`` on this machine (its workers write
+  their own parts, like the process pool's);
 * ``dask``: an existing Dask scheduler (``--scheduler tcp://HOST:PORT``; dask-jobqueue
-  clusters on SLURM/PBS expose one too).
+  clusters on SLURM/PBS expose one too). Its workers may be on other hosts: they send each
+  part back as bytes, and policy modules given as ``module:Class`` are uploaded to them
+  (:func:`ship_modules`).
 
 Dask is an optional extra (``pip install 'skymule[dask]'``) and is imported only when asked for.
 """
@@ -13,13 +16,19 @@ Dask is an optional extra (``pip install 'skymule[dask]'``) and is imported only
 from __future__ import annotations
 
 import importlib
+import importlib.util
+import logging
 import multiprocessing
 import os
+import signal
+import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
+import zipfile
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from contextlib import AbstractContextManager, contextmanager
+from pathlib import Path
 from typing import Any
 
 from skymule.errors import SkymuleError
@@ -101,6 +110,96 @@ def _process(
         yield executor
 
 
+class DaskExecutor(Executor):
+    """A Dask client as an Executor that also knows its cluster.
+
+    ``local``: the workers run on this machine (a ``LocalCluster``) and see its files.
+    """
+
+    def __init__(self, client: Any, local: bool) -> None:
+        self.client = client
+        self.local = local
+        self._executor: Executor = client.get_executor(pure=False)
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future:
+        return self._executor.submit(fn, *args, **kwargs)
+
+    def slots(self) -> int:
+        """Threads over all the cluster's workers now (at least 1)."""
+        return max(1, sum(self.client.nthreads().values()))
+
+
+def executor_slots(executor: Executor, workers: int | None) -> int:
+    """Tasks the executor runs at once: a Dask cluster's threads, else ``workers`` (all
+    cores by default)."""
+    if isinstance(executor, DaskExecutor):
+        return executor.slots()
+    return workers or default_workers()
+
+
+def sees_local_files(executor: Executor) -> bool:
+    """True when the executor's workers run on this machine (and can write the sweep folder)."""
+    return not isinstance(executor, DaskExecutor) or executor.local
+
+
+def share(executor: Executor, value: Any) -> Any:
+    """``value`` as the executor's tasks best receive it: a Dask cluster gets it once (scattered
+    to every worker) and each task a reference; a process pool pickles it with each task."""
+    if isinstance(executor, DaskExecutor):
+        return executor.client.scatter(value, broadcast=True, hash=False)
+    return value
+
+
+def _module_file(module: str) -> Path | None:
+    """The file (a module) or folder (a package) ``module`` is imported from here, when it
+    is the user's own code (not part of an installed distribution)."""
+    top = module.split(".")[0]
+    cwd = str(Path.cwd())
+    added = cwd not in sys.path
+    if added:  # policies are looked up in the current folder too (skymule.policies)
+        sys.path.append(cwd)
+    try:
+        found = importlib.util.find_spec(top)
+    except (ImportError, ValueError):
+        found = None
+    finally:
+        if added:
+            sys.path.remove(cwd)
+    if found is None or not found.origin or found.origin in ("built-in", "frozen"):
+        return None
+    origin = Path(found.origin)
+    if any(part in ("site-packages", "dist-packages") for part in origin.parts):
+        return None  # installed: the workers need the same installation
+    return origin.parent if found.submodule_search_locations else origin
+
+
+def ship_modules(executor: Executor, modules: Sequence[str], scratch: Path) -> list[Path]:
+    """Upload the user's policy modules to a remote Dask cluster's workers
+    (``client.upload_file``: a module file as is, a package as a zip); returns what was sent.
+
+    Workers of the other executors import them from this machine's files as the sweep
+    process does.
+    """
+    if not isinstance(executor, DaskExecutor) or executor.local:
+        return []
+    sent = []
+    for module in sorted(set(modules)):
+        source = _module_file(module)
+        if source is None:
+            continue
+        if source.is_dir():
+            archive = scratch / f"{source.name}.zip"
+            with zipfile.ZipFile(archive, "w") as bundle:
+                for file in sorted(source.rglob("*.py")):
+                    bundle.write(file, Path(source.name) / file.relative_to(source))
+            source = archive
+        # a .py lands in the workers' folder, which is on their path; a zip is put on the
+        # path by loading it
+        executor.client.upload_file(str(source), load=source.suffix == ".zip")
+        sent.append(source)
+    return sent
+
+
 def _distributed() -> Any:
     try:
         import distributed
@@ -111,6 +210,26 @@ def _distributed() -> Any:
 
 DASK_START_TIMEOUT_S = 120
 """Seconds a local Dask cluster may take to connect its workers (Dask's default is 30 s)."""
+
+
+QUIET_DASK: dict[str, Any] = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "1s",
+    "distributed.admin.system-monitor.interval": "2s",
+    "distributed.admin.system-monitor.gil.enabled": False,
+    "distributed.scheduler.work-stealing": False,
+    "distributed.nanny.pre-spawn-environ": {
+        "OMP_NUM_THREADS": 1,
+        "MKL_NUM_THREADS": 1,
+        "OPENBLAS_NUM_THREADS": 1,
+    },
+}
+"""Dask settings for a local cluster running sweep chunks (and the docs' advice for a remote
+one). Dask's defaults cost CPU in proportion to wall time, not work: each worker samples its
+task's stack every 10 ms (profiling), every event loop checks its health every 20 ms, and
+the nanny sets ``MALLOC_TRIM_THRESHOLD_``, which also fixes glibc's mmap threshold so every
+large numpy array is mapped and unmapped again. Chunks are equal and few, so work stealing
+only adds its periodic checks."""
 
 
 def _start_local_cluster(distributed: Any, workers: int) -> Any:
@@ -131,13 +250,47 @@ def _start_local_cluster(distributed: Any, workers: int) -> Any:
         "host": "127.0.0.1",
         "dashboard_address": "127.0.0.1:0",
         "scheduler_kwargs": {"dashboard": False},
+        "memory_limit": 0,  # no memory monitor: a chunk stays within CHUNK_MEMORY_BYTES
+        # its workers' warnings (a task cancelled by Ctrl-C...) are noise in a command line;
+        # errors still show
+        "silence_logs": logging.ERROR,
     }
     timeout = f"{DASK_START_TIMEOUT_S}s"
-    with dask.config.set({"distributed.comm.timeouts.connect": timeout}):
+    settings = {"distributed.comm.timeouts.connect": timeout, **QUIET_DASK}
+    with dask.config.set(settings), _workers_deaf_to_ctrl_c():
         try:
             return distributed.LocalCluster(**options)
         except (RuntimeError, OSError, TimeoutError):
             return distributed.LocalCluster(**options)  # once more: a busy machine, not a bug
+
+
+@contextmanager
+def _workers_deaf_to_ctrl_c() -> Iterator[None]:
+    """Start local Dask workers ignoring SIGINT, so a Ctrl-C in the terminal (sent to the
+    whole process group) stops the sweep process alone, which closes the cluster; otherwise
+    every worker process prints its own KeyboardInterrupt traceback. An ignored SIGINT is
+    the one setting a spawned process inherits (a handler or a blocked mask is reset at
+    exec); the sweep process ignores it too while its workers start (a few seconds)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextmanager
+def _quiet_when_interrupted() -> Iterator[None]:
+    """On Ctrl-C, silence Dask's loggers before the cluster or client is closed: closing an
+    interrupted one logs connection errors (CommClosedError, CancelledError) with tracebacks,
+    where the command prints one line and the resume command."""
+    try:
+        yield
+    except KeyboardInterrupt:
+        logging.getLogger("distributed").setLevel(logging.CRITICAL + 1)
+        raise
 
 
 @contextmanager
@@ -146,8 +299,12 @@ def _dask_local(
 ) -> Iterator[Executor]:
     distributed = _distributed()
     cluster = _start_local_cluster(distributed, workers or default_workers())
-    with cluster, distributed.Client(cluster, timeout=f"{DASK_START_TIMEOUT_S}s") as client:
-        yield client.get_executor()
+    with (
+        cluster,
+        distributed.Client(cluster, timeout=f"{DASK_START_TIMEOUT_S}s") as client,
+        _quiet_when_interrupted(),
+    ):
+        yield DaskExecutor(client, local=True)
 
 
 @contextmanager
@@ -161,8 +318,8 @@ def _dask(
         client = distributed.Client(scheduler, timeout="20s")
     except (OSError, TimeoutError) as exc:
         raise SkymuleError(f"--scheduler {scheduler!r}: cannot connect ({exc})") from None
-    with client:
-        yield client.get_executor()
+    with client, _quiet_when_interrupted():
+        yield DaskExecutor(client, local=False)
 
 
 ExecutorFactory = Callable[

@@ -1,10 +1,14 @@
 """Running a sweep: plan, skip what is done, run chunks on an executor, store, summarise.
 
-The sweep process only streams the plan (ids and axis values, :func:`plan_missions`), skips
-missions already stored, and sends chunks; a worker resolves and validates each mission once,
-builds each geometry once per chunk (missions that differ only in buffers, policy, name or,
-without shadowing, seed share one built track and batch together), and on this machine
-writes its own part. Chunks are at most ``chunk_size`` missions and within a memory budget.
+The sweep process sends each worker the sweep plan once (:class:`SweepPlan`) and each chunk
+as a range of run positions, with the indices of any missions of the range already stored:
+nothing per mission is planned, pickled or held in the sweep process. A worker plans its
+range, resolves and validates each mission once, builds each geometry once per chunk
+(missions that differ only in buffers, policy, name or, without shadowing, seed share one
+built track and batch together) and, on this machine, writes its own part (a remote Dask
+worker returns the part's bytes). Chunks are at most ``chunk_size`` missions and within a
+memory budget. ``results.parquet`` and ``summary.csv`` are then streamed from the parts
+(:func:`skymule.experiments.store.consolidate`).
 
 Every mission runs through the engine of its trajectory mode, batched with the missions it can
 share a batch with (:func:`skymule.sim.run.summarize_missions`: mode, sensor count, geofence),
@@ -18,8 +22,9 @@ from __future__ import annotations
 import json
 import math
 import sys
+import tempfile
 import time
-from collections.abc import Callable, Hashable, Iterator, Sequence
+from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, wait
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -31,14 +36,21 @@ import pandas as pd
 
 from skymule.errors import SkymuleError
 from skymule.experiments import store
-from skymule.experiments.executors import default_workers, open_executor
+from skymule.experiments.executors import (
+    executor_slots,
+    open_executor,
+    sees_local_files,
+    share,
+    ship_modules,
+)
 from skymule.experiments.sweep import (
     Axis,
     Expansion,
     PlannedMission,
+    SweepPlan,
     SweepSpec,
     expansion,
-    plan_missions,
+    sweep_plan,
 )
 from skymule.radio.channel import mission_fading_db
 from skymule.units import BITS_PER_MBIT
@@ -64,13 +76,19 @@ Task = tuple[int, str, dict[str, Any], dict[str, Any]]
 
 @dataclass(frozen=True)
 class SweepOutcome:
-    """A finished sweep: all its rows, the per-policy summary and what this call ran."""
+    """A finished sweep: its folder, the summary (per policy and swept value), what it ran."""
 
-    results: pd.DataFrame
+    folder: Path
     summary: pd.DataFrame
     n_missions: int
     n_run: int
     seconds: float
+
+    @property
+    def results(self) -> pd.DataFrame:
+        """Every row of ``results.parquet`` in memory (for sweeps that fit; a large one is read
+        a row group at a time with ``pyarrow.parquet.ParquetFile``)."""
+        return pd.read_parquet(self.folder / store.RESULTS)
 
 
 def _flat_summary(summary: dict[str, Any]) -> dict[str, Any]:
@@ -169,19 +187,24 @@ def run_planned(resolve: Expansion, planned: Sequence[PlannedMission]) -> pd.Dat
     return _run_items(items)
 
 
-def run_and_store(resolve: Expansion, planned: Sequence[PlannedMission], out: str) -> int:
-    """:func:`run_planned`, with the worker writing its own part (atomically) into ``out``.
+def run_range(
+    plan: SweepPlan, start: int, stop: int, skip: np.ndarray | None, out: str | None
+) -> tuple[int, bytes | None]:
+    """Run the missions at run positions ``start`` to ``stop`` of ``plan`` (in a worker).
 
-    Used by executors on this machine: the rows never travel back to the sweep process,
-    which only counts them. Returns the number of missions stored.
+    ``skip``: mission indices already stored (resumes). With ``out`` (a worker that sees the
+    sweep folder) the worker writes its own part and returns ``(count, None)``; without, it
+    returns the part's bytes for the sweep process to store.
     """
-    frame = run_planned(resolve, planned)
+    missions: Iterable[PlannedMission] = plan.missions(start, stop)
+    if skip is not None and skip.size:
+        stored = set(skip.tolist())
+        missions = [m for m in missions if m.index not in stored]
+    frame = run_planned(plan.resolve, list(missions))
+    if out is None:
+        return len(frame), store.part_bytes(frame)
     store.write_part(Path(out), frame)
-    return len(frame)
-
-
-#: Executors whose workers see this machine's file system (and write their own parts).
-LOCAL_EXECUTORS = ("inprocess", "process")
+    return len(frame), None
 
 
 def _run_items(items: Sequence[_Item]) -> pd.DataFrame:
@@ -217,9 +240,15 @@ def _run_items(items: Sequence[_Item]) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def plan(spec: SweepSpec) -> list[str]:
-    """Every mission id in sweep order (no validation: missions are validated where they run)."""
-    return [mission.mission_id for mission in plan_missions(spec)]
+def policy_modules(spec: SweepSpec) -> list[str]:
+    """The modules of the ``module:Class`` policies a sweep runs (base and ``policy.name``)."""
+    from skymule.policies.registry import is_plugin
+
+    names = [spec.base.policy.name]
+    for axis in spec.discrete:
+        if axis.key == "policy.name":
+            names.extend(str(v) for v in axis.values or ())
+    return [n.partition(":")[0] for n in names if is_plugin(n)]
 
 
 #: Memory a chunk may use in a worker [byte] (its batch arrays and built tracks).
@@ -284,26 +313,23 @@ def auto_chunk_size(
     return max(1, min(limit, by_memory, by_balance))
 
 
-def _chunks(
-    planned: Iterator[PlannedMission], done: set[str], size: int, seen: set[str], source: str
-) -> Iterator[list[PlannedMission]]:
-    """Missions not yet done, in chunks of ``size``, streamed (the plan is never held)."""
-    chunk: list[PlannedMission] = []
-    for mission in planned:
-        if mission.mission_id in seen:
-            raise SkymuleError(
-                f"{source}: missions {mission.index} and an earlier one have the same "
-                "parameters; remove the repeated axis values"
-            )
-        seen.add(mission.mission_id)
-        if mission.mission_id in done:
+def _chunk_ranges(
+    plan: SweepPlan, done: store.Done, size: int
+) -> Iterator[tuple[int, int, np.ndarray | None]]:
+    """Run-position ranges of ``size`` missions with the indices already stored in each;
+    ranges wholly stored are left out. Costs a few numpy operations per range, none per
+    mission."""
+    total = len(plan)
+    for start in range(0, total, size):
+        stop = min(total, start + size)
+        if not done.mask.size:
+            yield start, stop, None
             continue
-        chunk.append(mission)
-        if len(chunk) == size:
-            yield chunk
-            chunk = []
-    if chunk:
-        yield chunk
+        indices = plan.indices(start, stop)
+        stored = done.which(indices)
+        if stored.all():
+            continue
+        yield start, stop, indices[stored] if stored.any() else None
 
 
 def run_sweep(
@@ -320,8 +346,9 @@ def run_sweep(
     """Run the missions of ``spec`` not yet in ``out``, then consolidate and summarise.
 
     ``out`` is locked while this runs and tied to ``spec``'s sweep file; ``chunk_size`` is an
-    upper bound, lowered to keep a chunk within ``memory_bytes``. The plan is streamed: missions
-    are planned, skipped (already done) or sent in chunks as they come.
+    upper bound, lowered to keep a chunk within ``memory_bytes``. Workers get the plan once
+    and each chunk as a range of run positions; workers on this machine write their own
+    parts, a remote Dask worker returns its part's bytes.
     """
     if chunk_size < 1:
         raise SkymuleError(f"--chunk-size {chunk_size}: allowed: an integer >= 1")
@@ -335,31 +362,31 @@ def run_sweep(
                 f"{path.name}.damaged, its missions run again",
                 file=sys.stderr,
             )
-        n_workers = 1 if executor == "inprocess" else (workers or default_workers())
-        size = auto_chunk_size(spec, chunk_size, n_workers, memory_bytes)
-        resolve = expansion(spec)
-        seen: set[str] = set()
+        plan = sweep_plan(spec)
         n_run = 0
-        total = len(spec)
+        total = len(plan)
         with (
             open_executor(executor, workers, scheduler, WORKER_MODULES) as pool,
-            _progress(progress, total, len(found.ids)) as advance,
+            _progress(progress, total, found.count) as advance,
         ):
+            n_workers = 1 if executor == "inprocess" else executor_slots(pool, workers)
+            size = auto_chunk_size(spec, chunk_size, n_workers, memory_bytes)
+            local = sees_local_files(pool)
+            with tempfile.TemporaryDirectory() as scratch:
+                ship_modules(pool, policy_modules(spec), Path(scratch))
+            shared = share(pool, plan)
             pending: set[Future] = set()
-            planned = plan_missions(spec, paired_last=True)
-            for chunk in _chunks(planned, found.ids, size, seen, spec.source):
-                if executor in LOCAL_EXECUTORS:
-                    pending.add(pool.submit(run_and_store, resolve, chunk, str(out)))
-                else:
-                    pending.add(pool.submit(run_planned, resolve, chunk))
+            for first, stop, skip in _chunk_ranges(plan, found, size):
+                target = str(out) if local else None
+                pending.add(pool.submit(run_range, shared, first, stop, skip, target))
                 while len(pending) >= 2 * n_workers:
                     n_run += _collect(out, pending, advance)
             while pending:
                 n_run += _collect(out, pending, advance)
-        results = store.consolidate(out, seen)
-        summary = store.summary_table(results)
-        store.write_summary(out, summary)
-    return SweepOutcome(results, summary, len(seen), n_run, time.perf_counter() - start)
+        merged = store.consolidate(out, spec.level_columns)
+        store.write_summary(out, merged.summary)
+    seconds = time.perf_counter() - start
+    return SweepOutcome(out, merged.summary, merged.rows, n_run, seconds)
 
 
 def _collect(out: Path, pending: set[Future], advance: Any) -> int:
@@ -367,12 +394,11 @@ def _collect(out: Path, pending: set[Future], advance: Any) -> int:
     count = 0
     for future in done:
         pending.discard(future)
-        result = future.result()
-        if isinstance(result, pd.DataFrame):  # a remote worker's rows: stored here
-            store.write_part(out, result)
-            result = len(result)
-        advance(result)
-        count += result
+        n, part = future.result()
+        if part is not None:  # a remote worker's part: stored here
+            store.write_part_bytes(out, part)
+        advance(n)
+        count += n
     return count
 
 

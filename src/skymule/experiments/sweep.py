@@ -37,7 +37,7 @@ import hashlib
 import math
 import re
 import tomllib
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -57,7 +57,8 @@ from skymule.experiments.fields import (
     stars,
 )
 from skymule.io.textfiles import read_text
-from skymule.scenario import Scenario, load_scenario, scenario_from_dict
+from skymule.policies.registry import is_plugin
+from skymule.scenario import Scenario, load_scenario, policy_shares, scenario_from_dict
 
 TOP_LEVEL_KEYS = ("base", "seed", "mode", "axes")
 POLICY_PREFIX = "policy."
@@ -98,6 +99,24 @@ class SweepSpec:
     @property
     def drawn(self) -> tuple[Axis, ...]:
         return tuple(a for a in self.axes if a.dist is not None)
+
+    @property
+    def policy_names(self) -> list[str]:
+        """The policies the sweep runs: the ``policy.name`` axis, else the base's policy."""
+        return _policy_axis(self.axes) or [self.base.policy.name]
+
+    @property
+    def level_columns(self) -> list[str]:
+        """The result columns of the list/range axes that are treatments (not seeds, not the
+        policy): ``summary.csv`` has one row per policy and combination of them."""
+        base = base_dict(self.base)
+        columns: list[str] = []
+        for axis in self.discrete:
+            if axis.key in ("seed", "policy.name") or axis.key.endswith(".seed"):
+                continue
+            count = stars(axis.path, base)
+            columns += [axis.key] if count is None else [column(axis.key, i) for i in range(count)]
+        return columns
 
     def __len__(self) -> int:
         paired = math.prod(len(a.values or ()) for a in self.discrete if a.paired)
@@ -226,11 +245,21 @@ def _parse_mode(source: str, mode: Any) -> int | None:
     raise _fail(source, f"mode = {mode!r}; allowed: 'product' or {{sample = N}} with N >= 1")
 
 
-def _base_scenario(source: str, base: Any, folder: Path) -> Scenario:
+def _base_scenario(
+    source: str, base: Any, folder: Path, policies: list[str] | None = None
+) -> Scenario:
     if not isinstance(base, str) or not base:
         raise _fail(source, f"base = {base!r}; allowed: a preset name or a scenario path")
     candidate = folder / base
-    return load_scenario(candidate if candidate.exists() else base)
+    return load_scenario(candidate if candidate.exists() else base, policies=policies)
+
+
+def _policy_axis(axes: Sequence[Axis]) -> list[str] | None:
+    """The values of the ``policy.name`` axis (None: the base's own policy runs)."""
+    for axis in axes:
+        if axis.key == "policy.name" and axis.values is not None:
+            return [str(v) for v in axis.values]
+    return None
 
 
 def parse_sweep(data: dict[str, Any], source: str, folder: Path) -> SweepSpec:
@@ -248,7 +277,7 @@ def parse_sweep(data: dict[str, Any], source: str, folder: Path) -> SweepSpec:
     if not isinstance(table, dict) or not table:
         raise _fail(source, "[axes] is missing or empty; give at least one axis")
     axes = tuple(parse_axis(source, k, v) for k, v in flatten_axes(table))
-    base = _base_scenario(source, data["base"], folder)
+    base = _base_scenario(source, data["base"], folder, _policy_axis(axes))
     spec = SweepSpec(source, base, seed, axes, sample, sweep_digest(data))
     if sample is None and not spec.discrete:
         raise _fail(
@@ -317,15 +346,17 @@ class Expansion:
     base: dict[str, Any]
     axes: tuple[Axis, ...]
     counts: tuple[int | None, ...]  # elements each "*" axis spans (None: no "*")
+    shares: tuple[tuple[str, frozenset[str] | None], ...] = ()
+    """The ``[policy.params]`` keys each policy of the sweep keeps (None: all)."""
 
     def scenario(self, values: Sequence[Any]) -> dict[str, Any]:
-        """The resolved scenario dictionary of a mission."""
+        """The resolved scenario dictionary of a mission (its policy's parameters only)."""
         data = self.base
         for axis, count, value in zip(self.axes, self.counts, values, strict=True):
             if count is not None and axis.values is not None:
                 value = [value] * count
             data = assign(data, axis.path, value, self.source, axis.key)
-        return place_sensors(data)
+        return place_sensors(share_params(data, dict(self.shares)))
 
     def scenario_with(self, data: dict[str, Any], axis: Axis, value: Any) -> dict[str, Any]:
         """``data`` (a base or resolved dict) with one list/range axis set to ``value``."""
@@ -362,10 +393,37 @@ class Expansion:
             return scenario_from_dict(data, source, Path(self.base_dir))
 
 
+def share_params(data: dict[str, Any], shares: dict[str, frozenset[str] | None]) -> dict[str, Any]:
+    """``data`` with ``[policy.params]`` cut to the keys its policy keeps (``shares``; a
+    policy not in it keeps everything)."""
+    policy = data.get("policy")
+    if not isinstance(policy, dict) or not isinstance(policy.get("params"), dict):
+        return data
+    keep = shares.get(str(policy.get("name")))
+    if keep is None:
+        return data
+    params = {k: v for k, v in policy["params"].items() if k in keep}
+    return {**data, "policy": {**policy, "params": params}}
+
+
 def expansion(spec: SweepSpec) -> Expansion:
+    """The sweep's :class:`Expansion`, for running it: the plug-ins among its policies are
+    imported (to share ``[policy.params]`` out, and refuse a key none of its policies has)."""
     base = base_dict(spec.base)
     counts = tuple(stars(axis.path, base) for axis in spec.axes)
-    return Expansion(spec.source, spec.base.base_dir, base, spec.axes, counts)
+    shares = tuple(zip(spec.policy_names, _shares(spec), strict=True))
+    return Expansion(spec.source, spec.base.base_dir, base, spec.axes, counts, shares)
+
+
+def _shares(spec: SweepSpec) -> list[frozenset[str] | None]:
+    """:func:`policy_shares` of the sweep's policies over the base's ``[policy.params]`` and
+    the ``policy.params.*`` axes (imports the plug-ins among them)."""
+    params = (a.path[2] for a in spec.axes if a.path[:2] == ("policy", "params"))
+    keys = dict.fromkeys([*spec.base.policy.params, *map(str, params)])
+    try:
+        return policy_shares(keys, spec.policy_names, spec.base.policy.name)
+    except SkymuleError as exc:
+        raise _fail(spec.source, str(exc)) from None
 
 
 def _id_prefix(spec: SweepSpec, base: dict[str, Any]) -> bytes:
@@ -390,89 +448,178 @@ def _lazy_product(sequences: Sequence[Sequence[Any]]) -> Iterator[tuple[Any, ...
             yield (head, *rest)
 
 
-def plan_missions(spec: SweepSpec, *, paired_last: bool = False) -> Iterator[PlannedMission]:
-    """Every mission of the sweep, lazily (memory does not grow with it).
+def _digits(number: int, radices: Sequence[int]) -> list[int]:
+    """``number`` in the mixed radix ``radices`` (the last digit varies fastest)."""
+    digits = [0] * len(radices)
+    for j in range(len(radices) - 1, -1, -1):
+        number, digits[j] = divmod(number, radices[j])
+    return digits
 
-    In index order, or with ``paired_last`` (what sweeps run) with the ``policy.*`` values of
-    one combination next to each other, so the missions that share a built track and draws
-    fall into one chunk; ``index`` is the position in the file's order either way.
+
+@dataclass(frozen=True)
+class SweepPlan:
+    """A sweep's missions in run order, any range of them on demand (small, picklable).
+
+    The run order puts the ``policy.*`` values of one combination next to each other, so the
+    missions that share a built track and draws fall into one chunk; a mission's ``index`` is
+    its position in the file's order (product mode: the last axis varies fastest). A worker
+    gets the plan once and each chunk as a range of run positions (:meth:`missions`): nothing
+    per mission travels, and the sweep process maps positions to indices without planning a
+    mission (:meth:`indices`).
     """
-    base = base_dict(spec.base)
-    counts = {a.key: stars(a.path, base) for a in spec.drawn}
-    prefix = _id_prefix(spec, base)
-    discrete = spec.discrete
-    paired = [a for a in discrete if a.paired]
-    unpaired = [a for a in discrete if not a.paired]
 
-    def draws(rng: np.random.Generator) -> dict[str, Any]:
+    resolve: Expansion
+    seed: int
+    sample: int | None
+    prefix: bytes  # sha256 of the sweep identity (see _id_prefix)
+
+    @property
+    def discrete(self) -> tuple[Axis, ...]:
+        return tuple(a for a in self.resolve.axes if a.values is not None)
+
+    @property
+    def _sizes(self) -> list[int]:
+        return [len(a.values or ()) for a in self.discrete]
+
+    @property
+    def _outer(self) -> list[int]:
+        return [i for i, a in enumerate(self.discrete) if not a.paired]
+
+    @property
+    def _inner(self) -> list[int]:
+        return [i for i, a in enumerate(self.discrete) if a.paired]
+
+    @property
+    def _strides(self) -> list[int]:
+        sizes = self._sizes
+        return [math.prod(sizes[i + 1 :]) for i in range(len(sizes))]
+
+    @property
+    def has_draws(self) -> bool:
+        return any(a.dist is not None for a in self.resolve.axes)
+
+    @property
+    def paired_count(self) -> int:
+        """Missions per combination of the non-policy values (one per policy combination)."""
+        sizes = self._sizes
+        return math.prod(sizes[i] for i in self._inner)
+
+    def __len__(self) -> int:
+        if self.sample is not None:
+            return self.sample * self.paired_count
+        return math.prod(self._sizes)
+
+    def draws(self, rng: np.random.Generator) -> dict[str, Any]:
+        """One combination's draws of every distribution axis."""
         values: dict[str, Any] = {}
-        for axis in spec.drawn:
-            assert axis.dist is not None
-            count = counts[axis.key]
-            drawn = axis.dist.draw(rng, count or 1)
-            values[axis.key] = drawn if count is not None else drawn[0]
+        for axis, count in zip(self.resolve.axes, self.resolve.counts, strict=True):
+            if axis.dist is not None:
+                drawn = axis.dist.draw(rng, count or 1)
+                values[axis.key] = drawn if count is not None else drawn[0]
         return values
 
     def planned(
-        index: int, chosen: dict[str, Any], drawn: dict[str, Any], key: Any
+        self, index: int, chosen: dict[str, Any], drawn: dict[str, Any], key: Any
     ) -> PlannedMission:
         every = {**chosen, **drawn}
-        digest = hashlib.sha256(prefix + repr(key).encode()).hexdigest()[:16]
-        return PlannedMission(index, digest, tuple(every[a.key] for a in spec.axes))
+        digest = hashlib.sha256(self.prefix + repr(key).encode()).hexdigest()[:16]
+        return PlannedMission(index, digest, tuple(every[a.key] for a in self.resolve.axes))
 
-    if spec.sample is None and paired_last:
-        yield from _paired_last(spec, discrete, draws, planned)
-        return
-    if spec.sample is None:
-        unpaired_at = [i for i, a in enumerate(discrete) if not a.paired]
-        for index, combo in enumerate(_lazy_product([a.values or () for a in discrete])):
-            chosen: dict[str, Any] = {a.key: v for a, v in zip(discrete, combo, strict=True)}
-            drawn = {}
-            if spec.drawn:
-                drawn = draws(draw_seed(spec.seed, [combo[i] for i in unpaired_at]))
-            yield planned(index, chosen, drawn, combo)
-        return
-    paired_combos = list(_lazy_product([a.values or () for a in paired]))
-    for replica in range(spec.sample):
-        chosen = {}
-        if unpaired:  # a Generator costs ~30 us: only made when there is something to pick
-            picks = np.random.default_rng([spec.seed, replica])
-            chosen = {
-                a.key: (a.values or ())[int(picks.integers(len(a.values or ())))] for a in unpaired
-            }
-        drawn = draws(np.random.default_rng([spec.seed, replica, 1])) if spec.drawn else {}
-        for p, combo in enumerate(paired_combos):
-            both = {**chosen, **{a.key: v for a, v in zip(paired, combo, strict=True)}}
-            key = (replica, tuple(both[a.key] for a in discrete))
-            yield planned(replica * len(paired_combos) + p, both, drawn, key)
+    def missions(self, start: int = 0, stop: int | None = None) -> Iterator[PlannedMission]:
+        """The missions at run positions ``start`` to ``stop`` (default: the end), lazily."""
+        stop = len(self) if stop is None else min(stop, len(self))
+        if start >= stop:
+            return
+        if self.sample is None:
+            yield from self._product(start, stop)
+        else:
+            yield from self._sampled(start, stop)
 
-
-def _paired_last(
-    spec: SweepSpec,
-    discrete: Sequence[Axis],
-    draws: Callable[[np.random.Generator], dict[str, Any]],
-    planned: Callable[[int, dict[str, Any], dict[str, Any], Any], PlannedMission],
-) -> Iterator[PlannedMission]:
-    """Product mode, paired axes innermost: draws once per combination of the others."""
-    sizes = [len(a.values or ()) for a in discrete]
-    strides = [math.prod(sizes[i + 1 :]) for i in range(len(sizes))]
-    outer = [i for i, a in enumerate(discrete) if not a.paired]
-    inner = [i for i, a in enumerate(discrete) if a.paired]
-    inner_digits = list(_lazy_product([range(sizes[i]) for i in inner]))
-    for digits in _lazy_product([range(sizes[i]) for i in outer]):
-        combo: list[Any] = [None] * len(discrete)
-        start = 0
-        for i, d in zip(outer, digits, strict=True):
-            combo[i] = (discrete[i].values or ())[d]
-            start += d * strides[i]
-        drawn = draws(draw_seed(spec.seed, [combo[i] for i in outer])) if spec.drawn else {}
-        for paired_digits in inner_digits:
-            index = start
-            for i, d in zip(inner, paired_digits, strict=True):
+    def _product(self, start: int, stop: int) -> Iterator[PlannedMission]:
+        discrete, sizes, strides = self.discrete, self._sizes, self._strides
+        outer, inner = self._outer, self._inner
+        per = self.paired_count
+        for number in range(start // per, (stop - 1) // per + 1):
+            combo: list[Any] = [None] * len(discrete)
+            first = 0
+            for i, d in zip(outer, _digits(number, [sizes[i] for i in outer]), strict=True):
                 combo[i] = (discrete[i].values or ())[d]
-                index += d * strides[i]
-            chosen = {a.key: v for a, v in zip(discrete, combo, strict=True)}
-            yield planned(index, chosen, drawn, tuple(combo))
+                first += d * strides[i]
+            drawn = {}
+            if self.has_draws:
+                drawn = self.draws(draw_seed(self.seed, [combo[i] for i in outer]))
+            for position in range(max(start, number * per), min(stop, (number + 1) * per)):
+                index = first
+                digits = _digits(position - number * per, [sizes[i] for i in inner])
+                for i, d in zip(inner, digits, strict=True):
+                    combo[i] = (discrete[i].values or ())[d]
+                    index += d * strides[i]
+                chosen = {a.key: v for a, v in zip(discrete, combo, strict=True)}
+                yield self.planned(index, chosen, drawn, tuple(combo))
+
+    def _sampled(self, start: int, stop: int) -> Iterator[PlannedMission]:
+        assert self.sample is not None
+        discrete = self.discrete
+        paired = [a for a in discrete if a.paired]
+        unpaired = [a for a in discrete if not a.paired]
+        per = self.paired_count
+        for replica in range(start // per, (stop - 1) // per + 1):
+            chosen = {}
+            if unpaired:  # a Generator costs ~30 us: only made when there is something to pick
+                picks = np.random.default_rng([self.seed, replica])
+                chosen = {
+                    a.key: (a.values or ())[int(picks.integers(len(a.values or ())))]
+                    for a in unpaired
+                }
+            drawn = {}
+            if self.has_draws:
+                drawn = self.draws(np.random.default_rng([self.seed, replica, 1]))
+            for position in range(max(start, replica * per), min(stop, (replica + 1) * per)):
+                digits = _digits(position - replica * per, [len(a.values or ()) for a in paired])
+                values = [(a.values or ())[d] for a, d in zip(paired, digits, strict=True)]
+                both = {**chosen, **{a.key: v for a, v in zip(paired, values, strict=True)}}
+                key = (replica, tuple(both[a.key] for a in discrete))
+                yield self.planned(position, both, drawn, key)
+
+    def indices(self, start: int, stop: int) -> np.ndarray:
+        """Mission indices at run positions ``start`` to ``stop`` (int64, no mission planned)."""
+        positions = np.arange(start, min(stop, len(self)), dtype=np.int64)
+        if self.sample is not None:
+            return positions  # replica-major with the policies innermost: the file's order
+        sizes, strides = self._sizes, self._strides
+        per = self.paired_count
+        index = np.zeros_like(positions)
+        for axes, numbers in ((self._outer, positions // per), (self._inner, positions % per)):
+            for i in reversed(axes):
+                numbers, digit = np.divmod(numbers, sizes[i])
+                index += digit * strides[i]
+        return index
+
+
+def sweep_plan(spec: SweepSpec) -> SweepPlan:
+    """The plan of ``spec`` (what a worker needs to plan and resolve any of its missions)."""
+    resolve = expansion(spec)
+    return SweepPlan(resolve, spec.seed, spec.sample, _id_prefix(spec, resolve.base))
+
+
+def plan_missions(spec: SweepSpec, *, paired_last: bool = False) -> Iterator[PlannedMission]:
+    """Every mission of the sweep, lazily (memory does not grow with it).
+
+    In index order, or with ``paired_last`` in run order (:class:`SweepPlan`); ``index`` is
+    the position in the file's order either way.
+    """
+    plan = sweep_plan(spec)
+    if paired_last or spec.sample is not None:  # sample mode: run order is the file's order
+        yield from plan.missions()
+        return
+    discrete = spec.discrete
+    unpaired_at = [i for i, a in enumerate(discrete) if not a.paired]
+    for index, combo in enumerate(_lazy_product([a.values or () for a in discrete])):
+        chosen: dict[str, Any] = {a.key: v for a, v in zip(discrete, combo, strict=True)}
+        drawn = {}
+        if spec.drawn:
+            drawn = plan.draws(draw_seed(spec.seed, [combo[i] for i in unpaired_at]))
+        yield plan.planned(index, chosen, drawn, combo)
 
 
 def iter_missions(spec: SweepSpec) -> Iterator[SweepMission]:
@@ -501,15 +648,18 @@ def _check_axes(spec: SweepSpec) -> None:
     from skymule.policies import POLICIES, unknown_policies
 
     base = base_dict(spec.base)
+    # which policy keeps which [policy.params] key is known without importing anything when
+    # the sweep runs no plug-in; else it is checked when the sweep runs (expansion)
+    unknown = unknown_policies(spec.policy_names)
+    if unknown:
+        raise _fail(
+            spec.source,
+            f"axes.policy.name value {unknown[0]!r} is not a policy; "
+            f"allowed: {', '.join(sorted(POLICIES))}",
+        )
+    plugins = any(is_plugin(name) for name in spec.policy_names)
+    registered = {} if plugins else dict(zip(spec.policy_names, _shares(spec), strict=True))
     for axis in spec.axes:
-        if axis.key == "policy.name":
-            unknown = unknown_policies([str(v) for v in axis.values or ()])
-            if unknown:
-                raise _fail(
-                    spec.source,
-                    f"axes.policy.name value {unknown[0]!r} is not a policy; "
-                    f"allowed: {', '.join(sorted(POLICIES))}",
-                )
         count = stars(axis.path, base)
         candidates: Iterable[Any] = [None]  # distributions: checked on their draws
         if isinstance(axis.values, range):
@@ -523,4 +673,9 @@ def _check_axes(spec: SweepSpec) -> None:
             elif count is not None:
                 value = [value] * count
             data = place_sensors(assign(base, axis.path, value, spec.source, axis.key))
-            scenario_from_dict(data, f"{spec.source}: axes.{axis.key}", Path(spec.base.base_dir))
+            scenario_from_dict(
+                share_params(data, registered),
+                f"{spec.source}: axes.{axis.key}",
+                Path(spec.base.base_dir),
+                policies=spec.policy_names,
+            )

@@ -21,8 +21,6 @@ from functools import cached_property
 
 import numpy as np
 import shapely
-from scipy.sparse.csgraph import csgraph_from_dense
-from scipy.sparse.csgraph import shortest_path as _csgraph_shortest_path
 from shapely.geometry import Point, Polygon
 from shapely.geometry.polygon import orient
 from shapely.ops import nearest_points
@@ -184,6 +182,10 @@ class Navigator:
             lengths = np.hypot(*(verts[jj] - verts[ii]).T)
             weights[ii[visible], jj[visible]] = lengths[visible]
             weights[jj[visible], ii[visible]] = lengths[visible]
+            # scipy.sparse.csgraph costs ~0.2 s to import: only concave fences get here
+            from scipy.sparse.csgraph import csgraph_from_dense
+            from scipy.sparse.csgraph import shortest_path as _csgraph_shortest_path
+
             graph = csgraph_from_dense(weights, null_value=np.inf)
             dist, pred = _csgraph_shortest_path(
                 graph, method="D", directed=False, return_predecessors=True

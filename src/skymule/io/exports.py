@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from skymule.errors import SkymuleError
+from skymule.io import atomic
 from skymule.io.runs import is_run_dir
 from skymule.registry import Registry
 from skymule.report.inputs import RunData, hover_segments, load_run
@@ -338,15 +339,15 @@ def plan_document(run: RunData, tolerance_m: float = 1.0) -> dict[str, Any]:
 
 
 def _write_geojson(run: RunData, out: Path) -> None:
-    out.write_text(json.dumps(geojson_document(map_export(run), run.label), indent=1))
+    atomic.write_text(out, json.dumps(geojson_document(map_export(run), run.label), indent=1))
 
 
 def _write_kml(run: RunData, out: Path) -> None:
-    out.write_text(kml_document(map_export(run), run.label), encoding="utf-8")
+    atomic.write_text(out, kml_document(map_export(run), run.label))
 
 
 def _write_plan(run: RunData, out: Path) -> None:
-    out.write_text(json.dumps(plan_document(run), indent=2))
+    atomic.write_text(out, json.dumps(plan_document(run), indent=2))
 
 
 EXPORTERS: Registry[Callable[[RunData, Path], None]] = Registry("export")

@@ -4,15 +4,16 @@ A run folder holds ``summary.json``, ``slots.csv`` (one row a slot) and ``scenar
 (the validated scenario, so a result always travels with what produced it).
 
 Reading validates all three against one schema (:mod:`skymule.io.runschema`: pydantic for the
-JSON files, column/type/length checks for the slot table), so a damaged or hand-edited folder
-is one line naming the file, the row/column and what is allowed, never a traceback and never
-a figure drawn from part of the slots.
+JSON files, column/type/length checks for the slot table) and then against each other (totals,
+slot sums, buffers, sensors), so a damaged or hand-edited folder is one line naming the file,
+the row/column and what is allowed, never a traceback and never a figure drawn from part of
+the slots. Every reader (``plot``, ``report``, ``export``, the fleet report) goes through
+:func:`read_run`.
 """
 
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +22,13 @@ import pandas as pd
 
 from skymule.errors import SkymuleError
 from skymule.geo import LocalFrame
-from skymule.io.runschema import check_slots, validate_scenario_json, validate_summary
+from skymule.io import atomic
+from skymule.io.runschema import (
+    check_run_whole,
+    check_slots,
+    validate_scenario_json,
+    validate_summary,
+)
 from skymule.io.textfiles import read_text
 from skymule.metrics.flights import NO_SENSOR, MissionLog
 from skymule.metrics.summary import power_w, speed_mps, step_lengths_m
@@ -67,21 +74,15 @@ def slots_frame(log: MissionLog, frame: LocalFrame) -> pd.DataFrame:
     return pd.DataFrame(columns)
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    # write-then-rename: a run killed mid-write never leaves a truncated file behind
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
 def write_run(
     out_dir: Path, summary: dict[str, Any], slots: pd.DataFrame, scenario: dict[str, Any]
 ) -> None:
-    """Write a run folder (creating it)."""
+    """Write a run folder (creating it); each file whole or not at all, summary.json last (a
+    folder is a run folder once it has summary.json and slots.csv)."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    _atomic_write(out_dir / SLOTS_FILE, slots.to_csv(index=False, float_format="%.10g"))
-    _atomic_write(out_dir / SCENARIO_FILE, json.dumps(scenario, indent=2))
-    _atomic_write(out_dir / SUMMARY_FILE, json.dumps(summary, indent=2))
+    atomic.write_text(out_dir / SLOTS_FILE, slots.to_csv(index=False, float_format="%.10g"))
+    atomic.write_text(out_dir / SCENARIO_FILE, json.dumps(scenario, indent=2))
+    atomic.write_text(out_dir / SUMMARY_FILE, json.dumps(summary, indent=2))
 
 
 def is_run_dir(path: Path) -> bool:
@@ -132,7 +133,7 @@ def read_run(run_dir: Path) -> tuple[dict[str, Any], pd.DataFrame]:
             f"{slots_path}: cannot read ({str(exc).strip().splitlines()[0]})"
         ) from None
     slots = check_slots(slots, summary, str(slots_path))
-    read_run_scenario(run_dir)
+    check_run_whole(summary, slots, read_run_scenario(run_dir), run_dir)
     return summary, slots
 
 

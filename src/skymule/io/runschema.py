@@ -12,6 +12,10 @@ Every reader of a run folder (``plot``, ``report``, ``export``) goes through
   ``summary.json``'s ``slots`` rows (a truncated file is an error, never a figure from part of
   the mission).
 
+Then the folder is checked as a whole (:func:`check_run_whole`): the totals of
+``summary.json`` equal its per-sensor sums and the sums over ``slots.csv``, no sensor gives
+more than its buffer, and ``scenario.json`` names the sensors the other two files do.
+
 Each problem is one line: the file, the row and column, the value and what is allowed.
 """
 
@@ -212,3 +216,68 @@ def check_slots(slots: pd.DataFrame, summary: dict[str, Any], path: str) -> pd.D
                 path, "t_s", index, t_s[index], "a time after the previous row's (increasing)"
             )
     return slots.assign(served=served)
+
+
+MBIT_TOLERANCE = 1e-6
+"""Slack [Mbit] (plus 1e-9 of the value) when sums of one run's numbers are compared:
+slots.csv keeps 10 significant digits, summary.json every digit."""
+
+
+def _differ(a: float, b: float) -> bool:
+    return abs(a - b) > MBIT_TOLERANCE + 1e-9 * max(abs(a), abs(b))
+
+
+def check_run_whole(
+    summary: dict[str, Any], slots: pd.DataFrame, scenario: dict[str, Any], run_dir: Path
+) -> None:
+    """The files of one run folder, each valid on its own, checked against each other.
+
+    ``summary.json``: ``total_downloaded_mbit`` (and ``total_buffer_mbit``) equal the sums of
+    the per-sensor entries, and no sensor gave more than its buffer. ``slots.csv``: the
+    downloads add up to the summary's total and, per served sensor, to its entry (all UAVs'
+    rows of a fleet together: the buffers are shared). ``scenario.json`` (when present) lists
+    the run's sensors. Raises the first mismatch as one line naming the files.
+    """
+    summary_path, slots_path = run_dir / "summary.json", run_dir / "slots.csv"
+    again = "the files come from different runs or were edited; rewrite it with `skymule run`"
+    down = {k: float(v) for k, v in summary["per_sensor_downloaded_mbit"].items()}
+    buffers = {k: float(v) for k, v in summary["per_sensor_buffer_mbit"].items()}
+    total = float(summary["total_downloaded_mbit"])
+    if _differ(total, sum(down.values())):
+        raise SkymuleError(
+            f"{summary_path}: total_downloaded_mbit = {total:g} but per_sensor_downloaded_mbit "
+            f"adds up to {sum(down.values()):g} Mbit; {again}"
+        )
+    if summary.get("total_buffer_mbit") is not None:
+        total_buffer = float(summary["total_buffer_mbit"])
+        if _differ(total_buffer, sum(buffers.values())):
+            raise SkymuleError(
+                f"{summary_path}: total_buffer_mbit = {total_buffer:g} but "
+                f"per_sensor_buffer_mbit adds up to {sum(buffers.values()):g} Mbit; {again}"
+            )
+    for name, got in down.items():
+        if got > buffers[name] and _differ(got, buffers[name]):
+            raise SkymuleError(
+                f"{summary_path}: sensor {name!r} gave {got:g} Mbit, more than its buffer of "
+                f"{buffers[name]:g} Mbit (per_sensor_buffer_mbit); {again}"
+            )
+    downloaded = slots["downloaded_mbit"].to_numpy(float)
+    if _differ(float(downloaded.sum()), total):
+        raise SkymuleError(
+            f"{slots_path}: column downloaded_mbit adds up to {downloaded.sum():g} Mbit but "
+            f"summary.json says total_downloaded_mbit = {total:g}; {again}"
+        )
+    served = slots["served"].to_numpy(str)
+    for name, got in down.items():
+        in_slots = float(downloaded[served == name].sum())
+        if _differ(in_slots, got):
+            raise SkymuleError(
+                f"{slots_path}: the slots serving {name!r} download {in_slots:g} Mbit but "
+                f"summary.json says {got:g} (per_sensor_downloaded_mbit); {again}"
+            )
+    listed = [s.get("name") for s in scenario.get("sensors", []) if isinstance(s, dict)]
+    if scenario and sorted(map(str, listed)) != sorted(down):
+        raise SkymuleError(
+            f"{run_dir / 'scenario.json'}: sensors {', '.join(map(str, listed))} do not match "
+            f"the run's sensors {', '.join(down)} (slots.csv, summary.json); {again}"
+        )

@@ -13,7 +13,9 @@ scenario's ``[policy.params]`` table:
   ``Class(params)`` with the validated table; without one, as ``Class(policy_spec)`` or
   ``Class()`` (older plug-ins).
 
-The module is imported from ``PYTHONPATH`` or the current folder (sweep workers import it too).
+The module is imported from ``PYTHONPATH`` or the current folder (sweep workers import it too),
+and only when that policy is made: a file naming a plug-in imports nothing when it is read,
+checked, or run under another policy.
 """
 
 from __future__ import annotations
@@ -49,6 +51,7 @@ from skymule.policies.registry import (
     RobustParams,
     RobustPlannerParams,
     check_policies,
+    check_policy_name,
     import_target,
     policy_params_model,
     unknown_policies,
@@ -175,15 +178,17 @@ def batch_policy(specs: Sequence[PolicySpec]) -> BatchPolicy:
     """
     groups: dict[Any, list[int]] = {}
     params: list[Any] = []
-    cache: dict[int, Any] = {}  # sweeps repeat a few spec objects many times
+    # sweeps repeat a few spec objects many times: (parameters, group key) once per object
+    cache: dict[int, tuple[Any, Any]] = {}
     for index, spec in enumerate(specs):
         if id(spec) not in cache:
             learned = spec.name.startswith(LEARNED_PREFIX)
-            cache[id(spec)] = None if learned else spec.policy_params()
-        params.append(cache[id(spec)])
-        batched = ":" not in spec.name and POLICIES.meta(spec.name, "batch", None) is not None
-        own = repr(params[-1]) if params[-1] is not None else id(spec)
-        key: Any = spec.name if batched else (spec.name, own)
+            validated = None if learned else spec.policy_params()
+            batched = ":" not in spec.name and POLICIES.meta(spec.name, "batch", None) is not None
+            own = repr(validated) if validated is not None else id(spec)
+            cache[id(spec)] = (validated, spec.name if batched else (spec.name, own))
+        validated, key = cache[id(spec)]
+        params.append(validated)
         groups.setdefault(key, []).append(index)
     parts: list[tuple[BatchPolicy, Any]] = []
     for key, cols in groups.items():
@@ -204,8 +209,9 @@ def batch_policy(specs: Sequence[PolicySpec]) -> BatchPolicy:
 
 
 def resolve_policy(name: str) -> PolicyFactory:
-    """A factory ``spec -> policy`` for a registry name or ``"module:Attr"`` (checked now)."""
-    policy_params_model(name)  # raises the one-line error for unknown / unimportable names
+    """A factory ``spec -> policy`` for a registry name or ``"module:Attr"`` (the name checked
+    now, a plug-in imported when the factory first makes one)."""
+    check_policy_name(name)  # the one-line error for a name that names no policy
 
     def factory(spec: PolicySpec) -> Policy | BatchPolicy:
         return make_policy(spec if spec.name == name else spec.model_copy(update={"name": name}))
@@ -229,6 +235,7 @@ __all__ = [
     "RobustHGAD",
     "batch_policy",
     "check_policies",
+    "check_policy_name",
     "make_policy",
     "policy_params_model",
     "resolve_policy",

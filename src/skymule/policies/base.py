@@ -162,6 +162,16 @@ def read_only(values: np.ndarray) -> np.ndarray:
     return view
 
 
+def stacked(contexts: Sequence[MissionContext], field: str) -> np.ndarray:
+    """(B, ...) one field of every mission's context, stacked over the mission axis (the
+    engine's own array where it holds one: no context is made per mission)."""
+    stack = getattr(contexts, "stack", None)
+    found = stack(field) if stack is not None else None
+    if found is not None:
+        return found
+    return read_only(np.array([getattr(context, field) for context in contexts]))
+
+
 class Policy(Protocol):
     """A per-mission decision maker. Create a fresh one (or ``reset``) for every mission."""
 

@@ -30,7 +30,7 @@ from typing import Literal
 
 import numpy as np
 
-from skymule.policies.base import BatchAction, BatchObservation, MissionContext
+from skymule.policies.base import BatchAction, BatchObservation, MissionContext, stacked
 from skymule.policies.tours import GreedyTours, HGADTours, TourGeometry
 from skymule.sim import contract
 from skymule.sim.contract import NO_SENSOR
@@ -62,10 +62,9 @@ def per_mission(value: float | Sequence[float] | np.ndarray, n_missions: int) ->
 
 
 def _mode(contexts: Sequence[MissionContext]) -> str:
-    modes = {c.mode for c in contexts}
-    if len(modes) != 1:
-        raise ValueError("one batch runs one trajectory mode")
-    return modes.pop()
+    """The batch's trajectory mode (the engine runs one per batch; the first context tells,
+    without making the others: sweeps run thousands of missions a batch)."""
+    return contexts[0].mode if len(contexts) else "fixed"
 
 
 def _goto(
@@ -145,14 +144,14 @@ class HGAD:
 
     def reset(self, contexts: Sequence[MissionContext]) -> None:
         n_missions = len(contexts)
-        self._slot_s = np.array([c.slot_s for c in contexts], float)
+        self._slot_s = np.asarray(stacked(contexts, "slot_s"), float)
         self._max_hover = per_mission(self.max_hover_s, n_missions)
-        peak = np.array([c.peak_rate_bps for c in contexts], float).reshape(n_missions, -1)
+        peak = np.asarray(stacked(contexts, "peak_rate_bps"), float).reshape(n_missions, -1)
         self._tours = self._geometry = None
         if _mode(contexts) == "autonomous":
             self._geometry = TourGeometry.of(contexts)
             priority = np.broadcast_to(np.asarray(self.priority, object), (n_missions,))
-            buffers = np.array([c.buffers_bit for c in contexts], float).reshape(n_missions, -1)
+            buffers = np.asarray(stacked(contexts, "buffers_bit"), float).reshape(n_missions, -1)
             self._tours = HGADTours(
                 self._geometry,
                 np.ascontiguousarray(peak.T),

@@ -23,8 +23,6 @@ shipped in the package (``skymule/data/learned_policy.npz``), ``learned:PATH`` y
 
 from __future__ import annotations
 
-import os
-import tempfile
 import zipfile
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -34,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from skymule.errors import SkymuleError
+from skymule.io.atomic import atomic_path
 from skymule.policies.base import BatchAction, BatchObservation, MissionContext
 from skymule.policies.options import (
     FRACTIONS,
@@ -297,17 +296,9 @@ def save_net(net: OptionNet, path: str | Path) -> Path:
     """Write model 0 of ``net`` to ``path`` (.npz, atomically: a temporary name in the same
     folder, then a rename)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     arrays = {name: getattr(net, name)[0] for name in WEIGHT_NAMES}
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".npz", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            np.savez(handle, format=np.array(FORMAT), features=np.array(FEATURE_NAMES), **arrays)
-        os.chmod(tmp, 0o644)  # a file to share, not mkstemp's private 0600
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_path(path) as tmp, open(tmp, "wb") as handle:
+        np.savez(handle, format=np.array(FORMAT), features=np.array(FEATURE_NAMES), **arrays)
     return path
 
 

@@ -7,11 +7,16 @@ registers the built-in policies in it when imported (which importing this module
 as its parent package); you can register your own the same way. Names of the form
 ``"package.module:Class"`` (plug-ins), ``"rl:model.zip"`` (learned models) and
 ``"learned:weights.npz"`` (the ``learned`` policy with your own weights) need no entry.
+
+Files are shared, so naming a plug-in or a model in one runs nothing by itself: checking a
+name (:func:`check_policy_name`) never imports or reads anything; the module is imported
+(:func:`import_target`) and the model loaded only when that policy is made to run.
 """
 
 from __future__ import annotations
 
 import importlib
+import re
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -21,6 +26,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from skymule.errors import SkymuleError
 from skymule.registry import Registry
+from skymule.trust import check_trusted
 
 
 class PolicySpec(Protocol):
@@ -85,11 +91,41 @@ WEIGHTS_PREFIX = "learned:"
 weights (:mod:`skymule.policies.learned`; plain arrays, no code)."""
 
 
+_IMPORT_PATH = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:[A-Za-z_]\w*$")
+
+
+def is_plugin(name: str) -> bool:
+    """True for an import path ``"package.module:Class"`` (not an ``rl:`` model or
+    ``learned:`` weights file)."""
+    return ":" in name and not name.startswith((LEARNED_PREFIX, WEIGHTS_PREFIX))
+
+
+def plugin_module(name: str) -> str | None:
+    """The module a policy name imports when it runs (None: a registered or learned one)."""
+    return name.partition(":")[0] if is_plugin(name) else None
+
+
+def check_policy_name(name: str) -> str:
+    """``name`` if it can name a policy; else the one-line error. Imports and reads nothing:
+    a plug-in's module and a learned model's file are only looked at when it runs."""
+    if name.startswith(LEARNED_PREFIX):
+        if len(name) == len(LEARNED_PREFIX):
+            raise SkymuleError(f"policy {name!r}: give rl:path/to/model.zip")
+    elif name.startswith(WEIGHTS_PREFIX):
+        if len(name) == len(WEIGHTS_PREFIX):
+            raise SkymuleError(f"policy {name!r}: give learned:path/to/weights.npz")
+    elif ":" in name:
+        if _IMPORT_PATH.match(name) is None:
+            raise SkymuleError(f"policy {name!r}: an import path is 'package.module:Class'")
+    else:
+        POLICIES.entry(name)  # the one-line "unknown policy ...; did you mean" error
+    return name
+
+
 def import_target(name: str) -> Any:
     """``Attr`` of ``module`` for ``"module:Attr"``, looking in the current folder too."""
+    check_policy_name(name)
     module_name, _, attribute = name.partition(":")
-    if not module_name or not attribute:
-        raise SkymuleError(f"policy {name!r}: an import path is 'package.module:Class'")
     cwd = str(Path.cwd())
     if cwd not in sys.path and "" not in sys.path:
         # `python -m skymule` has the current folder on the path, the installed script does
@@ -125,8 +161,8 @@ def _params_of(target: Any) -> type[BaseModel] | None:
 def policy_params_model(name: str) -> type[BaseModel] | None:
     """The parameter model of policy ``name`` (None: a plug-in without ``Params``).
 
-    Raises the one-line :class:`SkymuleError` for an unknown name or a plug-in that fails to
-    import.
+    Imports a plug-in's module (only for a policy that runs). Raises the one-line
+    :class:`SkymuleError` for an unknown name or a plug-in that fails to import.
     """
     if name.startswith(LEARNED_PREFIX):  # rl:path/to/model.zip: the model is the parameter
         return None
@@ -139,23 +175,36 @@ def policy_params_model(name: str) -> type[BaseModel] | None:
 
 
 def unknown_policies(names: list[str]) -> list[str]:
-    """The names among ``names`` that resolve to no policy (empty when all are fine)."""
+    """The names among ``names`` that can name no policy (empty when all are fine); nothing
+    is imported."""
     unknown = []
     for name in names:
         try:
-            policy_params_model(name)
+            check_policy_name(name)
         except SkymuleError:
             unknown.append(name)
     return unknown
 
 
+def check_learned(name: str) -> None:
+    """A learned model ``rl:PATH`` that is about to run: the file exists and the user trusts
+    it (:mod:`skymule.trust`); nothing of it is read."""
+    path = Path(name[len(LEARNED_PREFIX) :])
+    if not path.is_file():
+        raise SkymuleError(f"policy {name!r}: no such model file")
+    check_trusted(name, path)
+
+
 def check_policies(names: list[str], option: str = "--policies") -> list[str]:
-    """``names`` if every one resolves; else the first problem as one line."""
+    """``names``, which are about to run, if every one can name a policy (and every learned
+    model is trusted); else the first problem as one line. Nothing is imported or read."""
     if not names:
         raise SkymuleError(f"{option} is empty; allowed: {', '.join(POLICIES)}")
     for name in names:
         try:
-            policy_params_model(name)
+            check_policy_name(name)
+            if name.startswith(LEARNED_PREFIX):
+                check_learned(name)
         except SkymuleError as exc:
             raise SkymuleError(f"{option}: {exc}") from None
     return names

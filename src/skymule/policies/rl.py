@@ -6,6 +6,10 @@ observation from the engine's :class:`Observation` and the :class:`MissionContex
 (:mod:`skymule.envs.observation`), asks the model for its deterministic action and turns it
 back into an :class:`Action`. It runs wherever a policy name does (``--policy``, ``compare``,
 sweeps). Needs the optional extra ``skymule[rl]`` (stable-baselines3 and CPU torch).
+
+A stable-baselines3 zip is unpickled as it loads, which can run code: the model is loaded
+only when the user trusts that file on the command line (``--trust-model PATH``,
+:mod:`skymule.trust`); otherwise one line says why it was refused.
 """
 
 from __future__ import annotations
@@ -19,12 +23,20 @@ import skymule.envs.observation as enc
 from skymule.errors import SkymuleError
 from skymule.policies.base import Action, MissionContext, Observation
 from skymule.scenario import PolicySpec
+from skymule.trust import check_trusted
 
 PREFIX = "rl:"
 
 
 def load_model(path: Path) -> Any:
-    """The stable-baselines3 PPO model at ``path`` (SkymuleError when it cannot be loaded)."""
+    """The stable-baselines3 PPO model at ``path`` (SkymuleError when it cannot be loaded).
+
+    Refused, before anything of the file is read, unless the user trusts ``path``
+    (:func:`skymule.trust.check_trusted`).
+    """
+    if not path.is_file():
+        raise SkymuleError(f"policy 'rl:{path}': no such model file")
+    check_trusted(f"rl:{path}", path)
     try:
         from stable_baselines3 import PPO
     except ImportError:
@@ -32,8 +44,6 @@ def load_model(path: Path) -> Any:
             f"policy 'rl:{path}' needs stable-baselines3 and torch: pip install torch==2.13.0 "
             "(the CPU build) then pip install 'skymule[rl]'"
         ) from None
-    if not path.is_file():
-        raise SkymuleError(f"policy 'rl:{path}': no such model file")
     try:
         return PPO.load(str(path), device="cpu")
     except Exception as exc:  # a damaged or foreign zip: say which file

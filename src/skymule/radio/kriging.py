@@ -17,6 +17,7 @@ import scipy.ndimage
 import scipy.optimize
 import scipy.spatial
 import scipy.spatial.distance
+from threadpoolctl import threadpool_limits
 
 MAX_KRIGING_POINTS = 1000
 """Largest number of samples per sensor in the kriging system (thinned evenly beyond it)."""
@@ -292,15 +293,23 @@ def empirical_semivariogram(
     return lag_sums[ok] / counts[ok], sums[ok] / counts[ok], counts[ok]
 
 
+SHORTEST_RANGE_M = 1.0
+"""The shortest correlation range :func:`fit_variogram` tries [m]; a fit that ends there (or
+with a sill of :data:`NO_SILL_DB2`) found no spatial structure to krige."""
+
+NO_SILL_DB2 = 1e-6
+"""The sill [dB^2] :func:`fit_variogram` gives a residual without spatial structure."""
+
+
 def fit_variogram(positions_m: np.ndarray, residual_db: np.ndarray) -> Variogram:
     """Exponential variogram with nugget, by weighted least squares over a grid of ranges."""
     lag, gamma, counts = empirical_semivariogram(positions_m, residual_db)
     total = float(np.var(residual_db))
     if lag.size < 2 or total <= 0:
-        return Variogram(sill_db2=max(total, 1e-6), range_m=1.0, nugget_db2=0.0)
+        return Variogram(sill_db2=max(total, NO_SILL_DB2), range_m=SHORTEST_RANGE_M, nugget_db2=0.0)
     w = np.sqrt(counts)
     best: tuple[float, Variogram] | None = None
-    for range_m in np.geomspace(1.0, 5.0 * lag.max(), 120):
+    for range_m in np.geomspace(SHORTEST_RANGE_M, 5.0 * lag.max(), 120):
         design = np.column_stack([np.ones_like(lag), 1.0 - np.exp(-lag / range_m)])
         (nugget, sill), cost = scipy.optimize.nnls(design * w[:, None], gamma * w)
         if best is None or cost < best[0]:
@@ -308,8 +317,61 @@ def fit_variogram(positions_m: np.ndarray, residual_db: np.ndarray) -> Variogram
     assert best is not None
     vario = best[1]
     if vario.sill_db2 <= 0:  # pure nugget: no spatial structure
-        return Variogram(sill_db2=1e-6, range_m=1.0, nugget_db2=max(vario.nugget_db2, 1e-6))
+        nugget = max(vario.nugget_db2, NO_SILL_DB2)
+        return Variogram(sill_db2=NO_SILL_DB2, range_m=SHORTEST_RANGE_M, nugget_db2=nugget)
     return vario
+
+
+MAX_LIKELIHOOD_POINTS = 500
+"""Samples (thinned evenly) in the marginal likelihood of :func:`fit_variogram_ml`."""
+
+
+def log_marginal_likelihood(
+    distances_m: np.ndarray, residual_db: np.ndarray, variogram: Variogram
+) -> float:
+    """log p(r) of residuals under the zero-mean Gaussian field (R&W 2006, eq. 2.30).
+
+    ``distances_m`` (S, S) between the samples; covariance sigma^2 exp(-h / L) + tau^2 I.
+    """
+    k = variogram.covariance(distances_m)
+    k[np.diag_indices_from(k)] += variogram.nugget_db2 + 1e-9
+    try:
+        factor = scipy.linalg.cho_factor(k, lower=True)
+    except np.linalg.LinAlgError:
+        return -np.inf
+    alpha = scipy.linalg.cho_solve(factor, residual_db)
+    log_det = 2.0 * np.log(np.diag(factor[0])).sum()
+    return float(
+        -0.5 * residual_db @ alpha - 0.5 * log_det - 0.5 * len(residual_db) * np.log(2 * np.pi)
+    )
+
+
+def fit_variogram_ml(
+    positions_m: np.ndarray, residual_db: np.ndarray, start: Variogram
+) -> Variogram:
+    """Exponential covariance + nugget maximising the marginal likelihood (GP regression).
+
+    Nelder-Mead over the logarithms of (sigma^2, L, tau^2) from ``start`` (e.g. the
+    variogram fit), on at most MAX_LIKELIHOOD_POINTS samples thinned evenly in time; the
+    start is kept if nothing better is found.
+    """
+    keep = thin_indices(len(residual_db), MAX_LIKELIHOOD_POINTS)
+    distances = pairwise_m(positions_m[keep], positions_m[keep])
+    residual = residual_db[keep]
+    floor = 1e-6 * max(float(np.var(residual)), 1e-6)
+    theta0 = np.log([max(start.sill_db2, floor), start.range_m, max(start.nugget_db2, floor)])
+
+    def cost(theta: np.ndarray) -> float:
+        sill, range_m, nugget = np.exp(np.clip(theta, -30.0, 30.0))
+        return -log_marginal_likelihood(distances, residual, Variogram(sill, range_m, nugget))
+
+    options = {"xatol": 1e-2, "fatol": 1e-2, "maxiter": 200}
+    with threadpool_limits(limits=1, user_api="blas"):  # small factorisations: one thread
+        result = scipy.optimize.minimize(cost, theta0, method="Nelder-Mead", options=options)
+    if not np.isfinite(result.fun) or result.fun > cost(theta0):
+        return start
+    sill, range_m, nugget = (float(v) for v in np.exp(np.clip(result.x, -30.0, 30.0)))
+    return Variogram(sill, range_m, nugget)
 
 
 def thin_indices(n: int, limit: int) -> np.ndarray:

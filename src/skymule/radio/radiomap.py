@@ -18,6 +18,17 @@ Per sensor i, with d the 3-D UAV-antenna distance [m] and SNR measured at UAV po
    Bulk queries split the kernel into an exact near part (zero beyond 2 L) and a smooth far
    part splined from a grid (:func:`krige_split`, within 0.01 dB of the dense sum, tested).
 
+Methods (``fit-radiomap --method``): ``kriging`` (1-3 above, the default), ``log-distance``
+(the trend alone), ``gp`` (the same model with the residual field's parameters chosen by
+maximum marginal likelihood, Rasmussen & Williams eq. 5.8, instead of the variogram) and
+``neural`` (:mod:`skymule.radio.learned`: an ensemble of small networks on link features
+learns the residual over the trend or over a prior, a digital twin; the networks' residual is
+then kriged as above). With a prior, the map holds the prior too (a fitted map, or a path-loss
+model and link budget) and predicts prior + learned residual. Every map gives a predictive
+standard deviation per point (:meth:`RadioMapSource.sigma_db`): the kriging posterior
+variance sigma^2 + tau^2 - k^T (K + tau^2 I)^{-1} k (R&W eq. 2.26; the trend's residual
+variance for ``log-distance``) plus the ensemble's spread for ``neural``.
+
 Missing samples (NaN; -99 in digital-twin exports) and deep drops (below ``drop_below_db``,
 real but unpredictable link losses) are excluded and counted. At most ``MAX_KRIGING_POINTS``
 samples per sensor (evenly thinned in time) enter the kriging system. Fit quality: in-sample
@@ -27,23 +38,36 @@ RMSE and K-fold cross-validated RMSE with each fold one contiguous segment of ev
 
 from __future__ import annotations
 
+import functools
 import json
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, Protocol
 
 import numpy as np
+import scipy.linalg
 
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.geo import LocalFrame
+from skymule.io import atomic
 from skymule.radio.kriging import (
     MAX_KRIGING_POINTS,
     Variogram,
     fit_variogram,
+    fit_variogram_ml,
     krige,
     kriging_weights,
+    pairwise_m,
     thin_indices,
+)
+from skymule.radio.learned import (
+    FEATURES,
+    PRIOR_FEATURE,
+    Ensemble,
+    choose_penalty,
+    fit_ensemble,
+    link_features,
 )
 from skymule.radio.pathloss import MIN_DISTANCE_M
 
@@ -59,7 +83,13 @@ CV_FOLDS = 5
 
 
 MAP_FORMAT = "skymule-radiomap"
-MAP_VERSION = 1
+MAP_VERSION = 2
+"""Version 2 adds ``method``, ``prior`` and each sensor's ``ensemble``; version 1 files
+(kriging maps) are read as they are."""
+
+Method = Literal["kriging", "log-distance", "gp", "neural"]
+METHODS: tuple[Method, ...] = ("kriging", "log-distance", "gp", "neural")
+"""The fitting methods of :func:`fit_radiomap` (``skymule fit-radiomap --method``)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,6 +105,8 @@ class SensorMap:
         train_m: (S, 3) kriging sample positions [m].
         weights: (S,) kriging weights (K + tau^2 I)^{-1} r [dB].
         stats: fit quality and sample counts (see :func:`fit_sensor_map`).
+        ensemble: ``neural``: the networks whose mean residual is added to the base (the
+            prior's SNR, or the trend without a prior) before kriging; None otherwise.
     """
 
     name: str
@@ -85,17 +117,67 @@ class SensorMap:
     train_m: np.ndarray
     weights: np.ndarray
     stats: dict[str, float] = field(default_factory=dict)
+    ensemble: Ensemble | None = None
 
     def trend_db(self, positions_m: np.ndarray) -> np.ndarray:
         """(P,) log-distance trend [dB] at positions (P, 3)."""
         return trend_db(positions_m, self.position_m, self.intercept_db, self.exponent)
 
-    def snr_db(self, positions_m: np.ndarray) -> np.ndarray:
-        """(P,) predicted SNR [dB] at positions (P, 3): trend + kriged residual."""
+    def _features(self, positions: np.ndarray, prior_db: np.ndarray | None) -> np.ndarray:
+        assert self.ensemble is not None
+        wants_prior = PRIOR_FEATURE in self.ensemble.features
+        if wants_prior and prior_db is None:
+            raise SkymuleError(f"radio map of {self.name}: the learned map needs its prior")
+        return link_features(positions, self.position_m, prior_db if wants_prior else None)
+
+    def base_db(self, positions_m: np.ndarray, prior_db: np.ndarray | None = None) -> np.ndarray:
+        """(P,) what the kriged residual is added to [dB]: the trend, or for ``neural`` the
+        prior (the trend without one) plus the ensemble's mean residual."""
         positions = np.atleast_2d(np.asarray(positions_m, float))
-        return self.trend_db(positions) + krige(
+        if self.ensemble is None:
+            return self.trend_db(positions)
+        base = self.trend_db(positions) if prior_db is None else np.asarray(prior_db, float)
+        return base + self.ensemble.mean_db(self._features(positions, prior_db))
+
+    def snr_db(self, positions_m: np.ndarray, prior_db: np.ndarray | None = None) -> np.ndarray:
+        """(P,) predicted SNR [dB] at positions (P, 3): base + kriged residual.
+
+        ``prior_db`` (P,) is the prior's SNR at the positions (maps fitted with a prior only).
+        """
+        positions = np.atleast_2d(np.asarray(positions_m, float))
+        return self.base_db(positions, prior_db) + krige(
             positions, self.train_m, self.weights, self.variogram
         )
+
+    @functools.cached_property
+    def _cholesky(self) -> tuple[np.ndarray, bool]:
+        k = self.variogram.covariance(pairwise_m(self.train_m, self.train_m))
+        k[np.diag_indices_from(k)] += (
+            self.variogram.nugget_db2 + 1e-6 * self.variogram.sill_db2 + 1e-9
+        )
+        factor: tuple[np.ndarray, bool] = scipy.linalg.cho_factor(k, lower=True)
+        return factor
+
+    def sigma_db(self, positions_m: np.ndarray, prior_db: np.ndarray | None = None) -> np.ndarray:
+        """(P,) predictive standard deviation [dB] at positions (P, 3).
+
+        The kriging posterior variance sigma^2 + tau^2 - k^T (K + tau^2 I)^{-1} k, plus for
+        ``neural`` the variance of the ensemble's members.
+        """
+        positions = np.atleast_2d(np.asarray(positions_m, float))
+        vario = self.variogram
+        variance = np.full(len(positions), vario.sill_db2 + vario.nugget_db2)
+        if self.train_m.shape[0]:
+            step = max(1, 2_000_000 // self.train_m.shape[0])
+            for start in range(0, len(positions), step):
+                k = vario.covariance(pairwise_m(positions[start : start + step], self.train_m))
+                solved = scipy.linalg.cho_solve(self._cholesky, k.T)
+                variance[start : start + step] -= np.einsum("ps,sp->p", k, solved)
+        variance = np.maximum(variance, vario.nugget_db2)
+        if self.ensemble is not None:
+            members = self.ensemble.members_db(self._features(positions, prior_db))
+            variance = variance + members.var(axis=0)
+        return np.sqrt(variance)
 
 
 def distance_m(positions_m: np.ndarray, sensor_m: np.ndarray) -> np.ndarray:
@@ -138,16 +220,56 @@ def valid_mask(snr_db: np.ndarray, drop_below_db: float) -> tuple[np.ndarray, in
     return ~(missing | deep), int(missing.sum()), int(deep.sum())
 
 
+@dataclass(frozen=True)
+class FitOptions:
+    """How :func:`fit_sensor_map` fits: the method and, for ``neural``, its seed."""
+
+    method: Method = "kriging"
+    seed: int = 0
+
+
 def _fit_core(
-    positions: np.ndarray, snr: np.ndarray, sensor_m: np.ndarray, variogram: Variogram | None
-) -> tuple[float, float, Variogram, np.ndarray, np.ndarray]:
+    name: str,
+    positions: np.ndarray,
+    snr: np.ndarray,
+    segment: np.ndarray,
+    sensor_m: np.ndarray,
+    variogram: Variogram | None,
+    options: FitOptions,
+    prior_db: np.ndarray | None,
+) -> SensorMap:
+    """The map of one sensor fitted to valid samples (``variogram`` kept when given).
+
+    ``neural`` chooses its weight decay on the last segment of each trace (``segment``).
+    """
     intercept, exponent = fit_trend(distance_m(positions, sensor_m), snr)
-    residual = snr - trend_db(positions, sensor_m, intercept, exponent)
+    trend = trend_db(positions, sensor_m, intercept, exponent)
+    ensemble = None
+    base = trend
+    stats: dict[str, float] = {}
+    if options.method == "neural":
+        features = link_features(positions, sensor_m, prior_db)
+        names = (*FEATURES, PRIOR_FEATURE) if prior_db is not None else FEATURES
+        start = trend if prior_db is None else prior_db
+        validation = segment == segment.max()
+        penalty = choose_penalty(features, snr - start, validation, seed=options.seed)
+        ensemble = fit_ensemble(features, snr - start, names, seed=options.seed, penalty=penalty)
+        base = start + ensemble.mean_db(features)
+        stats["l2_penalty"] = penalty
+    residual = snr - base
+    if options.method == "log-distance":
+        no_field = Variogram(0.0, 1.0, float(np.mean(residual**2)))
+        empty = np.zeros((0, 3))
+        return SensorMap(name, sensor_m, intercept, exponent, no_field, empty, np.zeros(0))
     keep = thin_indices(len(snr), MAX_KRIGING_POINTS)
     if variogram is None:
         variogram = fit_variogram(positions[keep], residual[keep])
+        if options.method == "gp":
+            variogram = fit_variogram_ml(positions[keep], residual[keep], variogram)
     weights = kriging_weights(positions[keep], residual[keep], variogram)
-    return intercept, exponent, variogram, positions[keep], weights
+    return SensorMap(
+        name, sensor_m, intercept, exponent, variogram, positions[keep], weights, stats, ensemble
+    )
 
 
 def fit_sensor_map(
@@ -157,12 +279,17 @@ def fit_sensor_map(
     *,
     drop_below_db: float = DEEP_DROP_DB,
     baseline_snr_db: np.ndarray | None = None,
+    prior_snr_db: np.ndarray | None = None,
+    options: FitOptions = FitOptions(),
     label: str = "traces",
 ) -> SensorMap:
     """Fit one sensor's map; ``stats`` holds counts, RMSE and cross-validated RMSE [dB].
 
     ``baseline_snr_db`` (S,) is a reference model's SNR at the samples (e.g. free space); its
-    RMSE on the held-out segments is reported as ``cv_rmse_baseline_db``.
+    RMSE on the held-out segments is reported as ``cv_rmse_baseline_db``. ``prior_snr_db``
+    (S,) is the prior's SNR at the samples (``neural`` with a prior). Cross-validation holds
+    out each segment in turn; ``neural`` holds out the last segment of every trace only (a
+    split in time; refitting the networks for every fold would multiply the fit time).
     """
     ok, n_missing, n_deep = valid_mask(samples.snr_db, drop_below_db)
     n_used = int(ok.sum())
@@ -173,43 +300,115 @@ def fit_sensor_map(
             f"least {MIN_FIT_SAMPLES}"
         )
     positions, snr, segment = samples.positions_m[ok], samples.snr_db[ok], samples.segment[ok]
+    prior = None if prior_snr_db is None else np.asarray(prior_snr_db, float)[ok]
     sensor = np.asarray(sensor_m, float)
-    intercept, exponent, vario, train, weights = _fit_core(positions, snr, sensor, None)
-    fitted = SensorMap(name, sensor, intercept, exponent, vario, train, weights)
+    fitted = _fit_core(name, positions, snr, segment, sensor, None, options, prior)
     errors: dict[str, list[np.ndarray]] = {"map": [], "trend": [], "baseline": []}
-    for fold in np.unique(segment):
+    folds = np.unique(segment)
+    for fold in folds[-1:] if options.method == "neural" else folds:
         test = segment == fold
         if test.all() or (~test).sum() < MIN_FIT_SAMPLES // 2:
             continue
-        a, n, _, tr, w = _fit_core(positions[~test], snr[~test], sensor, vario)
-        trend = trend_db(positions[test], sensor, a, n)
-        errors["trend"].append(trend - snr[test])
-        errors["map"].append(trend + krige(positions[test], tr, w, vario) - snr[test])
+        train_prior = None if prior is None else prior[~test]
+        held = _fit_core(
+            name, positions[~test], snr[~test], segment[~test], sensor, fitted.variogram,
+            options, train_prior,
+        )  # fmt: skip
+        errors["trend"].append(held.trend_db(positions[test]) - snr[test])
+        test_prior = None if prior is None else prior[test]
+        errors["map"].append(held.snr_db(positions[test], test_prior) - snr[test])
         if baseline_snr_db is not None:
             errors["baseline"].append(baseline_snr_db[ok][test] - snr[test])
     stats = {
+        **fitted.stats,
         "n_used": float(n_used),
         "n_missing": float(n_missing),
         "n_deep_drops": float(n_deep),
-        "rmse_db": _rmse(fitted.snr_db(positions) - snr),
+        "rmse_db": _rmse(fitted.snr_db(positions, prior) - snr),
         "rmse_trend_db": _rmse(fitted.trend_db(positions) - snr),
     }
     for key, values in errors.items():
         if values:
             stats[f"cv_rmse_{key}_db"] = _rmse(np.concatenate(values))
-    return SensorMap(name, sensor, intercept, exponent, vario, train, weights, stats)
+    return replace(fitted, stats=stats)
 
 
 def _rmse(error: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(error)))) if error.size else float("nan")
 
 
+class Prior(Protocol):
+    """What a learned map calibrates: a signal source for named sensors, stored in the map."""
+
+    @property
+    def label(self) -> str: ...
+
+    def source(self, names: Sequence[str]) -> Any: ...
+
+    def to_dict(self) -> dict[str, Any]: ...
+
+
+@dataclass(frozen=True, eq=False)
+class MapPrior:
+    """A fitted map as the prior; ``offset_m`` (3,) moves this map's frame into its frame."""
+
+    fitted: RadioMap
+    offset_m: np.ndarray
+    label: str
+
+    def source(self, names: Sequence[str]) -> RadioMapSource:
+        return self.fitted.source(names, self.offset_m)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "kind": "radiomap",
+            "label": self.label,
+            "offset_m": self.offset_m.tolist(),
+            "map": self.fitted.to_dict(),
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class ModelPrior:
+    """A path-loss model and link budget as the prior (a scenario's ``[radio]`` without its
+    random shadowing: a draw is not a prediction), sensors at ``sensor_m`` in this map's frame.
+    """
+
+    radio: dict[str, Any]
+    sensor_m: dict[str, tuple[float, float, float]]
+    label: str
+
+    def source(self, names: Sequence[str]) -> Any:
+        from skymule.radio.sources import model_source
+        from skymule.scenario import RadioSpec
+
+        missing = [n for n in names if n.upper() not in self.sensor_m]
+        if missing:
+            raise SkymuleError(f"prior {self.label}: no sensor {missing[0]!r}")
+        spec = RadioSpec.model_validate({**self.radio, "shadowing_std_db": 0.0})
+        return model_source(spec, np.array([self.sensor_m[n.upper()] for n in names], float))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "kind": "model",
+            "label": self.label,
+            "radio": self.radio,
+            "sensor_m": {k: list(v) for k, v in self.sensor_m.items()},
+        }
+
+
 @dataclass(frozen=True, eq=False)
 class RadioMap:
-    """Fitted maps of several sensors, in the local frame centred on ``origin`` (lat, lon)."""
+    """Fitted maps of several sensors, in the local frame centred on ``origin`` (lat, lon).
+
+    ``method`` is how it was fitted (:data:`METHODS`); ``prior`` the source a ``neural`` map
+    learned its residual over (None: the log-distance trend).
+    """
 
     origin: tuple[float, float]
     sensors: tuple[SensorMap, ...]
+    method: str = "kriging"
+    prior: Prior | None = None
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -226,13 +425,17 @@ class RadioMap:
     def source(self, names: Sequence[str], offset_m: np.ndarray | None = None) -> RadioMapSource:
         """A signal source for the named sensors, in that order."""
         offset = np.zeros(3) if offset_m is None else np.asarray(offset_m, float)
-        return RadioMapSource(tuple(self.sensor(n) for n in names), offset)
+        maps = tuple(self.sensor(n) for n in names)
+        prior = None if self.prior is None else self.prior.source([m.name for m in maps])
+        return RadioMapSource(maps, offset, prior)
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "format": MAP_FORMAT,
             "version": MAP_VERSION,
+            "method": self.method,
             "origin": {"lat": self.origin[0], "lon": self.origin[1]},
+            "prior": None if self.prior is None else self.prior.to_dict(),
             "sensors": [
                 {
                     "name": s.name,
@@ -245,13 +448,52 @@ class RadioMap:
                     "stats": s.stats,
                     "train_m": np.round(s.train_m, 3).tolist(),
                     "weights": s.weights.tolist(),
+                    "ensemble": None if s.ensemble is None else s.ensemble.to_dict(),
                 }
                 for s in self.sensors
             ],
         }
 
     def write(self, path: Path) -> None:
-        path.write_text(json.dumps(self.to_dict()))
+        """Write the map as JSON, atomically (:mod:`skymule.io.atomic`)."""
+        atomic.write_text(Path(path), json.dumps(self.to_dict()))
+
+
+def _map_from_dict(data: dict[str, Any]) -> RadioMap:
+    """The map of a parsed JSON document (KeyError/TypeError/ValueError when malformed)."""
+    sensors = tuple(
+        SensorMap(
+            name=s["name"],
+            position_m=np.asarray(s["position_m"], float),
+            intercept_db=float(s["intercept_db"]),
+            exponent=float(s["exponent"]),
+            variogram=Variogram(float(s["sill_db2"]), float(s["range_m"]), float(s["nugget_db2"])),
+            train_m=np.asarray(s["train_m"], float).reshape(-1, 3),
+            weights=np.asarray(s["weights"], float),
+            stats={k: float(v) for k, v in s.get("stats", {}).items()},
+            ensemble=Ensemble.from_dict(s["ensemble"]) if s.get("ensemble") else None,
+        )
+        for s in data["sensors"]
+    )
+    origin = (float(data["origin"]["lat"]), float(data["origin"]["lon"]))
+    method = str(data.get("method", "kriging"))
+    if method not in METHODS:
+        raise ValueError(f"method {method!r} is not one of {', '.join(METHODS)}")
+    prior: Prior | None = None
+    spec = data.get("prior")
+    if spec:
+        if spec["kind"] == "radiomap":
+            offset = np.asarray(spec["offset_m"], float).reshape(3)
+            prior = MapPrior(_map_from_dict(spec["map"]), offset, str(spec["label"]))
+        elif spec["kind"] == "model":
+            positions = {
+                str(k).upper(): (float(v[0]), float(v[1]), float(v[2]))
+                for k, v in spec["sensor_m"].items()
+            }
+            prior = ModelPrior(dict(spec["radio"]), positions, str(spec["label"]))
+        else:
+            raise ValueError(f"prior kind {spec['kind']!r} is not radiomap or model")
+    return RadioMap(origin, sensors, method, prior)
 
 
 def read_radiomap(path: Path) -> RadioMap:
@@ -267,41 +509,45 @@ def read_radiomap(path: Path) -> RadioMap:
             f'{path}: not a skymule radio map (expected "format": "{MAP_FORMAT}"; '
             "make one with 'skymule fit-radiomap TRACE... --out map.json')"
         )
-    try:
-        sensors = tuple(
-            SensorMap(
-                name=s["name"],
-                position_m=np.asarray(s["position_m"], float),
-                intercept_db=float(s["intercept_db"]),
-                exponent=float(s["exponent"]),
-                variogram=Variogram(
-                    float(s["sill_db2"]), float(s["range_m"]), float(s["nugget_db2"])
-                ),
-                train_m=np.asarray(s["train_m"], float).reshape(-1, 3),
-                weights=np.asarray(s["weights"], float),
-                stats={k: float(v) for k, v in s.get("stats", {}).items()},
-            )
-            for s in data["sensors"]
+    version = data.get("version")
+    if version not in (1, MAP_VERSION):
+        raise SkymuleError(
+            f"{path}: radio map version {version!r}; this skymule reads versions 1 and "
+            f"{MAP_VERSION} (refit it with 'skymule fit-radiomap')"
         )
-        origin = (float(data["origin"]["lat"]), float(data["origin"]["lon"]))
-    except (KeyError, TypeError, ValueError) as exc:
+    try:
+        return _map_from_dict(data)
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
         raise SkymuleError(f"{path}: radio map is incomplete or malformed ({exc!r})") from None
-    return RadioMap(origin, sensors)
 
 
 @dataclass(frozen=True, eq=False)
 class RadioMapSource:
     """Signal source from a fitted map: positions (P, 3) -> SNR (P, N) [dB].
 
-    ``offset_m`` (3,) is added to query positions to move them into the map's frame.
+    ``offset_m`` (3,) is added to query positions to move them into the map's frame;
+    ``prior`` is the prior's source for the same sensors (learned maps with a prior).
     """
 
     maps: tuple[SensorMap, ...]
     offset_m: np.ndarray
+    prior: Any = None
+
+    def _per_sensor(self, positions_m: np.ndarray, what: str) -> np.ndarray:
+        """(P, N) ``SensorMap.<what>`` of every sensor, with the prior's SNR when there is one."""
+        positions = np.atleast_2d(np.asarray(positions_m, float)) + self.offset_m
+        prior = None if self.prior is None else np.asarray(self.prior.snr_db(positions))
+        return np.column_stack(
+            [getattr(m, what)(positions, None if prior is None else prior[:, j])
+             for j, m in enumerate(self.maps)]
+        )  # fmt: skip
 
     def snr_db(self, positions_m: np.ndarray) -> np.ndarray:
-        positions = np.atleast_2d(np.asarray(positions_m, float)) + self.offset_m
-        return np.column_stack([m.snr_db(positions) for m in self.maps])
+        return self._per_sensor(positions_m, "snr_db")
+
+    def sigma_db(self, positions_m: np.ndarray) -> np.ndarray:
+        """(P, N) predictive standard deviation [dB] (:meth:`SensorMap.sigma_db`)."""
+        return self._per_sensor(positions_m, "sigma_db")
 
 
 # ---------------------------------------------------------------------------
@@ -333,15 +579,49 @@ def fit_radiomap(
     *,
     drop_below_db: float = DEEP_DROP_DB,
     baseline: Any = None,
+    options: FitOptions = FitOptions(),
+    prior: Prior | None = None,
 ) -> RadioMap:
     """Fit a map for each named sensor (antennas at ``sensor_m`` (N, 3)) to the traces.
 
     ``baseline`` is an optional signal source (e.g. free space) scored on the same
-    cross-validation segments for comparison.
+    cross-validation segments for comparison; ``prior`` the source a ``neural`` map learns
+    its residual over.
     """
     label = ", ".join(str(p) for p in paths)
     samples = load_samples(paths, names, frame)
-    base = None if baseline is None else baseline.snr_db(samples[0].positions_m)
+    return fit_samples(
+        samples,
+        names,
+        sensor_m,
+        (frame.origin_lat_deg, frame.origin_lon_deg),
+        drop_below_db=drop_below_db,
+        baseline=baseline,
+        options=options,
+        prior=prior,
+        label=label,
+    )
+
+
+def fit_samples(
+    samples: Sequence[SensorSamples],
+    names: Sequence[str],
+    sensor_m: np.ndarray,
+    origin: tuple[float, float],
+    *,
+    drop_below_db: float = DEEP_DROP_DB,
+    baseline: Any = None,
+    options: FitOptions = FitOptions(),
+    prior: Prior | None = None,
+    label: str = "samples",
+) -> RadioMap:
+    """:func:`fit_radiomap` on samples already gathered (one :class:`SensorSamples` a name),
+    positions in the frame of ``origin`` (lat, lon)."""
+    if prior is not None and options.method != "neural":
+        raise ValueError(f"a prior needs the neural method, not {options.method!r}")
+    positions = samples[0].positions_m
+    base = None if baseline is None else baseline.snr_db(positions)
+    prior_db = None if prior is None else np.asarray(prior.source(list(names)).snr_db(positions))
     maps = tuple(
         fit_sensor_map(
             name,
@@ -349,11 +629,13 @@ def fit_radiomap(
             samples[j],
             drop_below_db=drop_below_db,
             baseline_snr_db=None if base is None else base[:, j],
+            prior_snr_db=None if prior_db is None else prior_db[:, j],
+            options=options,
             label=label,
         )
         for j, name in enumerate(names)
     )
-    return RadioMap((frame.origin_lat_deg, frame.origin_lon_deg), maps)
+    return RadioMap(origin, maps, options.method, prior)
 
 
 def frame_offset_m(map_origin: tuple[float, float], frame: LocalFrame) -> np.ndarray:
@@ -400,7 +682,8 @@ def score_source(
     rate_bps: Any,
     drop_below_db: float = DEEP_DROP_DB,
 ) -> dict[str, dict[str, float]]:
-    """Per-sensor RMSE and bias (predicted - measured) of SNR [dB] and rate [Mbit/s].
+    """Per-sensor RMSE, bias (predicted - measured) and MAE of SNR [dB]; RMSE and bias of
+    the rate [Mbit/s].
 
     Missing samples and deep drops of the measurement are left out and counted.
     """
@@ -409,6 +692,7 @@ def score_source(
         for k in (
             "rmse_db",
             "bias_db",
+            "mae_db",
             "rate_rmse_mbps",
             "rate_bias_mbps",
             "n_scored",
@@ -422,6 +706,7 @@ def score_source(
         rate_error = (rate_bps(predicted_db[ok, j]) - rate_bps(measured_db[ok, j])) / 1e6
         out["rmse_db"][name] = _rmse(error)
         out["bias_db"][name] = float(error.mean()) if error.size else float("nan")
+        out["mae_db"][name] = float(np.abs(error).mean()) if error.size else float("nan")
         out["rate_rmse_mbps"][name] = _rmse(rate_error)
         out["rate_bias_mbps"][name] = float(rate_error.mean()) if error.size else float("nan")
         out["n_scored"][name] = int(ok.sum())

@@ -7,6 +7,8 @@ Missing SNR samples (NaN) have no link: efficiency 0.
 
 from __future__ import annotations
 
+import itertools
+import math
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -14,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from skymule.errors import SkymuleError
+from skymule.limits import MAX_EFFICIENCY_BPS_HZ
 from skymule.registry import Registry
 from skymule.sim.contract import seen_snr_db
 
@@ -89,7 +92,12 @@ BUILTIN_RATE_TABLES.register("shannon", Shannon())
 
 
 def read_rate_csv(path: Path) -> StepTable:
-    """CSV with header ``snr_db,efficiency``: a threshold table (sorted on load)."""
+    """CSV with header ``snr_db,efficiency``: a threshold table (sorted on load).
+
+    Every value finite, each threshold once, and the efficiency from 0 to
+    :data:`skymule.limits.MAX_EFFICIENCY_BPS_HZ` and never lower at a higher SNR (a better link
+    is never slower: the engines and bounds rely on it); else one line naming the row.
+    """
     try:
         lines = [ln.strip() for ln in path.read_text().splitlines() if ln.strip()]
     except OSError as exc:
@@ -104,12 +112,28 @@ def read_rate_csv(path: Path) -> StepTable:
             raise SkymuleError(
                 f"{path}: line {number}: {line!r} is not two numbers 'snr_db,efficiency'"
             ) from None
-        if eff < 0:
-            raise SkymuleError(f"{path}: line {number}: efficiency {eff} must be >= 0")
-        rows.append((snr, eff))
+        if not math.isfinite(snr):
+            raise SkymuleError(f"{path}: line {number}: snr_db {snr} must be a finite number")
+        if not (math.isfinite(eff) and 0 <= eff <= MAX_EFFICIENCY_BPS_HZ):
+            raise SkymuleError(
+                f"{path}: line {number}: efficiency {eff} must be a finite number from 0 to "
+                f"{MAX_EFFICIENCY_BPS_HZ:g} bit/s/Hz (1024-QAM carries 10)"
+            )
+        rows.append((snr, eff, number))
     if not rows:
         raise SkymuleError(f"{path}: rate table CSV has no rows")
     rows.sort()
+    for (snr_a, eff_a, line_a), (snr_b, eff_b, line_b) in itertools.pairwise(rows):
+        if snr_b == snr_a:
+            raise SkymuleError(
+                f"{path}: lines {line_a} and {line_b} both give snr_db {snr_a:g}; "
+                "give each threshold once"
+            )
+        if eff_b < eff_a:
+            raise SkymuleError(
+                f"{path}: line {line_b}: efficiency {eff_b:g} at snr_db {snr_b:g} is lower than "
+                f"{eff_a:g} at {snr_a:g} (line {line_a}); a higher SNR never gives a lower rate"
+            )
     return StepTable(str(path), tuple(r[0] for r in rows), tuple(r[1] for r in rows))
 
 

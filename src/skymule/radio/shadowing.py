@@ -25,7 +25,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.fft
 
 if TYPE_CHECKING:
     from skymule.radio.sources import SignalSource
@@ -104,6 +103,8 @@ def exponential_field_db(
     normal has real and imaginary parts that are two independent fields with covariance c
     (Dietrich & Newsam 1997, Sec. 2). Small negative eigenvalues are clipped to zero.
     """
+    import scipy.fft  # ~0.1 s to import: only scenarios with shadowing draw a field
+
     offsets = np.minimum(np.arange(nodes), nodes - np.arange(nodes)) * spacing_m
     distance = np.hypot(offsets[:, None], offsets[None, :])
     covariance = std_db**2 * np.exp(-distance / decorrelation_m)

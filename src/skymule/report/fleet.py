@@ -11,13 +11,26 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 from matplotlib.axes import Axes
-from matplotlib.figure import Figure
+from matplotlib.patches import Polygon as PolygonPatch
 
-from skymule.report.style import SENSOR_PALETTE, TOTAL_STYLE
+from skymule.report.style import (
+    DEFAULT_DPI,
+    FENCE_STYLE,
+    HOME_MARKER,
+    NEUTRAL,
+    SENSOR_PALETTE,
+    TOTAL_STYLE,
+    TOWER_MARKER,
+    finish_figure,
+    label_height,
+    panel_figure,
+    paper_style,
+    save_figure,
+    scenario_description,
+)
 
 
 def uav_colours(names: list[str]) -> dict[str, str]:
@@ -58,13 +71,6 @@ def _site_geometry(scenario: dict[str, Any]) -> dict[str, Any]:
     return {"fence": fence, "sensors": sensors, "home": home_m}
 
 
-def _save(fig: Figure, path: Path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=150)
-    plt.close(fig)
-    return path
-
-
 def _xy(point: Any, frame: Any) -> tuple[float, float] | None:
     """A scenario point (lat/lon table or [x, y] metres) in local metres, or None."""
     if isinstance(point, dict):
@@ -98,10 +104,10 @@ def draw_fleet_trajectory(
     geometry = _site_geometry(scenario_json)
     origin = scenario_json.get("site", {}).get("origin", {"lat": 35.7274824, "lon": -78.6962749})
     frame = LocalFrame(float(origin["lat"]), float(origin["lon"]))
-    if geometry["fence"] is not None:
-        fence = geometry["fence"]
-        ax.fill(fence[:, 0], fence[:, 1], color="#F0E442", alpha=0.15, lw=0)
-        ax.plot(fence[:, 0], fence[:, 1], color="#B8A800", lw=1.2, label="geofence")
+    if geometry["fence"] is not None:  # as the one-UAV map draws it (FENCE_STYLE)
+        patch = PolygonPatch(geometry["fence"], closed=True, label="geofence", **FENCE_STYLE)
+        ax.add_patch(patch)
+        ax.update_datalim(geometry["fence"])
     homes = {u["name"]: _xy(u.get("home"), frame) for u in scenario_json.get("uavs") or []}
     uavs = list(dict.fromkeys(slots["uav"].astype(str)))
     colours = uav_colours(uavs)
@@ -120,43 +126,55 @@ def draw_fleet_trajectory(
             )
         home = homes.get(name) or geometry["home"]
         ax.scatter(
-            [home[0]],
-            [home[1]],
-            marker="*",
-            s=200 * marker_scale,
-            color=colour,
-            edgecolor="black",
-            zorder=6,
-        )
+            [home[0]], [home[1]], marker=HOME_MARKER, s=70 * marker_scale, color=colour,
+            edgecolor="black", lw=0.6, zorder=6,
+        )  # fmt: skip
     for sensor, (x_m, y_m) in geometry["sensors"].items():
         ax.scatter(
-            [x_m], [y_m], marker="^", s=90 * marker_scale, color="0.5", edgecolor="black", zorder=4
-        )
-        ax.annotate(sensor, (x_m, y_m), textcoords="offset points", xytext=(5, 5), fontsize=8)
-    ax.scatter([], [], marker="*", color="0.5", edgecolor="black", label="home")
+            [x_m], [y_m], marker=TOWER_MARKER, s=45 * marker_scale, color=NEUTRAL,
+            edgecolor="black", lw=0.6, zorder=4,
+        )  # fmt: skip
+        ax.annotate(sensor, (x_m, y_m), textcoords="offset points", xytext=(3, 3), fontsize=7)
+    if geometry["sensors"]:
+        ax.plot([], [], marker=TOWER_MARKER, ls="", color=NEUTRAL, mec="k", label="tower")
+    ax.plot([], [], marker=HOME_MARKER, ls="", color=NEUTRAL, mec="k", ms=8, label="home")
     ax.scatter([], [], marker="x", color="0.3", label="lost to another UAV")
     default = f"{summary.get('scenario', '')} - {summary.get('policy', '')}"
-    ax.set_title(default if title is None else title, fontsize=9)
-    ax.set_xlabel("x east [m]")
-    ax.set_ylabel("y north [m]")
+    ax.set_title(default if title is None else title)
+    ax.set_xlabel("east [m]")
+    ax.set_ylabel("north [m]")
     ax.set_aspect("equal", adjustable="datalim")
     ax.margins(0.1)  # room for the tower names at the edges
     ax.autoscale_view()
     if legend:
-        ax.legend(fontsize=7, loc="best")
-    ax.grid(alpha=0.3)
+        ax.legend(loc="best")
     return ax
 
 
-def plot_fleet_run(run_dir: Path, summary: dict[str, Any], slots: pd.DataFrame) -> list[Path]:
-    """The trajectory figure of a fleet run (one colour per UAV); returns the paths."""
+def plot_fleet_run(
+    run_dir: Path,
+    summary: dict[str, Any],
+    slots: pd.DataFrame,
+    *,
+    formats: tuple[str, ...] = ("png",),
+    dpi: int = DEFAULT_DPI,
+) -> list[Path]:
+    """The trajectory figure of a fleet run (one colour per UAV), in the style and print size
+    of every other figure (one 3.5-in panel, legend below, the scenario in words above)."""
     import json
 
     scenario_file = run_dir / "scenario.json"
     scenario_json = json.loads(scenario_file.read_text()) if scenario_file.is_file() else {}
-    fig, ax = plt.subplots(figsize=(6.5, 6.5))
-    draw_fleet_trajectory(ax, slots, summary, scenario_json)
-    return [_save(fig, run_dir / "trajectory.png")]
+    with paper_style():
+        fig, (ax,) = panel_figure(1, 4.2)
+        label = str(summary.get("policy", ""))
+        draw_fleet_trajectory(
+            ax, slots, summary, scenario_json, legend=False, title=label, marker_scale=0.6
+        )
+        n_uavs = slots["uav"].nunique()
+        title = f"{n_uavs} UAVs: {scenario_description(scenario_json, summary)}"
+        finish_figure(fig, title)
+        return list(save_figure(fig, run_dir, "trajectory", formats, dpi).values())
 
 
 def draw_uav_sensor_bars(
@@ -181,9 +199,8 @@ def draw_uav_sensor_bars(
     buffers = np.array([float(buffers_mbit.get(s, np.nan)) for s in sensors])
     top = float(np.nanmax([*bottom, *buffers, 0.0]))
     for x_pos, height, buffer in zip(positions, bottom, buffers, strict=True):
-        near = np.isfinite(buffer) and 0.0 <= buffer - height < 0.06 * top
         ax.annotate(  # above the buffer's dash when the bar (nearly) reaches it
-            f"{height:.0f}", (x_pos, buffer if near else height), xytext=(0, 2),
+            f"{height:.0f}", (x_pos, label_height(height, [buffer], top)), xytext=(0, 2),
             textcoords="offset points", ha="center", va="bottom", fontsize=7,
         )  # fmt: skip
         if np.isfinite(buffer):

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from matplotlib.axes import Axes
 
+from skymule.io import atomic
 from skymule.report.fleet import draw_fleet_trajectory, draw_uav_cumulative, draw_uav_sensor_bars
 from skymule.report.fleet_inputs import FleetRun, load_fleet_input
 from skymule.report.html import (
@@ -29,15 +30,18 @@ from skymule.report.html import (
     PanelSpec,
     figure_html,
     format_cell,
+    gap_table,
     page_html,
     render_bars,
     render_panels,
     sensor_table,
     table_html,
 )
+from skymule.report.inputs import COMPARISON_FILE, comparison_bound, read_comparison
 from skymule.report.panels import draw_remaining
 from skymule.report.style import (
     PANEL_WIDTH_IN,
+    grid_shape,
     report_formats,
     scenario_description,
 )
@@ -200,12 +204,13 @@ def uavs_section(fleets: tuple[FleetRun, ...]) -> str:
     return "".join(parts)
 
 
-def build_fleet_report(folder: Path, pdf: bool = True) -> Path:
-    """Write ``folder/report.html`` (and ``folder/figures/*.png|pdf``) for a fleet run folder
-    or a compare folder of fleet runs; returns the HTML path. ``pdf=False`` skips the PDFs."""
+def build_fleet_report(folder: Path, pdf: bool = True, out: Path | None = None) -> Path:
+    """Write ``report.html`` (and ``figures/*.png|pdf``) for a fleet run folder or a compare
+    folder of fleet runs into ``out`` (default: ``folder``); returns the HTML path.
+    ``pdf=False`` skips the PDFs."""
     kind, fleets = load_fleet_input(folder)
     runs = tuple(f.run for f in fleets)
-    figures = folder / FIGURES_DIR
+    figures = (out or folder) / FIGURES_DIR
     first = runs[0].summary
     labels = ", ".join(f.label for f in fleets)
     title = f"{first.get('scenario', folder.name)}: {labels} ({len(fleets[0].uavs)} UAVs)"
@@ -214,18 +219,22 @@ def build_fleet_report(folder: Path, pdf: bool = True) -> Path:
         ("uavs", "UAVs", uavs_section(fleets)),
     ]
     if kind == "compare":
-        bars = render_bars(runs, figures, pdf)
-        caption = "Data downloaded per policy (all UAVs), stacked by sensor; dashed: total buffer."
+        bound = comparison_bound(read_comparison(folder / COMPARISON_FILE))
+        bars = render_bars(runs, figures, pdf, bound)
+        caption = "Data downloaded per policy (all UAVs), stacked by sensor; dashed: total buffer"
+        if bound is not None:
+            caption += "; solid: the K-UAV upper bound on what any policies can download"
         sections.append(
             (
                 "comparison",
                 "Policy comparison",
-                figure_html("policies", bars, caption, PANEL_WIDTH_IN),
+                figure_html("policies", bars, caption + ".", PANEL_WIDTH_IN)
+                + (gap_table(runs, bound) if bound is not None else ""),
             )
         )
     for panel in FLEET_PANELS:
         png = render_fleet_panel(panel, fleets, figures, pdf)
-        width = PANEL_WIDTH_IN * len(fleets)
+        width = PANEL_WIDTH_IN * grid_shape(len(fleets))[1]
         sections.append((panel.key, panel.title, figure_html(panel.key, png, panel.caption, width)))
     scenario = runs[0].scenario
     text = json.dumps(scenario, indent=2) if scenario else "(no scenario.json)"
@@ -237,6 +246,4 @@ def build_fleet_report(folder: Path, pdf: bool = True) -> Path:
         f"<p>skymule report of <code>{html.escape(str(folder))}</code> ({what}; UAVs: "
         f"{html.escape(', '.join(fleets[0].uavs))}).</p>{note_html}"
     )
-    out = folder / REPORT_FILE
-    out.write_text(page_html(title, intro, sections), encoding="utf-8")
-    return out
+    return atomic.write_text((out or folder) / REPORT_FILE, page_html(title, intro, sections))

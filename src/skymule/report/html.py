@@ -18,12 +18,16 @@ from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 from matplotlib.axes import Axes
+from matplotlib.figure import Figure
 
+from skymule.aadm.rules import AADM_WINDOW_S
+from skymule.io import atomic
 from skymule.report.figures import draw_cumulative_download, draw_snr_cdf
 from skymule.report.inputs import (
     ReportInput,
     RunData,
     ScoreBreakdown,
+    comparison_bound,
     load_input,
     score_breakdown,
 )
@@ -38,6 +42,8 @@ from skymule.report.panels import (
 from skymule.report.style import (
     PANEL_WIDTH_IN,
     finish_figure,
+    grid_shape,
+    label_outer_panels,
     panel_figure,
     paper_style,
     report_formats,
@@ -216,6 +222,19 @@ def score_table(runs: tuple[RunData, ...], scores: list[ScoreBreakdown]) -> str:
     return table_html(["AADM score", *(r.label for r in runs)], rows, "score-table")
 
 
+def gap_table(runs: tuple[RunData, ...], bound_mbit: float) -> str:
+    """Each policy's download against the upper bound on any policy (``compare``'s gap)."""
+    rows = []
+    for run in runs:
+        down = float(run.summary.get("total_downloaded_mbit", 0.0))
+        gap = bound_mbit - down
+        share = f"{100 * gap / bound_mbit:.1f}" if bound_mbit > 0 else "-"
+        cells = [f"{down:.1f}", f"{bound_mbit:.1f}", f"{gap:.1f}", share]
+        rows.append([html.escape(run.label), *cells])
+    header = ["policy", "downloaded [Mbit]", "upper bound [Mbit]", "gap [Mbit]", "gap [%]"]
+    return table_html(header, rows, "gap-table")
+
+
 def _img(png: Path, alt: str, width_in: float | None) -> str:
     data = base64.b64encode(png.read_bytes()).decode("ascii")
     size = f' style="width:{width_in * CSS_PX_PER_IN:.0f}px"' if width_in else ""
@@ -253,10 +272,31 @@ def render_panels(
         for ax, item in zip(axes, items, strict=True):
             spec.draw(ax, item)
         if spec.shared:
-            for ax in axes[1:]:  # one y label for a row of panels on the same scale
-                ax.set_ylabel("")
+            label_outer_panels(axes)
+            share_twin_axes(fig, axes)
         finish_figure(fig, title)
         return save_figure(fig, folder, stem or spec.key, formats, dpi)
+
+
+def share_twin_axes(fig: Figure, axes: Sequence[Axes]) -> None:
+    """Second y axes (the distance flown) of panels on one scale: one range for all, labelled
+    on the last column only, as the first axes are (a 1750 m axis next to a 3000 m one would
+    read as the same distance)."""
+    twins = {
+        index: other
+        for index, ax in enumerate(axes)
+        for other in fig.axes
+        if other is not ax and other.get_subplotspec() == ax.get_subplotspec()
+    }
+    if len(twins) < 2:
+        return
+    top = max(twin.get_ylim()[1] for twin in twins.values())
+    _, columns = grid_shape(len(axes))
+    for index, twin in twins.items():
+        twin.set_ylim(0, top)
+        if (index + 1) % columns and index != len(axes) - 1:  # not the row's last panel
+            twin.set_ylabel("")
+            twin.tick_params(labelright=False)
 
 
 def render_panel(
@@ -274,10 +314,12 @@ def render_panel(
     return render_panels(spec, runs, folder, figure_title(runs), chosen, dpi, stem)
 
 
-def render_bars(runs: tuple[RunData, ...], folder: Path, pdf: bool = True) -> Path:
+def render_bars(
+    runs: tuple[RunData, ...], folder: Path, pdf: bool = True, bound_mbit: float | None = None
+) -> Path:
     with paper_style():
         fig, (ax,) = panel_figure(1, 2.9)
-        draw_policy_bars(ax, runs)
+        draw_policy_bars(ax, runs, bound_mbit=bound_mbit)
         finish_figure(fig, figure_title(runs))
         return save_figure(fig, folder, "policies", report_formats(pdf), REPORT_DPI)["png"]
 
@@ -287,8 +329,9 @@ def render_score(
 ) -> Path:
     with paper_style():
         fig, (ax,) = panel_figure(1, 2.9)
-        draw_score(ax, [r.label for r in runs], scores)
-        finish_figure(fig, "AADM score breakdown", columns=3)
+        window = runs[0].scenario.get("mission", {}).get("aadm_window_s") or AADM_WINDOW_S
+        draw_score(ax, [r.label for r in runs], scores, float(window))
+        finish_figure(fig, "AADM score breakdown", columns=1)
         return save_figure(fig, folder, "score", report_formats(pdf), REPORT_DPI)["png"]
 
 
@@ -323,13 +366,13 @@ def _scenario_block(report: ReportInput) -> str:
     return intro + f"<pre>{html.escape(text)}</pre>"
 
 
-def build_run_report(folder: Path, pdf: bool = True) -> Path:
-    """Write ``folder/report.html`` (and ``folder/figures/*.png|pdf``) for a run or compare
-    folder; returns the HTML path. ``pdf=False`` skips the vector PDFs (the HTML only embeds
-    the PNGs)."""
+def build_run_report(folder: Path, pdf: bool = True, out: Path | None = None) -> Path:
+    """Write ``report.html`` (and ``figures/*.png|pdf``) for a run or compare folder into
+    ``out`` (default: ``folder``); returns the HTML path. ``pdf=False`` skips the vector PDFs
+    (the HTML only embeds the PNGs)."""
     report = load_input(folder)
     runs = report.runs
-    figures = folder / FIGURES_DIR
+    figures = (out or folder) / FIGURES_DIR
     scores = [score_breakdown(r) for r in runs]
     first = runs[0].summary
     title = f"{first.get('scenario', folder.name)}: " + (
@@ -350,16 +393,21 @@ def build_run_report(folder: Path, pdf: bool = True) -> Path:
         ),
     ]
     if report.kind == "compare":
+        bound = comparison_bound(report.comparison)
+        caption = "Data downloaded per policy, stacked by sensor; dashed: total buffer"
+        if bound is not None:
+            caption += "; solid: the upper bound on what any policy can download (skymule bound)"
         sections.append(
             (
                 "comparison",
                 "Policy comparison",
                 figure_html(
                     "policies",
-                    render_bars(runs, figures, pdf),
-                    "Data downloaded per policy, stacked by sensor; dashed: total buffer.",
+                    render_bars(runs, figures, pdf, bound),
+                    caption + ".",
                     PANEL_WIDTH_IN,
-                ),
+                )
+                + (gap_table(runs, bound) if bound is not None else ""),
             )
         )
     for spec in PER_RUN_PANELS:
@@ -371,7 +419,7 @@ def build_run_report(folder: Path, pdf: bool = True) -> Path:
                     spec.key,
                     render_panel(spec, runs, figures, pdf)["png"],
                     spec.caption,
-                    PANEL_WIDTH_IN * len(runs),
+                    PANEL_WIDTH_IN * grid_shape(len(runs))[1],
                 ),
             )
         )
@@ -399,6 +447,4 @@ def build_run_report(folder: Path, pdf: bool = True) -> Path:
     page = page_html(
         title, intro, sections, f"{payload_script(list(runs))}<script>{SCRIPT}</script>"
     )
-    out = folder / REPORT_FILE
-    out.write_text(page, encoding="utf-8")
-    return out
+    return atomic.write_text((out or folder) / REPORT_FILE, page)

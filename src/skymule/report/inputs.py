@@ -98,10 +98,10 @@ def load_input(path: Path) -> ReportInput:
         )
     runs = tuple(load_run(child, child.name) for child in children)
     table_path = path / COMPARISON_FILE
-    return ReportInput(path, "compare", runs, _read_comparison(table_path))
+    return ReportInput(path, "compare", runs, read_comparison(table_path))
 
 
-def _read_comparison(table_path: Path) -> pd.DataFrame | None:
+def read_comparison(table_path: Path) -> pd.DataFrame | None:
     """comparison.csv of a compare folder, or None when there is none."""
     if not table_path.is_file():
         return None
@@ -112,6 +112,15 @@ def _read_comparison(table_path: Path) -> pd.DataFrame | None:
             f"{table_path}: cannot read ({str(exc).splitlines()[0]}); rewrite it with "
             "`skymule compare` or delete it"
         ) from None
+
+
+def comparison_bound(comparison: pd.DataFrame | None) -> float | None:
+    """The upper bound [Mbit] ``compare`` put in comparison.csv (one scenario, one bound),
+    or None (no bound, a source comparison with one per source, or no comparison.csv)."""
+    if comparison is None or "upper_bound_mbit" not in comparison or "source" in comparison:
+        return None
+    values = comparison["upper_bound_mbit"].dropna().unique()
+    return float(values[0]) if len(values) == 1 else None
 
 
 @dataclass(frozen=True)

@@ -8,12 +8,14 @@ Each ``draw_*`` function draws on a given Axes from :class:`~skymule.report.inpu
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.collections import LineCollection
 from matplotlib.patches import Polygon as PolygonPatch
 
+from skymule.aadm.rules import AADM_WINDOW_S
 from skymule.report.inputs import RunData, ScoreBreakdown, hover_segments
 from skymule.report.style import (
     FENCE_STYLE,
@@ -22,6 +24,7 @@ from skymule.report.style import (
     NEUTRAL,
     TOTAL_STYLE,
     TOWER_MARKER,
+    label_height,
     sensor_colours,
 )
 
@@ -113,28 +116,43 @@ def draw_remaining(ax: Axes, run: RunData, title: str = "") -> Axes:
     return ax
 
 
+#: Line widths of the SNR panel: thick while the sensor is served, thin otherwise.
+SERVED_LW, UNSERVED_LW = 2.0, 0.6
+
+
 def draw_snr_time(ax: Axes, run: RunData, title: str = "") -> Axes:
-    """SNR to each sensor over time; the served sensor's line is drawn thicker."""
+    """SNR to each sensor over time; the served sensor's line is drawn thicker, and the
+    legend says so (grey "served" and "not served" entries)."""
     slots = run.slots
     colours = sensor_colours(run.sensor_names)
     for name in run.sensor_names:
         snr = slots[f"snr_db_{name}"].to_numpy(float)
-        ax.plot(slots["t_s"], snr, color=colours[name], lw=0.6, alpha=0.6)
+        ax.plot(slots["t_s"], snr, color=colours[name], lw=UNSERVED_LW, alpha=0.6)
         ax.plot(
             slots["t_s"],
             np.where(slots["served"] == name, snr, np.nan),
             color=colours[name],
-            lw=2.0,
+            lw=SERVED_LW,
             label=name,
         )
+    ax.plot([], [], color=NEUTRAL, lw=SERVED_LW, label="served (thick)")
+    ax.plot([], [], color=NEUTRAL, lw=UNSERVED_LW, label="not served (thin)")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("SNR [dB]")
     ax.set_title(title)
     return ax
 
 
-def draw_policy_bars(ax: Axes, runs: Sequence[RunData], title: str = "") -> Axes:
-    """Downloaded data per run, stacked by sensor, against the total buffer."""
+#: The upper bound on any policy's download: black and solid, unlike the grey dashed buffer.
+BOUND_STYLE: dict[str, Any] = {"color": "black", "ls": "-", "lw": 1.0}
+
+
+def draw_policy_bars(
+    ax: Axes, runs: Sequence[RunData], title: str = "", bound_mbit: float | None = None
+) -> Axes:
+    """Downloaded data per run, stacked by sensor, against the total buffer (grey dashed)
+    and, when ``compare`` computed one, the upper bound on any policy (black). Each total is
+    written above the bar, or above the lines when they would cross it."""
     names = list(dict.fromkeys(n for run in runs for n in run.sensor_names))
     colours = sensor_colours(names)
     positions = np.arange(len(runs))
@@ -145,16 +163,17 @@ def draw_policy_bars(ax: Axes, runs: Sequence[RunData], title: str = "") -> Axes
         )
         ax.bar(positions, values, bottom=bottom, color=colours[name], label=name, width=0.6)
         bottom += values
-    for x_pos, run, height in zip(positions, runs, bottom, strict=True):
-        ax.annotate(
-            f"{height:.0f}", (x_pos, height), xytext=(0, 2), textcoords="offset points",
-            ha="center", va="bottom", fontsize=7,
-        )  # fmt: skip
-        buffer = float(run.summary.get("total_buffer_mbit", np.nan))
-        ax.hlines(buffer, x_pos - 0.35, x_pos + 0.35, label="total buffer", **TOTAL_STYLE)
     buffers = [float(r.summary.get("total_buffer_mbit", 0.0)) for r in runs]
-    top = max([float(bottom.max(initial=0.0)), *buffers])
-    ax.set_ylim(0, 1.12 * top if top > 0 else 1.0)  # room for the value labels
+    top = max([float(bottom.max(initial=0.0)), *buffers, bound_mbit or 0.0])
+    for x_pos, height, buffer in zip(positions, bottom, buffers, strict=True):
+        ax.hlines(buffer, x_pos - 0.35, x_pos + 0.35, label="total buffer", **TOTAL_STYLE)
+        ax.annotate(
+            f"{height:.0f}", (x_pos, label_height(height, [buffer, bound_mbit], top)),
+            xytext=(0, 2), textcoords="offset points", ha="center", va="bottom", fontsize=7,
+        )  # fmt: skip
+    if bound_mbit is not None:
+        ax.axhline(bound_mbit, label="upper bound", **BOUND_STYLE)
+    ax.set_ylim(0, 1.15 * top if top > 0 else 1.0)  # room for the value labels
     ax.set_xticks(positions, [r.label for r in runs])
     ax.set_ylabel("downloaded [Mbit]")
     ax.grid(axis="x", visible=False)
@@ -162,19 +181,31 @@ def draw_policy_bars(ax: Axes, runs: Sequence[RunData], title: str = "") -> Axes
     return ax
 
 
-def draw_score(ax: Axes, labels: Sequence[str], scores: Sequence[ScoreBreakdown]) -> Axes:
-    """AADM score parts per run: download points + time bonus - landing penalty.
+def draw_score(
+    ax: Axes,
+    labels: Sequence[str],
+    scores: Sequence[ScoreBreakdown],
+    window_s: float = AADM_WINDOW_S,
+) -> Axes:
+    """AADM score parts per run: S2 (download points) + S1 (time bonus) - landing penalty.
 
-    The total is written inside the axes next to each bar's end, with head room above and
-    below, so it never meets the title or the (figure) legend.
+    S2 counts what was downloaded inside the ``window_s`` window, which is not the run's
+    completion when the mission is longer than the window; the legend says so. The total is
+    written inside the axes next to each bar's end, with head room above and below, so it
+    never meets the title or the (figure) legend.
     """
     positions = np.arange(len(scores))
     download = np.array([s.download_points for s in scores])
     bonus = np.array([s.time_bonus for s in scores])
     penalty = np.array([s.landing_penalty for s in scores])
-    ax.bar(positions, download, width=0.6, color="#0072B2", label="100 x completion")
+    window = f"{window_s:g} s"
+    ax.bar(
+        positions, download, width=0.6, color="#0072B2",
+        label=f"S2: 100 × share downloaded in the first {window}",
+    )  # fmt: skip
     if (bonus > 0).any():
-        ax.bar(positions, bonus, bottom=download, width=0.6, color="#009E73", label="time bonus")
+        bonus_label = f"S1: {window} − t1 (all downloaded by t1)"
+        ax.bar(positions, bonus, bottom=download, width=0.6, color="#009E73", label=bonus_label)
     if (penalty > 0).any():
         ax.bar(positions, -penalty, width=0.6, color="#D55E00", label="landing penalty")
     high = float(max((download + bonus).max(initial=0.0), 1.0))

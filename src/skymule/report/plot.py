@@ -34,7 +34,7 @@ def plot_run(
     if "uav" in slots.columns:  # several UAVs: one map, one colour per UAV (docs/fleet.md)
         from skymule.report.fleet import plot_fleet_run
 
-        return plot_fleet_run(run_dir, summary, slots)
+        return plot_fleet_run(run_dir, summary, slots, formats=formats, dpi=dpi)
     from skymule.io.runs import SCENARIO_FILE
     from skymule.report.html import PER_RUN_PANELS, render_panel
     from skymule.report.inputs import RunData, read_scenario

@@ -14,12 +14,14 @@ colour-blind-safe colours, the same marks and labels everywhere, PNG/PDF/SVG out
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")
 
@@ -30,6 +32,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from skymule.errors import SkymuleError
+from skymule.io import atomic
 
 if TYPE_CHECKING:
     from matplotlib.typing import RcKeyType
@@ -135,6 +138,25 @@ def sensor_colours(names: Sequence[str]) -> dict[str, str]:
     return {name: matplotlib.colors.to_hex(cmap(0.05 + i * step)) for i, name in enumerate(names)}
 
 
+#: Markers and line styles that tell policies apart where their lines overlap (with colour).
+POLICY_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "h")
+POLICY_LINES: tuple[Any, ...] = ("-", "--", "-.", ":")
+
+
+def policy_styles(names: Sequence[str]) -> dict[str, dict[str, Any]]:
+    """A colour (the sensor palette's order), marker and line style per policy, in order:
+    two policies with the same results still show as two marks."""
+    colours = sensor_colours(names)
+    return {
+        name: {
+            "color": colours[name],
+            "marker": POLICY_MARKERS[i % len(POLICY_MARKERS)],
+            "ls": POLICY_LINES[i % len(POLICY_LINES)],
+        }
+        for i, name in enumerate(names)
+    }
+
+
 def report_formats(pdf: bool) -> tuple[str, ...]:
     """The formats a report writes each figure in: PNG (embedded), and PDF (vector) unless
     ``pdf`` is False."""
@@ -197,20 +219,56 @@ def scenario_description(scenario: dict[str, Any], summary: dict[str, Any]) -> s
     return ", ".join(parts)
 
 
+#: Panels a figure puts side by side at most: two make 7 in, the full text width of a
+#: two-column paper (IEEE: 7.16 in); more runs wrap into further rows.
+MAX_COLUMNS = 2
+
+
+def grid_shape(n_panels: int, max_columns: int = MAX_COLUMNS) -> tuple[int, int]:
+    """(rows, columns) of a figure of ``n_panels`` print-sized panels."""
+    columns = max(1, min(n_panels, max_columns))
+    return -(-n_panels // columns), columns
+
+
 def panel_figure(
-    n_panels: int, height_in: float, *, sharex: bool = False, sharey: bool = False
+    n_panels: int,
+    height_in: float,
+    *,
+    sharex: bool = False,
+    sharey: bool = False,
+    max_columns: int = MAX_COLUMNS,
 ) -> tuple[Figure, list[Axes]]:
-    """A figure of ``n_panels`` print-sized panels side by side (constrained layout)."""
-    fig, axes = plt.subplots(
-        1,
-        n_panels,
-        figsize=(PANEL_WIDTH_IN * n_panels, height_in),
+    """A figure of ``n_panels`` print-sized panels (constrained layout), at most
+    ``max_columns`` side by side and as many rows as it takes; returns the panels in reading
+    order (a last row that is not full leaves its empty places blank)."""
+    rows, columns = grid_shape(n_panels, max_columns)
+    fig, grid = plt.subplots(
+        rows,
+        columns,
+        figsize=(PANEL_WIDTH_IN * columns, height_in * rows),
         squeeze=False,
         sharex=sharex,
         sharey=sharey,
         layout="constrained",
     )
-    return fig, list(axes[0])
+    axes = list(grid.ravel())
+    for spare in axes[n_panels:]:
+        spare.remove()
+    return fig, axes[:n_panels]
+
+
+def label_outer_panels(axes: Sequence[Axes], max_columns: int = MAX_COLUMNS) -> None:
+    """For panels on one scale (shared axes): the y label on the first column only, the x
+    label on the lowest panel of each column only (the figure reads as one plot)."""
+    _, columns = grid_shape(len(axes), max_columns)
+    for index, ax in enumerate(axes):
+        if index % columns:
+            ax.set_ylabel("")
+        if index + columns < len(axes):
+            ax.set_xlabel("")
+            ax.tick_params(labelbottom=False)
+        else:  # the lowest of its column, though not on the last row: its ticks read
+            ax.tick_params(labelbottom=True)
 
 
 def _legend_entries(fig: Figure) -> tuple[list[Artist], list[str]]:
@@ -234,7 +292,23 @@ def finish_figure(fig: Figure, title: str = "", columns: int | None = None) -> N
         ncol = columns or max(1, min(len(labels), fits))
         fig.legend(handles, labels, loc="outside lower center", ncol=ncol)
     if title:
-        fig.suptitle(title)
+        fig.suptitle(wrap_title(title, fig.get_figwidth()))
+
+
+def label_height(height: float, lines: Sequence[float | None], top: float) -> float:
+    """Where a bar's value label goes: on the bar, or on the highest of ``lines`` (a buffer,
+    a bound) that runs just above it, so the number never sits on a line. A 7-pt label on a
+    ~2-in axes spans ~10 % of its height (``top``: the largest value drawn)."""
+    near = [v for v in lines if v is not None and np.isfinite(v) and 0 <= v - height < 0.1 * top]
+    return max([height, *near])
+
+
+def wrap_title(title: str, width_in: float) -> str:
+    """``title`` folded into lines that fit ``width_in`` at the figure-title size (a long
+    scenario description would be cut at both sides of a one-panel figure)."""
+    size = float(PAPER_RC["figure.titlesize"])
+    per_line = max(20, int(width_in * 72 / (0.55 * size)))  # ~0.55 em a character
+    return "\n".join(textwrap.wrap(title, per_line)) or title
 
 
 def save_figure(
@@ -253,7 +327,8 @@ def save_figure(
     try:
         for fmt in formats:
             path = folder / f"{stem}.{fmt}"
-            fig.savefig(path, dpi=dpi, format=fmt, metadata=_metadata(fmt))
+            with atomic.atomic_path(path) as tmp:
+                fig.savefig(tmp, dpi=dpi, format=fmt, metadata=_metadata(fmt))
             written[fmt] = path
     finally:
         plt.close(fig)

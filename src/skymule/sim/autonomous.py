@@ -378,7 +378,8 @@ class AutonomousEngine:
         n_flights = len(self.missions)
         active, slot = self.active, self.slot
         sensor = check_actions(action, n_flights, self.n_sensors, who)
-        sensor = np.where(active & (slot < self.window), sensor, NO_SENSOR)
+        # a UAV that landed (battery) is not served: the AADM controller stops at disarm
+        sensor = np.where(active & (slot < self.window) & ~self.landed, sensor, NO_SENSOR)
         chosen = sensor
         served, bits, lost = contract.serve_slot(
             sensor, self._deliver, self._ok, self.remaining, self.group, self.uavs, self.slot_s

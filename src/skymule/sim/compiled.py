@@ -27,6 +27,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import inspect
+import sys
 import types
 from collections.abc import Callable
 from functools import cache
@@ -279,6 +280,7 @@ def jit(
     import numba
     from numba.extending import register_jitable
 
+    note_first_compile()
     for kernel in calls:
         register_jitable(inline="always" if kernel in inline else "never")(kernel)
     source = "".join(inspect.getsource(f) for f in (function, *calls))
@@ -287,6 +289,37 @@ def jit(
     copy = types.FunctionType(function.__code__, function.__globals__, name)
     copy.__qualname__ = name
     return numba.njit(nogil=True, cache=True)(copy)
+
+
+FIRST_COMPILE_NOTE = (
+    "skymule: compiling the fast engine (numba) for this installation, once (~10-20 s); "
+    "later runs load it from numba's cache"
+)
+
+
+@cache
+def note_first_compile() -> None:
+    """Once per process: have numba's compile event (fired on a cache miss only: a new
+    installation, or a changed rule) print :data:`FIRST_COMPILE_NOTE` on stderr the first
+    time a skymule kernel compiles, so a first run's pause is explained. Only on a terminal
+    (as the progress bars); each process that compiles says it for itself."""
+    from numba.core import event
+
+    class FirstCompileNote(event.Listener):
+        def __init__(self) -> None:
+            self.said = False
+
+        def on_start(self, happened: event.Event) -> None:
+            function = getattr(happened.data.get("dispatcher"), "py_func", None)
+            ours = getattr(function, "__module__", "").startswith("skymule.")
+            if ours and not self.said and sys.stderr.isatty():
+                self.said = True
+                print(FIRST_COMPILE_NOTE, file=sys.stderr, flush=True)
+
+        def on_end(self, happened: event.Event) -> None:
+            return None
+
+    event.register("numba:compile", FirstCompileNote())
 
 
 @cache

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import overload
 
 import numpy as np
 
 from skymule.errors import SkymuleError
-from skymule.policies.base import MissionContext
+from skymule.policies.base import MissionContext, read_only
 from skymule.world import Mission
 
 
@@ -59,12 +59,27 @@ def fixed_context(
 
 class Contexts(Sequence[MissionContext]):
     """The B contexts of a batch, each made when first read (a policy that reads none of them,
-    or a few, does not pay for the rest; sweeps run thousands of missions a batch)."""
+    or a few, does not pay for the rest; sweeps run thousands of missions a batch).
 
-    def __init__(self, size: int, make: Callable[[int], MissionContext]) -> None:
+    ``columns`` maps field names to (B, ...) arrays the engine already holds (peak rates,
+    buffers, slot lengths): :func:`skymule.policies.base.stacked` reads them without making a
+    context per mission."""
+
+    def __init__(
+        self,
+        size: int,
+        make: Callable[[int], MissionContext],
+        columns: Mapping[str, np.ndarray] | None = None,
+    ) -> None:
         self._size = size
         self._make = make
         self._made: dict[int, MissionContext] = {}
+        self._columns = dict(columns or {})
+
+    def stack(self, field: str) -> np.ndarray | None:
+        """(B, ...) the field of every context, read-only, if the engine holds it; else None."""
+        values = self._columns.get(field)
+        return None if values is None else read_only(values)
 
     def __len__(self) -> int:
         return self._size

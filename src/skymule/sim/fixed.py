@@ -216,7 +216,13 @@ class FixedEngine:
             k = int(tables.n_samples[u])
             return fixed_context(self.missions[b], tables.rate_bps[u, :k], tables.peak_rate_bps[u])
 
-        return Contexts(len(self.missions), make)
+        columns = {
+            "slot_s": self.slot_s,
+            "n_slots": self.n_slots,
+            "peak_rate_bps": tables.peak_rate_bps[tables.track_id],
+            "buffers_bit": np.array([m.buffers_bit for m in self.missions], float),
+        }
+        return Contexts(len(self.missions), make, columns)
 
     @property
     def done(self) -> bool:

@@ -69,6 +69,11 @@ def uav_scenario(scenario: Scenario, index: int) -> Scenario:
     if uav.max_speed_mps is not None:
         update["max_speed_mps"] = uav.max_speed_mps
         update["speed_mps"] = uav.max_speed_mps
+    if trajectory.flight is not None:
+        raise ScenarioError(
+            f"uavs[{index}] ({uav.name}): trajectory.flight flies one recorded flight; give each "
+            "UAV of a fleet its own waypoints instead"
+        )
     if uav.waypoints is not None:
         update["waypoints"] = uav.waypoints
     elif trajectory.mode == "fixed":

@@ -40,9 +40,6 @@ def run_missions(
     keep per-slot SNR, rates and buffers (run folders); ``engine``: one of
     :data:`skymule.sim.compiled.ENGINES`.
     """
-    from skymule.sim.autonomous import run_autonomous
-    from skymule.sim.fixed import run_fixed
-
     compiled.check_engine(engine)
     batch = as_batch_policy(policy)
     modes = {m.mode for m in missions}
@@ -50,8 +47,12 @@ def run_missions(
         raise SkymuleError(f"one batch runs one trajectory mode, got {sorted(modes)}")
     mode = modes.pop()
     if mode == "fixed":
+        from skymule.sim.fixed import run_fixed
+
         return run_fixed(missions, batch, fleet=fleet, detail=detail, engine_choice=engine)
-    if mode == "autonomous":
+    if mode == "autonomous":  # its engine (fence, paths, wind) costs ~0.1 s to import
+        from skymule.sim.autonomous import run_autonomous
+
         return run_autonomous(missions, batch, fleet=fleet, detail=detail, engine=engine)
     raise SkymuleError(f"trajectory.mode = {mode!r} is not supported; allowed: fixed, autonomous")
 

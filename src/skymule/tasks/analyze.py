@@ -234,6 +234,25 @@ class ScoredDownloads:
     score: dict[str, float | bool]
 
 
+#: Mbit a logged total may exceed its tower's volume by (the controller logs 2 decimals).
+LOG_VOLUME_SLACK_MBIT = 0.01
+
+
+def check_download_totals(
+    path: Path, log: aadm_files.AadmDownloadLog, volumes_mbit: np.ndarray
+) -> None:
+    """Refuse a download log in which a tower got more than its volume (the controller clips
+    every tower at its volume: such a log is not of this flight, or not of these volumes)."""
+    over = log.cumulative_mbit > volumes_mbit[None, :] + LOG_VOLUME_SLACK_MBIT
+    if over.any():
+        row, tower = (int(i) for i in np.argwhere(over)[0])
+        raise SkymuleError(
+            f"{path}: row {row + 2}, column {log.towers[tower]}: "
+            f"{log.cumulative_mbit[row, tower]:g} Mbit downloaded, more than the tower's "
+            f"volume of {volumes_mbit[tower]:g} Mbit; a tower can give at most its volume"
+        )
+
+
 def read_aadm_download_log(
     path: Path, log_path: Path, mission: Mission, share_slot: int
 ) -> ScoredDownloads:
@@ -249,6 +268,7 @@ def read_aadm_download_log(
             f"{path}: {len(log.towers)} tower columns for the {len(names)} SNR columns "
             f"({', '.join(names)}) of {log_path.name}"
         )
+    check_download_totals(path, log, mission.buffers_bit / BITS_PER_MBIT)
     steps_bit = np.diff(log.cumulative_mbit, axis=0, prepend=0.0) * BITS_PER_MBIT
     start = _log_start(log_path)
     first = share_slot

@@ -31,12 +31,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from skymule.errors import SkymuleError
+from skymule.io import atomic
 from skymule.policies import check_policies
 from skymule.radio.pathloss import PATHLOSS_MODELS
 from skymule.registry import did_you_mean
 from skymule.scenario import Scenario
 from skymule.tasks.simulate import RunResult, simulate
-from skymule.units import BITS_PER_MBIT
 from skymule.world import Mission, build_mission
 
 if TYPE_CHECKING:
@@ -125,7 +125,8 @@ def mission_bound_or_note(mission: Mission) -> tuple[MissionBound | None, str | 
 
 def scenario_bound(scenario: Scenario) -> MissionBound:
     """The upper bound on what any policy can download in ``scenario`` (one-line error if none);
-    with ``[[uavs]]``, the K-UAV bound (``docs/fleet.md``)."""
+    with ``[[uavs]]``, the K-UAV bound (``docs/fleet.md``). In Mbit:
+    ``scenario_bound(s).upper_bound_mbit`` (``upper_bound_bit`` inside)."""
     if scenario.uavs:
         from skymule.bounds.fleet import fleet_bound
         from skymule.sim.fleet import build_fleet
@@ -140,7 +141,7 @@ def with_gap(row: dict[str, Any], upper: MissionBound | None) -> dict[str, Any]:
     """``row`` plus upper_bound_mbit and the gap columns (unchanged without a bound)."""
     if upper is None:
         return row
-    bound_mbit = upper.upper_bound_bit / BITS_PER_MBIT
+    bound_mbit = upper.upper_bound_mbit
     gap = bound_mbit - row["total_downloaded_mbit"]
     frac = gap / bound_mbit if bound_mbit > 0 else 0.0
     return {**row, "upper_bound_mbit": bound_mbit, GAP_COLUMNS[0]: gap, GAP_COLUMNS[1]: frac}
@@ -151,23 +152,25 @@ def bound_row(upper: MissionBound, **extra: object) -> dict[str, Any]:
     return {
         **extra,
         "policy": "bound",
-        "total_downloaded_mbit": upper.upper_bound_bit / BITS_PER_MBIT,
+        "total_downloaded_mbit": upper.upper_bound_mbit,
     }
 
 
 def write_bound(folder: Path, upper: MissionBound) -> Path:
     """Write ``folder/bound.json`` (Mbit) and return its path."""
     folder.mkdir(parents=True, exist_ok=True)
-    path = folder / BOUND_JSON
-    path.write_text(json.dumps(upper.to_json_dict(), indent=2) + "\n")
-    return path
+    return atomic.write_text(folder / BOUND_JSON, json.dumps(upper.to_json_dict(), indent=2) + "\n")
 
 
 def _run_all(
     scenario: Scenario, policies: Sequence[str], source: str | None, mission: Mission | None
 ) -> list[CompareRun]:
     shared = build_mission(scenario) if mission is None else mission
-    return [CompareRun(source, p, simulate(scenario, p, mission=shared)) for p in policies]
+    variants = scenario.with_policies(policies)  # each policy gets its own parameters
+    return [
+        CompareRun(source, name, simulate(variant, mission=shared))
+        for name, variant in zip(policies, variants, strict=True)
+    ]
 
 
 def compare_policies(
@@ -265,7 +268,8 @@ def write_compare(
     for run in comparison.runs:
         run.result.write(run_folder(out, run))
     written = [out / COMPARISON_CSV]
-    pd.DataFrame([*comparison.rows(), *extra_rows]).to_csv(written[0], index=False)
+    table = pd.DataFrame([*comparison.rows(), *extra_rows])
+    atomic.write_with(written[0], lambda tmp: table.to_csv(tmp, index=False))
     if not comparison.by_source:
         upper = comparison.bounds.get(None)
         if upper is not None:
@@ -286,5 +290,5 @@ def _snr_cdf_figure(comparison: Comparison, out: Path) -> Path:
         if run.policy == first_policy
     ]
     figure = out / "snr_cdf_by_source.png"
-    plot_snr_cdf_by_source(panels, figure, f"SNR CDF ({first_policy})")
+    plot_snr_cdf_by_source(panels, figure, f"SNR CDF by signal source ({first_policy})")
     return figure

@@ -21,6 +21,7 @@ import pandas as pd
 
 from skymule.bounds.result import MissionBound
 from skymule.errors import SkymuleError
+from skymule.io import atomic
 from skymule.io.runs import slots_frame, write_run
 from skymule.metrics.flights import Flights
 from skymule.metrics.summary import summarize
@@ -209,7 +210,8 @@ def write_fleet_compare(comparison: FleetComparison, out: Path) -> list[Path]:
     for result in comparison.results:
         result.write(out / result.summary["policy"])
     written = [out / COMPARISON_CSV]
-    pd.DataFrame(comparison.rows()).to_csv(written[0], index=False)
+    table = pd.DataFrame(comparison.rows())
+    atomic.write_with(written[0], lambda tmp: table.to_csv(tmp, index=False))
     if comparison.bound is not None:
         written.append(write_bound(out, comparison.bound))
     return written

@@ -25,7 +25,7 @@ from skymule.errors import SkymuleError
 
 if TYPE_CHECKING:
     from skymule.geo import LocalFrame
-    from skymule.radio.radiomap import RadioMap
+    from skymule.radio.radiomap import Prior, RadioMap
     from skymule.radio.sources import SignalSource
 
 LatLonDeg = tuple[float, float]
@@ -56,6 +56,8 @@ class RadioMapFit:
 
     fitted: RadioMap
     rows: list[dict[str, Any]]
+    warnings: tuple[str, ...] = ()
+    """One line per sensor whose fit is degenerate (:func:`fit_warnings`)."""
 
     COLUMNS = (
         "sensor", "exponent", "intercept_db", "sigma_db", "range_m", "nugget_db", "n_used",
@@ -64,26 +66,94 @@ class RadioMapFit:
     )  # fmt: skip
 
 
+def is_map_file(spec: str) -> bool:
+    """True for a radio-map JSON path (``*.json``)."""
+    return spec.lower().endswith(".json")
+
+
+def is_trace_file(spec: str) -> bool:
+    """True for a recorded flight (``*.csv``: an AADM merged log or a digital-twin export)."""
+    return spec.lower().endswith(".csv")
+
+
+def resolve_prior(
+    spec: str, names: Sequence[str], sensor_m: np.ndarray, frame: LocalFrame
+) -> Prior:
+    """The prior (a twin) a learned map calibrates, from ``--prior``.
+
+    A radio-map JSON is held as it is; a recorded flight (a DT export or merged log) is
+    fitted to a kriging map first; a scenario or preset gives its path-loss model and link
+    budget (its sensors' positions where it has them, else ``sensor_m``), without shadowing.
+    """
+    from skymule.geo import sensor_positions_m
+    from skymule.radio.radiomap import (
+        MapPrior,
+        ModelPrior,
+        fit_radiomap,
+        frame_offset_m,
+        read_radiomap,
+    )
+    from skymule.scenario import load_scenario
+
+    if is_map_file(spec):
+        fitted = read_radiomap(Path(spec))
+        for name in names:
+            fitted.sensor(name, label=f"--prior {spec}")
+        return MapPrior(fitted, frame_offset_m(fitted.origin, frame), spec)
+    if is_trace_file(spec):
+        fitted = fit_radiomap([Path(spec)], names, sensor_m, frame)
+        return MapPrior(fitted, np.zeros(3), spec)
+    scenario = load_scenario(spec)
+    if scenario.signal.source != "model":
+        raise SkymuleError(
+            f"--prior {spec}: signal.source = {scenario.signal.source!r}; a scenario prior gives "
+            "its path-loss model (source = 'model'); pass a map (.json) or a flight (.csv) "
+            "instead"
+        )
+    own = {s.name.upper(): s for s in scenario.sensors if s.has_position}
+    own_m = sensor_positions_m(scenario.sensors, frame) if own else np.zeros((0, 3))
+    index = {s.name.upper(): i for i, s in enumerate(scenario.sensors)}
+    positions: dict[str, tuple[float, float, float]] = {}
+    for j, name in enumerate(names):
+        xyz = own_m[index[name.upper()]] if name.upper() in own else sensor_m[j]
+        positions[name.upper()] = (float(xyz[0]), float(xyz[1]), float(xyz[2]))
+    return ModelPrior(scenario.radio.model_dump(mode="json"), positions, spec)
+
+
 def fit_radiomap_files(
     traces: Sequence[Path],
     *,
     scenario: str | None = None,
     origin: LatLonDeg | None = None,
     drop_below_db: float = -40.0,
+    method: str = "kriging",
+    prior: str | None = None,
+    seed: int = 0,
 ) -> RadioMapFit:
-    """Fit a radio map (log-distance + kriged residual) per sensor to recorded flights.
+    """Fit a radio map per sensor to recorded flights, by ``method`` (``METHODS``).
 
     Sensors, positions, origin and link budget come from ``scenario`` (a path or preset) when
     given; otherwise the sensors are the first trace's SNR columns at the Lake Wheeler towers.
+    ``prior`` (``neural`` only): a map, flight or scenario whose prediction the map learns
+    to correct (:func:`resolve_prior`); ``seed`` seeds the networks.
     """
     from skymule.geo import sensor_positions_m
     from skymule.io.traces import read_trace
-    from skymule.radio.radiomap import fit_radiomap, site_tower_positions_m
+    from skymule.radio.radiomap import METHODS, FitOptions, fit_radiomap, site_tower_positions_m
     from skymule.radio.sources import model_source
+    from skymule.registry import did_you_mean
     from skymule.scenario import RadioSpec, SiteSpec, load_scenario
 
     if not traces:
         raise SkymuleError("fit-radiomap: give at least one recorded flight")
+    if method not in METHODS:
+        raise SkymuleError(
+            f"--method {method!r}: allowed: {', '.join(METHODS)}{did_you_mean(method, METHODS)}"
+        )
+    if prior is not None and method != "neural":
+        raise SkymuleError(
+            f"--prior calibrates a learned map: it needs --method neural, not {method!r}"
+        )
     spec = load_scenario(scenario) if scenario else None
     site = spec.site.origin if spec else SiteSpec().origin
     frame = _frame(origin, (site.lat, site.lon))
@@ -97,7 +167,14 @@ def fit_radiomap_files(
         radio = RadioSpec()
     baseline = model_source(radio.model_copy(update={"model": "fspl"}), sensor_m)
     fitted = fit_radiomap(
-        list(traces), names, sensor_m, frame, drop_below_db=drop_below_db, baseline=baseline
+        list(traces),
+        names,
+        sensor_m,
+        frame,
+        drop_below_db=drop_below_db,
+        baseline=baseline,
+        options=FitOptions(method, seed),
+        prior=None if prior is None else resolve_prior(prior, names, sensor_m, frame),
     )
     rows = [
         {
@@ -111,7 +188,33 @@ def fit_radiomap_files(
         }
         for m in fitted.sensors
     ]
-    return RadioMapFit(fitted, rows)
+    return RadioMapFit(fitted, rows, fit_warnings(rows, method))
+
+
+KRIGED_OVER = {"kriging": "log-distance trend", "neural": "learned model"}
+"""Methods that krige a residual, and what the map is where there is nothing to krige."""
+
+
+def fit_warnings(rows: Sequence[dict[str, Any]], method: str = "kriging") -> tuple[str, ...]:
+    """A line for each sensor whose kriged residual is degenerate: no spatial structure (the
+    variogram fit ends at its shortest range or without a sill), so the map there is the
+    method's trend alone, whatever its kriging parameters read. Methods that krige nothing
+    (``log-distance``; ``gp`` fits its own kernel) get none."""
+    from skymule.radio.kriging import NO_SILL_DB2, SHORTEST_RANGE_M
+
+    trend = KRIGED_OVER.get(method)
+    if trend is None:
+        return ()
+    found = []
+    for row in rows:
+        name, sigma, range_m = row["sensor"], row["sigma_db"], row["range_m"]
+        if sigma**2 <= NO_SILL_DB2 or range_m <= SHORTEST_RANGE_M:
+            found.append(
+                f"{name}: degenerate fit (sigma {sigma:.3f} dB, range {range_m:.1f} m): the "
+                f"residual shows no spatial correlation, so the map is the {trend} alone "
+                f"there; more samples near {name} may help"
+            )
+    return tuple(found)
 
 
 def score_against_trace(

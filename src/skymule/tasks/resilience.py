@@ -25,7 +25,6 @@ import pandas as pd
 
 from skymule.errors import SkymuleError
 from skymule.scenario import Scenario, scenario_from_dict
-from skymule.units import BITS_PER_MBIT
 
 FaultLevel = Callable[[float], dict[str, Any]]
 
@@ -133,8 +132,8 @@ def run_study(
         for m in range(missions):
             single = leveled(scenario, kind, level, m)
             mission = build_mission(single)
-            for name in policies:
-                summary = simulate(single, policy=name, mission=mission).summary
+            for name, variant in zip(policies, single.with_policies(policies), strict=True):
+                summary = simulate(variant, mission=mission).summary
                 rows.append(
                     {
                         "level": level,
@@ -149,7 +148,7 @@ def run_study(
 
         for m in range(missions):
             clean = build_mission(leveled(scenario, kind, 0.0, m))
-            bounds.append(fixed_mission_bound(clean).upper_bound_bit / BITS_PER_MBIT)
+            bounds.append(fixed_mission_bound(clean).upper_bound_mbit)
     return Study(pd.DataFrame(rows), np.array(bounds) if bounds else None)
 
 
@@ -195,29 +194,3 @@ def paired_difference(study: Study, a: str, b: str, level: float) -> tuple[float
     first = rows[rows["policy"] == a].sort_values("mission")["mbit"].to_numpy()
     second = rows[rows["policy"] == b].sort_values("mission")["mbit"].to_numpy()
     return mean_ci(first - second)
-
-
-def plot(frame: pd.DataFrame, kind: str, path: Path) -> None:
-    """Mbit vs level, one line per policy with its 95 % CI band (and the bound, dashed)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6, 4))
-    try:
-        for policy, group in frame.groupby("policy", sort=False):
-            x = group["level"].to_numpy(float)
-            y, ci = group["mbit_mean"].to_numpy(float), group["mbit_ci95"].to_numpy(float)
-            (line,) = ax.plot(x, y, marker="o", label=str(policy))
-            ax.fill_between(x, y - ci, y + ci, color=line.get_color(), alpha=0.2)
-        bound = frame["bound_mbit_mean"].dropna()
-        if not bound.empty:
-            ax.axhline(float(bound.iloc[0]), color="k", ls="--", lw=1, label="bound (fault-free)")
-        ax.set_xlabel(f"{kind}: {LEVELS[kind][0]}")
-        ax.set_ylabel("downloaded [Mbit] (mean, 95 % CI)")
-        ax.legend()
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-    finally:
-        plt.close(fig)

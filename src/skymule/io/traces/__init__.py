@@ -30,7 +30,7 @@ import numpy as np
 from skymule.io.traces import aadm, dt
 from skymule.io.traces.aadm import AADM_REQUIRED, AADM_TIME_FORMAT, write_aadm_log
 from skymule.io.traces.dt import DT_MISSING, DT_REQUIRED, write_dt_export
-from skymule.io.traces.table import locate, numbers, read_table
+from skymule.io.traces.table import check_range, locate, numbers, read_table
 from skymule.io.traces.timestamps import time_column
 from skymule.io.traces.trace import (
     ToLocal,
@@ -43,6 +43,7 @@ from skymule.io.traces.trace import (
     quote,
 )
 from skymule.io.traces.volumes import read_volumes
+from skymule.limits import MAX_ALTITUDE_M, MAX_COORDINATE_M
 from skymule.registry import Registry
 
 __all__ = [
@@ -152,6 +153,12 @@ def read_trace(path: str | os.PathLike[str], *, sensors: Sequence[str] | None = 
     columns = tuple(normalise_column(header[i]) for i in snr_idx)
     if fmt == "aadm":
         return aadm.build_trace(label, table, where, time_s, snr, columns, pos)
+    for name, limit in (
+        ("X", MAX_COORDINATE_M),
+        ("Y", MAX_COORDINATE_M),
+        ("Height", MAX_ALTITUDE_M),
+    ):
+        check_range(label, table, where[name], pos[name], limit, "m")
     return dt.build_trace(label, time_s, snr, columns, pos)
 
 

@@ -18,6 +18,7 @@ import pandas as pd
 from skymule.io.traces.table import Table, check_range
 from skymule.io.traces.trace import Trace, TraceError, listing
 from skymule.io.traces.writing import write_csv, writer_arrays
+from skymule.limits import MAX_ALTITUDE_M
 
 AADM_TIME_FORMAT = "%Y-%m-%d %H:%M:%S.%f"
 AADM_REQUIRED = ("time", "Longitude", "Latitude", "Altitude")
@@ -47,6 +48,7 @@ def build_trace(
     """The trace of a merged log (latitude/longitude checked against their ranges)."""
     check_range(label, table, where["Latitude"], pos["Latitude"], 90.0)
     check_range(label, table, where["Longitude"], pos["Longitude"], 180.0)
+    check_range(label, table, where["Altitude"], pos["Altitude"], MAX_ALTITUDE_M, "m")
     return Trace(
         path=label,
         format="aadm",

@@ -18,6 +18,12 @@ import pandas as pd
 
 from skymule.io.traces.trace import TraceError, listing, quote
 
+MAX_TRACE_BYTES = 256 * 2**20
+"""Largest trace file [byte] read: its cells take about ten times as much memory."""
+MAX_TRACE_ROWS = 1_000_000
+"""Most data rows a trace may have (11.6 days at 1 Hz, 28 h at 10 Hz; an AADM flight is about
+1,200): checked while reading, so a longer file stops there instead of filling the memory."""
+
 NUMBER_RE = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
 _NAN_TOKENS = frozenset({"nan", "na", "n/a", "null", "none"})
 _UNNAMED_RE = re.compile(r"unnamed: \d+", re.IGNORECASE)
@@ -51,7 +57,34 @@ def file_errors(label: str, expected: str) -> Iterator[None]:
         raise TraceError(f"{label}: cannot read file ({exc.strerror or exc})") from None
 
 
+def _too_big(label: str, what: str) -> TraceError:
+    rows = f"{MAX_TRACE_ROWS:,}"
+    return TraceError(
+        f"{label}: {what}; a trace may have at most {MAX_TRACE_BYTES // 2**20} MiB and {rows} "
+        f"data rows: cut it to the part of the flight you need, e.g. `head -n "
+        f"{MAX_TRACE_ROWS + 1} {label} > part.csv` keeps the header and the first {rows} rows"
+    )
+
+
+def _count_lines(path: Path, stop: int) -> int:
+    """Line breaks in ``path`` (raw bytes, 1 MiB at a time), up to just past ``stop``."""
+    count = 0
+    with path.open("rb") as handle:
+        while count <= stop and (chunk := handle.read(2**20)):
+            count += chunk.count(b"\n")
+    return count
+
+
 def read_table(label: str, path: Path) -> Table:
+    """The CSV's header and cells; a file over :data:`MAX_TRACE_BYTES` is refused before it
+    is read, one over :data:`MAX_TRACE_ROWS` rows as soon as reading passes them."""
+    with file_errors(label, "a CSV file"):
+        size = path.stat().st_size
+        breaks = _count_lines(path, MAX_TRACE_ROWS + 1) if size <= MAX_TRACE_BYTES else 0
+    if size > MAX_TRACE_BYTES:
+        raise _too_big(label, f"{size / 2**20:,.0f} MiB")
+    if breaks > MAX_TRACE_ROWS + 1:  # the header and the rows: refused before any is parsed
+        raise _too_big(label, f"more than {MAX_TRACE_ROWS + 1:,} lines")
     with file_errors(label, "a CSV file"), path.open(newline="", encoding="utf-8-sig") as fh:
         reader = csv.reader(fh)
         header: list[str] | None = None
@@ -71,6 +104,8 @@ def read_table(label: str, path: Path) -> Table:
                 )
             rows.append(stripped)
             lines.append(reader.line_num)
+            if len(rows) > MAX_TRACE_ROWS:
+                raise _too_big(label, f"more than {MAX_TRACE_ROWS:,} data rows")
     if header is None:
         raise TraceError(f"{label}: empty file (expected a CSV header line)")
     cells = np.array(rows, dtype=object).reshape(len(rows), len(header))
@@ -125,12 +160,15 @@ def numbers(
     return values
 
 
-def check_range(label: str, table: Table, col: int, values: np.ndarray, limit: float) -> None:
+def check_range(
+    label: str, table: Table, col: int, values: np.ndarray, limit: float, unit: str = "degrees"
+) -> None:
+    """Every value of a column within [-limit, limit] ``unit``; else one line naming the row."""
     bad = np.abs(values) > limit
     if bad.any():
         r = int(np.argmax(bad))
         raise TraceError(
             f"{label}: row {table.lines[r]}, column {quote(table.header[col])}: "
             f"{quote(table.cells[r, col])} is out of range "
-            f"(allowed: -{limit:g} to {limit:g} degrees)"
+            f"(allowed: -{limit:g} to {limit:g} {unit})"
         )

@@ -11,13 +11,14 @@ import numpy as np
 
 from skymule.io.traces.table import NUMBER_RE, file_errors
 from skymule.io.traces.trace import TraceError, quote
+from skymule.limits import BUFFER_LIMIT, MAX_BUFFER_MBIT
 
 
 def read_volumes(path: str | os.PathLike[str]) -> np.ndarray:
     """(N,) data volumes in Mbit from an AADM volume file: one number a line.
 
-    Blank lines and lines starting with ``#`` are ignored. Values must be finite and
-    non-negative.
+    Blank lines and lines starting with ``#`` are ignored. Values must be finite,
+    non-negative and at most :data:`skymule.limits.MAX_BUFFER_MBIT`.
 
     Raises:
         TraceError: missing/unreadable file, a bad line (named by its line number), or
@@ -42,6 +43,8 @@ def read_volumes(path: str | os.PathLike[str]) -> np.ndarray:
                 f"{label}: line {number}: {quote(cell)} is not a valid volume "
                 f"(expected a finite, non-negative number of Mbit)"
             )
+        if value > MAX_BUFFER_MBIT:
+            raise TraceError(f"{label}: line {number}: {quote(cell)} Mbit: {BUFFER_LIMIT}")
         values.append(value)
     if not values:
         raise TraceError(f"{label}: no volumes (expected one number in Mbit per line)")

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from skymule.io import atomic
 from skymule.io.traces.trace import normalise_column
 
 
@@ -42,6 +43,7 @@ def writer_arrays(
 
 
 def write_csv(path: str | os.PathLike[str], frame: pd.DataFrame) -> Path:
-    target = Path(path)
-    frame.to_csv(target, index=False, na_rep="", float_format=None, lineterminator="\n")
-    return target
+    return atomic.write_with(
+        Path(path),
+        lambda tmp: frame.to_csv(tmp, index=False, na_rep="", lineterminator="\n"),
+    )

@@ -1,0 +1,474 @@
+"""Sim-to-real, measured: twins and learned twins against a "real" flight, by time split.
+
+Synthetic worlds (default): the "truth" is free space at the Lake Wheeler towers (the
+paper-sim-fixed link budget) minus an excess loss growing with distance, a sector antenna
+pattern per tower (3GPP TR 36.814 element pattern: 12 (angle / 3-dB width)^2 dB, capped),
+blockage behind obstacles (tree stands: a loss where the tower-UAV ray passes below the
+canopy, soft at the edge), and terrain-like spatially correlated shadowing (Gudmundson, 4 dB,
+80 m), plus i.i.d. measurement noise of ``NOISE_DB``: the noise floor no map can beat. The
+"twin" (the DT) is that mean smoothed in space (a Gaussian kernel of ``TWIN_SMOOTHING_M``,
+and the blockage halved) and optimistic by ``TWIN_BIAS_DB`` (drawn per tower).
+
+Flights: the DT flight flies the paper-sim-fixed lawnmower path at 10 m/s; two "real"
+flights fly the same route on other days (other speeds, a few metres off, new noise). The
+split is the issue's, in time, never random samples: every map sees the DT flight and the
+first ``SEEN`` of real flight B, and is scored on the rest of it (policies start the held-out
+part with full buffers); a second split by flight: flight A seen whole, flight B held out.
+
+Each map is fitted with ``skymule.tasks.radiomaps.fit_radiomap_files`` and scored with
+``skymule.tasks.sim2real.sim2real`` (the ``skymule sim2real`` command), so what is measured
+is what the commands do.
+
+    python benchmarks/bench_sim2real.py                    # 3 worlds
+    python benchmarks/bench_sim2real.py --worlds 5
+    python benchmarks/bench_sim2real.py --dt DT.csv --real REAL.csv [--scenario S]
+    python benchmarks/bench_sim2real.py --libraries        # numpy vs scikit-learn's MLP
+
+``--dt/--real``: the same split on your own pair of flights (a DT export or merged log of the
+digital twin, and a real flight's merged log); sensors and positions from ``--scenario``
+(default: the trace columns at the Lake Wheeler towers via paper-sim-fixed).
+SKYMULE_BENCH_TINY=1: one small world (not a measurement).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import scipy.ndimage
+from _sizes import size, tiny
+from threadpoolctl import threadpool_limits
+
+from skymule.flight.paths import sample_path
+from skymule.geo import LocalFrame, sensor_positions_m
+from skymule.io.traces import Trace, read_trace, write_aadm_log, write_dt_export
+from skymule.radio.shadowing import ShadowingField, shadowing_field
+from skymule.radio.sources import model_source
+from skymule.scenario import Scenario, load_scenario
+from skymule.tasks.radiomaps import fit_radiomap_files
+from skymule.tasks.sim2real import sim2real
+
+BASE = "paper-sim-fixed"
+NOISE_DB = 2.0
+SHADOWING_DB, SHADOWING_M = 4.0, 80.0
+TWIN_SMOOTHING_M = 60.0
+TWIN_BIAS_DB = (6.0, 14.0)
+EXCESS_DB_PER_DECADE = 8.0
+BEAMWIDTH_DEG, BACK_LOSS_DB = 70.0, 20.0
+OBSTACLES, OBSTACLE_RADIUS_M, OBSTACLE_HEIGHT_M, BLOCKAGE_DB = 6, (30.0, 70.0), 22.0, 12.0
+SEEN = 0.4
+SECONDS = size(500, 160)
+BUFFERS_MBIT = (250.0, 400.0, 350.0, 500.0)
+POLICIES = ("greedy", "hgad")
+METHODS = (
+    ("twin (DT map)", "dt", None),
+    ("log-distance", "log-distance", None),
+    ("kriging", "kriging", None),
+    ("gp", "gp", None),
+    ("kriging, DT + seen", "kriging+dt", None),
+    ("neural", "neural", None),
+    ("neural + DT prior", "neural", "dt"),
+)
+"""(label, method, prior): the maps compared; every one sees the seen part of the real flight
+(the twin alone sees only the DT flight)."""
+
+
+@dataclass(frozen=True)
+class World:
+    """A synthetic site: the truth's mean SNR and the twin's, at any positions (P, 3)."""
+
+    sensor_m: np.ndarray
+    base: object  # free-space model source
+    boresight_rad: np.ndarray
+    obstacles: np.ndarray  # (K, 3): x, y, radius [m]
+    field: ShadowingField
+    smooth_field: ShadowingField
+    bias_db: np.ndarray
+
+    def _pattern_db(self, positions: np.ndarray) -> np.ndarray:
+        delta = positions[:, None, :2] - self.sensor_m[None, :, :2]
+        off = np.angle(np.exp(1j * (np.arctan2(delta[..., 1], delta[..., 0]) - self.boresight_rad)))
+        return -np.minimum(12.0 * (np.degrees(off) / BEAMWIDTH_DEG) ** 2, BACK_LOSS_DB)
+
+    def _blockage_db(self, positions: np.ndarray, edge_m: float) -> np.ndarray:
+        """Loss where the tower-UAV ray passes below an obstacle's canopy (soft edge)."""
+        out = np.zeros((len(positions), len(self.sensor_m)))
+        for j, tower in enumerate(self.sensor_m):
+            ray = positions - tower
+            for x, y, radius in self.obstacles:
+                to_centre = np.array([x, y]) - tower[:2]
+                length2 = np.maximum((ray[:, :2] ** 2).sum(1), 1e-9)
+                t = np.clip((ray[:, :2] @ to_centre) / length2, 0.0, 1.0)
+                closest = tower[:2] + t[:, None] * ray[:, :2]
+                depth = radius - np.hypot(closest[:, 0] - x, closest[:, 1] - y)
+                height = tower[2] + t * ray[:, 2]
+                below = 1.0 / (1.0 + np.exp(-(OBSTACLE_HEIGHT_M - height) / 2.0))
+                inside = 1.0 / (1.0 + np.exp(-depth / edge_m))
+                out[:, j] = np.maximum(out[:, j], BLOCKAGE_DB * inside * below * (t < 0.98))
+        return out
+
+    def _common(self, positions: np.ndarray) -> np.ndarray:
+        distance = np.linalg.norm(positions[:, None, :] - self.sensor_m[None], axis=-1)
+        excess = EXCESS_DB_PER_DECADE * np.log10(np.maximum(distance, 10.0) / 10.0)
+        return np.asarray(self.base.snr_db(positions)) - excess  # type: ignore[attr-defined]
+
+    def truth_db(self, positions: np.ndarray) -> np.ndarray:
+        """(P, N) the real world's mean SNR [dB] (the noise is added per flight)."""
+        return (
+            self._common(positions)
+            + self._pattern_db(positions)
+            - self._blockage_db(positions, edge_m=3.0)
+            - self.field.at(positions[:, :2])
+        )
+
+    def twin_db(self, positions: np.ndarray) -> np.ndarray:
+        """(P, N) the digital twin's SNR [dB]: smoother, optimistic."""
+        smooth_pattern = _smoothed_along(self._pattern_db, positions)
+        return (
+            self._common(positions)
+            + smooth_pattern
+            - 0.5 * self._blockage_db(positions, edge_m=TWIN_SMOOTHING_M / 2)
+            - self.smooth_field.at(positions[:, :2])
+            + self.bias_db
+        )
+
+
+def _smoothed_along(fn, positions: np.ndarray) -> np.ndarray:
+    """``fn`` averaged over a disc of TWIN_SMOOTHING_M around each position (7 points)."""
+    offsets = TWIN_SMOOTHING_M * np.array(
+        [[0, 0]] + [[np.cos(a), np.sin(a)] for a in np.linspace(0, 2 * np.pi, 6, endpoint=False)]
+    )
+    total = 0.0
+    for dx, dy in offsets:
+        total = total + fn(positions + np.array([dx, dy, 0.0]))
+    return total / len(offsets)
+
+
+def draw_world(seed: int, scenario: Scenario) -> World:
+    rng = np.random.default_rng([seed, 2026])
+    frame = LocalFrame(scenario.site.origin.lat, scenario.site.origin.lon)
+    sensor_m = sensor_positions_m(scenario.sensors, frame)
+    region = np.array([[-1200.0, -1200.0], [1200.0, 1200.0]])
+    field = shadowing_field(rng, len(sensor_m), SHADOWING_DB, SHADOWING_M, region)
+    sigma_nodes = TWIN_SMOOTHING_M / field.spacing_m
+    smooth = scipy.ndimage.gaussian_filter(field.values_db, sigma=(0, sigma_nodes, sigma_nodes))
+    obstacles = np.column_stack(
+        [rng.uniform(-450, 450, OBSTACLES), rng.uniform(-550, 350, OBSTACLES),
+         rng.uniform(*OBSTACLE_RADIUS_M, OBSTACLES)]
+    )  # fmt: skip
+    return World(
+        sensor_m=sensor_m,
+        base=model_source(scenario.radio, sensor_m),
+        boresight_rad=rng.uniform(-np.pi, np.pi, len(sensor_m)),
+        obstacles=obstacles,
+        field=field,
+        smooth_field=ShadowingField(field.origin_m, field.spacing_m, smooth),
+        bias_db=rng.uniform(*TWIN_BIAS_DB, len(sensor_m)),
+    )
+
+
+def fly(scenario: Scenario, speed_mps: float, offset_m: tuple[float, float]) -> np.ndarray:
+    """(SECONDS, 3) the scenario's path at ``speed_mps``, shifted, one sample a second."""
+    waypoints = np.asarray(scenario.trajectory.waypoints, float)
+    positions = sample_path(waypoints, speed_mps, 1.0)[:SECONDS]
+    return positions + np.array([*offset_m, 0.0])
+
+
+def write_flights(world: World, scenario: Scenario, folder: Path, seed: int) -> dict[str, Path]:
+    """dt.csv (the twin along the path), real_a.csv and real_b.csv (truth + noise)."""
+    rng = np.random.default_rng([seed, 7])
+    names = [s.name for s in scenario.sensors]
+    frame = LocalFrame(scenario.site.origin.lat, scenario.site.origin.lon)
+    paths = {}
+    dt = fly(scenario, 10.0, (0.0, 0.0))
+    time_s = np.arange(len(dt), dtype=float)
+    paths["dt"] = write_dt_export(
+        folder / "dt.csv", time_s, world.twin_db(dt).round(2), names, dt[:, 0], dt[:, 1], dt[:, 2]
+    )
+    for key, speed, offset in (("real_a", 11.0, (-5.0, 4.0)), ("real_b", 9.0, (6.0, -3.0))):
+        xyz = fly(scenario, speed, offset)
+        snr = world.truth_db(xyz) + NOISE_DB * rng.standard_normal((len(xyz), len(names)))
+        lat, lon = frame.to_latlon(xyz[:, 0], xyz[:, 1])
+        t = np.arange(len(xyz), dtype=float)
+        paths[key] = write_aadm_log(
+            folder / f"{key}.csv", t, snr.round(2), names, lat.round(8), lon.round(8), xyz[:, 2]
+        )
+    return paths
+
+
+def write_part(trace: Trace, start_s: float, end_s: float, path: Path) -> Path:
+    """The samples of ``trace`` in [start_s, end_s), time rebased to 0, in its own format."""
+    keep = (trace.time_s >= start_s) & (trace.time_s < end_s)
+    t = trace.time_s[keep] - trace.time_s[keep][0]
+    snr = trace.snr_db[keep]
+    if trace.format == "dt":
+        assert trace.x_m is not None and trace.y_m is not None
+        return write_dt_export(
+            path, t, snr, trace.columns, trace.x_m[keep], trace.y_m[keep], trace.z_m[keep]
+        )
+    assert trace.lat_deg is not None and trace.lon_deg is not None
+    return write_aadm_log(
+        path, t, snr, trace.columns, trace.lat_deg[keep], trace.lon_deg[keep], trace.z_m[keep]
+    )
+
+
+@dataclass(frozen=True)
+class Row:
+    label: str
+    split: str
+    rmse_db: float
+    bias_db: float
+    coverage: float
+    errors: dict[str, float | None]
+    fit_s: float
+
+
+def evaluate(
+    scenario: Scenario, scenario_ref: str, dt: Path, seen: list[Path], held: Path, folder: Path,
+    split: str,
+) -> list[Row]:  # fmt: skip
+    """Fit every map of METHODS on ``seen`` (+ the DT), score it on ``held`` with sim2real."""
+    maps, fit_s = {}, {}
+    for label, method, prior in METHODS:
+        out = folder / f"{split}-{label.replace(' ', '_').replace(',', '')}.json"
+        traces = [dt] if method == "dt" else [dt, *seen] if method == "kriging+dt" else seen
+        start = time.process_time()
+        fit = fit_radiomap_files(
+            traces,
+            scenario=scenario_ref,
+            method="kriging" if method in ("dt", "kriging+dt") else method,
+            prior=str(dt) if prior == "dt" else None,
+        )
+        fit_s[label] = time.process_time() - start
+        fit.fitted.write(out)
+        maps[label] = str(out)
+    result = sim2real(scenario, held, list(maps.values()), list(POLICIES))
+    rows = []
+    for (label, _, _), twin in zip(METHODS, result.twins, strict=True):
+        coverage = np.mean(list(twin.coverage.values())) if twin.coverage else float("nan")
+        rows.append(
+            Row(
+                label,
+                split,
+                float(np.mean(list(twin.scores["rmse_db"].values()))),
+                float(np.mean(list(twin.scores["bias_db"].values()))),
+                float(coverage),
+                {p: twin.policies[p]["error"] for p in POLICIES},  # type: ignore[misc]
+                fit_s[label],
+            )
+        )
+    return rows
+
+
+ORACLE = "oracle: twin - bias"
+"""A reference row: the twin with its true per-tower bias subtracted, i.e. everything the twin
+knows, perfectly calibrated; what no map learned from the seen data can be expected to beat
+much where the real flight goes somewhere new."""
+
+
+def oracle_row(world: World, scenario: Scenario, held: Path, split: str) -> Row:
+    trace = read_trace(held)
+    frame = LocalFrame(scenario.site.origin.lat, scenario.site.origin.lon)
+    x, y = frame.to_local(np.asarray(trace.lat_deg), np.asarray(trace.lon_deg))
+    positions = np.column_stack([x, y, trace.z_m])
+    error = world.twin_db(positions) - world.bias_db - trace.snr_db
+    rmse = float(np.mean(np.sqrt(np.mean(error**2, axis=0))))
+    return Row(ORACLE, split, rmse, float(error.mean()), float("nan"),
+               dict.fromkeys(POLICIES), 0.0)  # fmt: skip
+
+
+def print_rows(title: str, rows: list[Row], floor_db: float | None) -> None:
+    print(title)
+    head = f"  {'map':<20} {'split':<16} {'SNR RMSE':>9} {'- floor':>8} {'bias':>6}"
+    print(head + f" {'in 95%':>7} {'greedy err':>11} {'hgad err':>9} {'fit CPU s':>10}")
+    for r in rows:
+        over = f"{r.rmse_db - floor_db:+8.2f}" if floor_db is not None else f"{'':>8}"
+        errors = " ".join(
+            f"{'n/a' if r.errors[p] is None else f'{100 * r.errors[p]:+.1f}%':>{w}}"
+            for p, w in zip(POLICIES, (11, 9), strict=True)
+        )
+        cover = "n/a" if np.isnan(r.coverage) else f"{100 * r.coverage:.0f}%"
+        print(
+            f"  {r.label:<20} {r.split:<16} {r.rmse_db:9.2f} {over} {r.bias_db:+6.1f} "
+            f"{cover:>7} {errors} {r.fit_s:10.1f}"
+        )
+
+
+def mean_rows(rows: list[Row]) -> list[Row]:
+    """Per (map, split), the mean over worlds (policy errors: mean of |error|)."""
+    out = []
+    for label in dict.fromkeys(r.label for r in rows):
+        for split in dict.fromkeys(r.split for r in rows):
+            group = [r for r in rows if r.label == label and r.split == split]
+            errors: dict[str, float | None] = {
+                p: float(np.mean([abs(e) for e in seen])) if seen else None
+                for p in POLICIES
+                for seen in [[r.errors[p] for r in group if r.errors[p] is not None]]
+            }
+            out.append(
+                Row(label, split, float(np.mean([r.rmse_db for r in group])),
+                    float(np.mean([r.bias_db for r in group])),
+                    float(np.mean([r.coverage for r in group])), errors,
+                    float(np.mean([r.fit_s for r in group])))
+            )  # fmt: skip
+    return out
+
+
+def synthetic(worlds: int) -> None:
+    scenario = load_scenario(BASE, [f"sensors[{i}].buffer_mbit={b}" for i, b in
+                                    enumerate(BUFFERS_MBIT)])  # fmt: skip
+    print(
+        f"synthetic worlds: noise floor {NOISE_DB:g} dB; twin smoother ({TWIN_SMOOTHING_M:g} m) "
+        f"and optimistic ({TWIN_BIAS_DB[0]:g}-{TWIN_BIAS_DB[1]:g} dB); {SECONDS} s flights; "
+        f"seen: the DT flight + the first {SEEN:.0%} of real flight B"
+    )
+    everything = []
+    for seed in range(worlds):
+        world = draw_world(seed, scenario)
+        with tempfile.TemporaryDirectory() as tmp:
+            folder = Path(tmp)
+            paths = write_flights(world, scenario, folder, seed)
+            real_b = read_trace(paths["real_b"])
+            cut = SEEN * real_b.time_s[-1]
+            seen = write_part(real_b, 0.0, cut, folder / "seen.csv")
+            held = write_part(real_b, cut, np.inf, folder / "held.csv")
+            time_split = "time (last 60%)"
+            rows = evaluate(scenario, BASE, paths["dt"], [seen], held, folder, time_split)
+            rows.append(oracle_row(world, scenario, held, time_split))
+            if not tiny():
+                flight_split = "flight (A -> B)"
+                rows += evaluate(
+                    scenario, BASE, paths["dt"], [paths["real_a"]], paths["real_b"], folder,
+                    flight_split,
+                )  # fmt: skip
+                rows.append(oracle_row(world, scenario, paths["real_b"], flight_split))
+        print_rows(f"world {seed}", rows, NOISE_DB)
+        everything += rows
+    print_rows(f"mean over {worlds} worlds (policy errors: mean |error|)",
+               mean_rows(everything), NOISE_DB)  # fmt: skip
+    best = next(r for r in mean_rows(everything) if r.label == "neural + DT prior")
+    print(
+        f"learned twin (neural + DT prior), time split: RMSE {best.rmse_db:.2f} dB, "
+        f"{best.rmse_db - NOISE_DB:+.2f} dB over the noise floor (target <= +1 dB)"
+    )
+
+
+def fit_time() -> None:
+    """CPU seconds of one learned-twin fit on a few thousand samples per sensor."""
+    scenario = load_scenario(BASE)
+    world = draw_world(0, scenario)
+    n = size(3000, 200)
+    with tempfile.TemporaryDirectory() as tmp:
+        rng = np.random.default_rng(3)
+        xyz = np.column_stack([rng.uniform(-400, 400, n), rng.uniform(-550, 300, n),
+                               rng.uniform(20, 60, n)])  # fmt: skip
+        order = np.argsort(xyz[:, 1])  # a slow sweep north to south: samples in time order
+        xyz = xyz[order]
+        names = [s.name for s in scenario.sensors]
+        snr = world.truth_db(xyz) + NOISE_DB * rng.standard_normal((n, len(names)))
+        path = write_dt_export(Path(tmp) / "big.csv", np.arange(n, dtype=float), snr, names,
+                               xyz[:, 0], xyz[:, 1], xyz[:, 2])  # fmt: skip
+        twin = world.twin_db(xyz)
+        dt = write_dt_export(Path(tmp) / "dt.csv", np.arange(n, dtype=float), twin, names,
+                             xyz[:, 0], xyz[:, 1], xyz[:, 2])  # fmt: skip
+        start, wall = time.process_time(), time.perf_counter()
+        fit_radiomap_files([path], scenario=BASE, method="neural", prior=str(dt))
+        cpu, wall = time.process_time() - start, time.perf_counter() - wall
+    load = os.getloadavg()[0]
+    print(f"fit time, neural + prior, {n:,} samples x {len(names)} sensors: {cpu:.1f} s CPU, "
+          f"{wall:.1f} s wall at load {load:.1f} (target < 60 s on 2 cores)")  # fmt: skip
+
+
+def real_pair(dt: Path, real: Path, scenario_ref: str | None) -> None:
+    ref = scenario_ref or BASE
+    scenario = load_scenario(ref)
+    trace = read_trace(real)
+    print(f"real pair: DT {dt}, real {real}; seen: the DT flight + the first {SEEN:.0%} of it")
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        cut = SEEN * trace.time_s[-1]
+        seen = write_part(trace, 0.0, cut, folder / f"seen{real.suffix}")
+        held = write_part(trace, cut, np.inf, folder / f"held{real.suffix}")
+        rows = evaluate(scenario, ref, dt, [seen], held, folder, "time (last 60%)")
+    print_rows("measured on your flights", rows, None)
+
+
+def library_comparison() -> None:
+    """The numpy ensemble against scikit-learn's MLPRegressor, same features, targets, net
+    and decay, on the time split of one world (tower LW1)."""
+    from skymule.radio.learned import HIDDEN_UNITS, L2_PENALTY, fit_ensemble, link_features
+
+    scenario = load_scenario(BASE)
+    world = draw_world(0, scenario)
+    rng = np.random.default_rng(5)
+    xyz = fly(scenario, 9.0, (0.0, 0.0))
+    truth = world.truth_db(xyz) + NOISE_DB * rng.standard_normal((len(xyz), 4))
+    prior = world.twin_db(xyz)
+    cut = int(SEEN * len(xyz))
+    features = link_features(xyz, world.sensor_m[0], prior[:, 0])
+    target = truth[:, 0] - prior[:, 0]
+    start = time.process_time()
+    ensemble = fit_ensemble(features[:cut], target[:cut], tuple("abcdef"))
+    numpy_s = time.process_time() - start
+    numpy_rmse = float(np.sqrt(np.mean((ensemble.mean_db(features[cut:]) - target[cut:]) ** 2)))
+    print(f"library comparison (tower LW1, {cut} samples seen, time split, 5 networks "
+          f"{HIDDEN_UNITS}, decay {L2_PENALTY:g}):")  # fmt: skip
+    print(f"  numpy + scipy L-BFGS: RMSE {numpy_rmse:.2f} dB, fit {numpy_s:.2f} s CPU")
+    try:
+        from sklearn.neural_network import MLPRegressor
+    except ImportError:
+        print("  scikit-learn: not installed (pip install scikit-learn to compare)")
+        return
+    mean, scale = features[:cut].mean(0), features[:cut].std(0)
+    scale = np.where(scale > 1e-9, scale, 1.0)  # a constant height stays 0, as in skymule's
+    tm, ts = target[:cut].mean(), target[:cut].std()
+    n_weights = features.shape[1] * HIDDEN_UNITS[0] + HIDDEN_UNITS[0]
+    alpha = L2_PENALTY * cut / n_weights  # the same decay in sklearn's scaling
+    start = time.process_time()
+    predictions, unconverged = [], 0
+    with warnings.catch_warnings(record=True) as caught, threadpool_limits(1, user_api="blas"):
+        warnings.simplefilter("always")
+        for k in range(5):
+            model = MLPRegressor(
+                hidden_layer_sizes=HIDDEN_UNITS, activation="tanh", solver="lbfgs",
+                alpha=alpha, max_iter=300, random_state=k,
+            )  # fmt: skip
+            model.fit((features[:cut] - mean) / scale, (target[:cut] - tm) / ts)
+            predictions.append(tm + ts * model.predict((features[cut:] - mean) / scale))
+        unconverged = sum("converge" in str(w.message) for w in caught)
+    sk_s = time.process_time() - start
+    sk_rmse = float(np.sqrt(np.mean((np.mean(predictions, 0) - target[cut:]) ** 2)))
+    print(
+        f"  scikit-learn MLPRegressor (lbfgs, one BLAS thread too): RMSE {sk_rmse:.2f} dB, "
+        f"fit {sk_s:.2f} s CPU ({unconverged} of 5 stopped at 300 iterations)"
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--worlds", type=int, default=size(3, 1))
+    parser.add_argument("--dt", type=Path, help="a digital twin's flight (DT export / log)")
+    parser.add_argument("--real", type=Path, help="a real flight (merged log)")
+    parser.add_argument("--scenario", help="sensors and positions (default paper-sim-fixed)")
+    parser.add_argument("--libraries", action="store_true", help="numpy vs scikit-learn MLP")
+    args = parser.parse_args()
+    if (args.dt is None) != (args.real is None):
+        parser.error("give both --dt and --real (or neither, for the synthetic worlds)")
+    if args.dt is not None:
+        real_pair(args.dt, args.real, args.scenario)
+        return
+    if args.libraries:
+        library_comparison()
+        return
+    synthetic(args.worlds)
+    fit_time()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,67 @@
+"""Physical limits on what a scenario, trace, volume file or rate table may say.
+
+A number beyond these is a typo or a damaged file (``altitude_m = 1e300``, a 1e12 m/s UAV),
+never a mission: it is refused in one line that names the limit, instead of flowing into the
+engines as overflows, NaNs or a mission that silently serves nothing. The limits are generous
+on purpose: skymule models small multirotors and large fixed-wing UAVs alike, so a legal or
+typical figure is not the bound (FAA Part 107 caps small UAS at 400 ft, 122 m, above ground
+level; that is context, not a limit here).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+MAX_BUFFER_MBIT = 1e12
+"""Largest sensor buffer or data volume [Mbit] (10^18 bit): sums over sensors and slots stay
+far from overflow."""
+
+MAX_DURATION_S = 1e7
+"""Longest mission [s] (about 116 days): one row a slot must still fit in memory."""
+
+MAX_COORDINATE_M = 1e7
+"""Largest |x|, |y| in the local frame and |height| of an antenna [m] (the Earth's radius is
+6.4e6 m)."""
+
+MAX_ALTITUDE_M = 20_000.0
+"""Highest flight altitude above the take-off point [m]: above the service ceiling of any UAV
+(the RQ-4 Global Hawk's, the highest-flying in service, is about 18,300 m / 60,000 ft)."""
+
+MAX_SPEED_MPS = 340.0
+"""Fastest UAV speed [m/s]: the speed of sound at sea level (about 343 m/s); UAVs that ferry
+data fly far below it (large fixed-wing ones cruise at 100-175 m/s)."""
+
+MAX_EFFICIENCY_BPS_HZ = 100.0
+"""Largest spectral efficiency a rate table may give [bit/s/Hz]: 1024-QAM carries 10 bit a
+symbol, and Shannon's log2(1 + SNR) reaches 33 only at 100 dB SNR."""
+
+
+def at_most(limit: float, unit: str, why: str) -> str:
+    """The words of a refusal: ``at most 340 m/s (the speed of sound ...)``."""
+    return f"at most {limit:g} {unit} ({why})"
+
+
+SPEED_LIMIT = at_most(MAX_SPEED_MPS, "m/s", "about the speed of sound; skymule's limit")
+ALTITUDE_LIMIT = at_most(
+    MAX_ALTITUDE_M, "m", "above any UAV's ceiling; skymule's limit above take-off"
+)
+COORDINATE_LIMIT = at_most(MAX_COORDINATE_M, "m", "the Earth's radius is 6.4e6 m")
+BUFFER_LIMIT = at_most(MAX_BUFFER_MBIT, "Mbit", "skymule's largest buffer")
+
+
+def waypoint_problem(points: np.ndarray) -> str | None:
+    """What is wrong with (N, 3) waypoints ``[x_m, y_m, z_m]``, or None: finite, |x| and |y|
+    within :data:`MAX_COORDINATE_M`, z (above take-off) from 0 to :data:`MAX_ALTITUDE_M`."""
+    for index, point in enumerate(np.asarray(points, float).reshape(-1, 3)):
+        x_m, y_m, z_m = (float(v) for v in point)
+        for name, value in (("x_m", x_m), ("y_m", y_m)):
+            if not math.isfinite(value) or abs(value) > MAX_COORDINATE_M:
+                return f"waypoint {index + 1}: {name} = {value!r}: {COORDINATE_LIMIT}"
+        if not math.isfinite(z_m) or not 0 <= z_m <= MAX_ALTITUDE_M:
+            return (
+                f"waypoint {index + 1}: z_m = {z_m!r}: allowed: 0 (the take-off ground) to "
+                f"{MAX_ALTITUDE_M:g} m (above any UAV's ceiling; skymule's limit)"
+            )
+    return None

@@ -1,0 +1,107 @@
+"""``--vehicle mavsdk`` flies a whole AADM mission against the kinematic MAVLink test vehicle.
+
+The test vehicle (:mod:`skymule.aadm.mavlink_vehicle`) is not PX4 or ArduPilot: it checks
+that skymule's MAVSDK vehicle sends what an autopilot needs (arm, take-off, position targets,
+land) and reads what it sends (position, armed state, home). PX4 SIH or ArduPilot SITL is the
+real check. Needs the ``fly`` extra (MAVSDK-Python and pymavlink); without it, the one-line
+errors are checked.
+"""
+
+from __future__ import annotations
+
+import importlib
+import socket
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import run_cli
+from skymule.aadm.controller import ControllerCore, serve_controller
+from skymule.errors import SkymuleError
+from skymule.geo import LocalFrame
+from skymule.scenario import load_scenario
+from skymule.world import build_mission
+
+SCENARIO = """
+name = "aadm-mavlink"
+[mission]
+duration_s = 40
+[site]
+origin = { lat = 35.7274824, lon = -78.6962749 }
+geofence = "lake-wheeler"
+[[sensors]]
+name = "LW1"
+lat = 35.727451
+lon = -78.695974
+height_m = 10.0
+buffer_mbit = 40
+[[sensors]]
+name = "LW3"
+lat = 35.724933
+lon = -78.691912
+height_m = -0.23
+buffer_mbit = 30
+[trajectory]
+mode = "autonomous"
+altitude_m = 30.0
+max_speed_mps = 10.0
+[policy]
+name = "hgad"
+"""
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def test_without_the_fly_extra_each_part_says_what_to_install(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from skymule.aadm import mavlink_vehicle, vehicle
+
+    real = importlib.import_module
+
+    def missing(name: str, package: str | None = None) -> object:
+        if name.split(".")[0] in ("mavsdk", "mavsdk_grpc", "pymavlink"):
+            raise ImportError(name)
+        return real(name, package)
+
+    monkeypatch.setattr(importlib, "import_module", missing)
+    frame = LocalFrame(35.7274824, -78.6962749)
+    with pytest.raises(SkymuleError, match=r"pip install 'skymule\[fly\]'"):
+        vehicle.MavsdkVehicle("udpin://0.0.0.0:14540", frame)
+    with pytest.raises(SkymuleError, match=r"pip install 'skymule\[fly\]'"):
+        mavlink_vehicle.MavlinkTestVehicle(frame, 14540)
+
+
+def test_mavsdk_vehicle_flies_a_whole_mission(tmp_path: Path) -> None:
+    pytest.importorskip("pymavlink", reason="the MAVLink test vehicle needs the fly extra")
+    pytest.importorskip("mavsdk_grpc", reason="--vehicle mavsdk needs the fly extra")
+    from skymule.aadm.mavlink_vehicle import MavlinkTestVehicle
+
+    path = tmp_path / "scenario.toml"
+    path.write_text(SCENARIO)
+    mission = build_mission(load_scenario(str(path)))
+    port = _free_udp_port()
+    # 20x the wall clock: a poll every 0.05 s is a 1-s slot of flight
+    autopilot = MavlinkTestVehicle(mission.frame, port, time_scale=20.0)
+    core = ControllerCore(mission)
+    try:
+        with serve_controller(core) as server:
+            done = run_cli(
+                *("aadm", "agent", str(path), "--policy", "hgad", "--vehicle", "mavsdk"),
+                *("--mavsdk-address", f"udpin://127.0.0.1:{port}", "--poll-s", "0.05"),
+                *("--port", str(server.port), "--telemetry-port", str(server.telemetry_port)),
+            )
+    finally:
+        autopilot.close()
+    assert done.returncode == 0, done.stderr
+    assert core.received_mbit().sum() > 0 and core.disarmed  # served, then the disarm ended it
+    assert {400, 22, 192, 21} <= set(autopilot.commands)  # arm, take-off, reposition, land
+    assert not autopilot.armed and autopilot.z == 0.0
+    assert np.hypot(*autopilot.xy) <= 5.0  # the testbed's landing rule
+    assert not [t for t in threading.enumerate() if t.name == "mavlink-test-vehicle"]

@@ -1,0 +1,275 @@
+"""Learned twins (``fit-radiomap --method neural``) and ``skymule sim2real``, on small flights."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import run_cli
+from skymule.geo import LocalFrame
+from skymule.io.traces import read_trace, write_aadm_log, write_dt_export
+from skymule.radio.learned import fit_ensemble, link_features
+from skymule.radio.radiomap import (
+    FitOptions,
+    MapPrior,
+    RadioMap,
+    SensorSamples,
+    fit_samples,
+    fit_sensor_map,
+    read_radiomap,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+SAMPLES = ROOT / "examples" / "samples"
+ORIGIN = (35.7274824, -78.6962749)
+TOWER = np.array([60.0, -40.0, 10.0])
+
+
+def _path(n: int) -> np.ndarray:
+    """A lawnmower in time order: the first 40% of the samples cover the north legs only."""
+    legs = []
+    per_leg = n // 6
+    for i in range(6):
+        xs = np.linspace(-300, 300, per_leg)[:: -1 if i % 2 else 1]
+        legs.append(np.column_stack([xs, np.full(per_leg, 250 - 100 * i), np.full(per_leg, 30)]))
+    return np.vstack(legs)
+
+
+def _sector_loss(positions: np.ndarray) -> np.ndarray:
+    """A tower antenna's azimuth pattern: 0 dB at boresight (east), 15 dB behind."""
+    delta = positions - TOWER
+    azimuth = np.arctan2(delta[:, 1], delta[:, 0])
+    return -15.0 * np.sin(azimuth / 2) ** 2
+
+
+def _free_space(positions: np.ndarray) -> np.ndarray:
+    d = np.maximum(np.linalg.norm(positions - TOWER, axis=1), 1.0)
+    return 75.0 - 20.0 * np.log10(d)
+
+
+def test_learned_residual_over_a_prior_generalises_in_time() -> None:
+    """The twin misses the antenna pattern and is 8 dB optimistic; seeing the first 40% of a
+    flight, the learned twin predicts the last 60% (other places) near the noise floor."""
+    rng = np.random.default_rng(1)
+    positions = _path(360)
+    noise_db = 1.0
+    measured = _free_space(positions) + _sector_loss(positions)
+    measured = measured + noise_db * rng.standard_normal(len(positions))
+    prior = _free_space(positions) + 8.0  # the twin: no pattern, optimistic
+    cut = int(0.4 * len(positions))
+    samples = SensorSamples(positions[:cut], measured[:cut], np.arange(cut) * 5 // cut)
+    fitted = fit_sensor_map(
+        "LW1", TOWER, samples, prior_snr_db=prior[:cut], options=FitOptions("neural", seed=3)
+    )
+    held = positions[cut:]
+    error = fitted.snr_db(held, prior[cut:]) - measured[cut:]
+    rmse = float(np.sqrt(np.mean(error**2)))
+    twin_rmse = float(np.sqrt(np.mean((prior[cut:] - measured[cut:]) ** 2)))
+    assert twin_rmse > 8.0
+    assert rmse < noise_db + 1.0, rmse  # within 1 dB of the noise floor
+    sigma = fitted.sigma_db(held, prior[cut:])
+    assert np.all(sigma > 0) and np.all(np.isfinite(sigma))
+
+
+def test_ensemble_is_seeded_and_its_spread_grows_away_from_the_data() -> None:
+    rng = np.random.default_rng(0)
+    positions = _path(120)
+    features = link_features(positions, TOWER)
+    target = _sector_loss(positions) + 0.5 * rng.standard_normal(len(positions))
+    names = ("log10_distance", "elevation_rad", "sin_azimuth", "cos_azimuth", "height_m")
+    first = fit_ensemble(features, target, names, seed=7, members=3, max_iterations=100)
+    again = fit_ensemble(features, target, names, seed=7, members=3, max_iterations=100)
+    assert json.dumps(first.to_dict()) == json.dumps(again.to_dict())
+    other = fit_ensemble(features, target, names, seed=8, members=3, max_iterations=100)
+    assert json.dumps(first.to_dict()) != json.dumps(other.to_dict())
+    near = first.members_db(features).std(axis=0).mean()
+    far = link_features(np.array([[5000.0, 5000.0, 300.0]]), TOWER)
+    assert first.members_db(far).std(axis=0)[0] > 3 * near
+
+
+def test_learned_map_round_trips_as_numbers(tmp_path: Path) -> None:
+    """The map file holds weights as JSON numbers (no pickle) and predicts the same bits."""
+    rng = np.random.default_rng(2)
+    positions = _path(120)
+    twin_samples = SensorSamples(positions, _free_space(positions), np.arange(120) // 24)
+    twin = fit_sensor_map("LW1", TOWER, twin_samples, options=FitOptions("log-distance"))
+    prior_map = RadioMap(ORIGIN, (twin,), "log-distance")
+    prior = MapPrior(prior_map, np.zeros(3), "twin.json")
+    measured = _free_space(positions) + _sector_loss(positions) + rng.standard_normal(120)
+    samples = [SensorSamples(positions, measured, np.arange(120) // 24)]
+    fitted = fit_samples(
+        samples, ["LW1"], TOWER[None], ORIGIN, options=FitOptions("neural"), prior=prior
+    )
+    path = tmp_path / "learned.json"
+    fitted.write(path)
+    text = path.read_text()
+    document = json.loads(text)
+    assert document["version"] == 2 and document["method"] == "neural"
+    assert document["prior"]["kind"] == "radiomap"
+    assert len(document["sensors"][0]["ensemble"]["networks"]) == 5
+    back = read_radiomap(path)
+    query = np.array([[0.0, 0.0, 30.0], [200.0, -300.0, 40.0]])
+    np.testing.assert_array_equal(back.source(["LW1"]).snr_db(query),
+                                  fitted.source(["LW1"]).snr_db(query))  # fmt: skip
+    np.testing.assert_array_equal(back.source(["LW1"]).sigma_db(query),
+                                  fitted.source(["LW1"]).sigma_db(query))  # fmt: skip
+    document["sensors"][0]["ensemble"]["networks"][0][0]["weights"] = [[1.0]]
+    path.write_text(json.dumps(document))
+    done = run_cli("score-radiomap", path, SAMPLES / "dt_flight.csv")
+    assert done.returncode == 2 and "malformed" in done.stderr
+
+
+def test_cli_methods_and_learned_twin_on_the_samples(tmp_path: Path) -> None:
+    """Every method from the one command; the learned twin's map is a signal source."""
+    flight = read_trace(SAMPLES / "flight_merged.csv")
+    keep = slice(0, 150)  # the first 150 s: enough for every method, quick to fit
+    assert flight.lat_deg is not None and flight.lon_deg is not None
+    real = write_aadm_log(
+        tmp_path / "flight.csv", flight.time_s[keep], flight.snr_db[keep], flight.columns,
+        flight.lat_deg[keep], flight.lon_deg[keep], flight.z_m[keep],
+    )  # fmt: skip
+    for method in ("log-distance", "gp"):
+        out = tmp_path / f"{method}.json"
+        done = run_cli("fit-radiomap", real, "--method", method, "--out", out, "--json",
+                       check=True)  # fmt: skip
+        rows = json.loads(done.stdout)["sensors"]
+        assert [r["sensor"] for r in rows] == ["LW1", "LW2", "LW3", "LW4"]
+        assert all(r["cv_rmse_map_db"] < r["cv_rmse_baseline_db"] + 1.0 for r in rows)
+        assert read_radiomap(out).method == method
+    learned = tmp_path / "learned.json"
+    run_cli(
+        "fit-radiomap", real, "--method", "neural", "--prior", SAMPLES / "dt_flight.csv",
+        "--out", learned, check=True,
+    )  # fmt: skip
+    fitted = read_radiomap(learned)
+    assert fitted.method == "neural" and fitted.prior is not None
+    scores = json.loads(run_cli("score-radiomap", learned, real, "--json", check=True).stdout)
+    dt_scores = json.loads(
+        run_cli("score-radiomap", "paper-sim-fixed", real, "--json", check=True).stdout
+    )
+    # in sample, the learned twin fits the flight it saw better than the model does
+    assert np.mean(list(scores["rmse_db"].values())) < np.mean(list(dt_scores["rmse_db"].values()))
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["--method", "nueral"], "--method 'nueral': allowed: kriging, log-distance, gp, neural"),
+        (["--prior", "paper-sim-fixed"], "--prior calibrates a learned map"),
+        (["--method", "neural", "--prior", "nowhere-preset"], "nowhere-preset"),
+    ],
+)
+def test_fit_mistakes_are_one_line(tmp_path: Path, args: list[str], needle: str) -> None:
+    done = run_cli("fit-radiomap", SAMPLES / "dt_flight.csv", "--out", tmp_path / "m.json", *args)
+    assert done.returncode == 2, done.stderr
+    assert needle in done.stderr and len(done.stderr.strip().splitlines()) == 1
+
+
+SCENARIO = """
+name = "twin-test"
+[mission]
+duration_s = 10
+[site]
+origin = { lat = 35.7274824, lon = -78.6962749 }
+[[sensors]]
+name = "LW1"
+x_m = 60.0
+y_m = -40.0
+height_m = 10.0
+buffer_mbit = 40
+[[sensors]]
+name = "LW2"
+x_m = -200.0
+y_m = 150.0
+height_m = 10.0
+buffer_mbit = 60
+[radio]
+model = "fspl"
+[trajectory]
+waypoints = [[0, 0, 30], [10, 0, 30]]
+"""
+
+
+def _real_flight(tmp_path: Path, scenario: Path, noise_db: float) -> Path:
+    """A merged log whose SNR is the scenario's free space (+ noise) at its positions."""
+    from skymule.scenario import load_scenario
+    from skymule.world import build_mission
+
+    mission = build_mission(load_scenario(scenario))
+    assert mission.source is not None
+    positions = _path(120)
+    snr = mission.source.snr_db(positions)
+    snr += noise_db * np.random.default_rng(4).standard_normal(snr.shape)
+    lat, lon = LocalFrame(*ORIGIN).to_latlon(positions[:, 0], positions[:, 1])
+    path = tmp_path / f"real-{noise_db:g}.csv"
+    write_aadm_log(path, np.arange(120.0), snr.round(2), ["LW1", "LW2"], lat.round(9),
+                   lon.round(9), positions[:, 2])  # fmt: skip
+    return path
+
+
+def test_sim2real_of_the_true_model_is_exact_and_json_has_the_issues_shape(
+    tmp_path: Path,
+) -> None:
+    scenario = tmp_path / "twin.toml"
+    scenario.write_text(SCENARIO)
+    real = _real_flight(tmp_path, scenario, 0.0)
+    noisy = _real_flight(tmp_path, scenario, 6.0)
+    dt = tmp_path / "dt.csv"
+    positions = _path(120)
+    write_dt_export(dt, np.arange(120.0), np.full((120, 2), 45.0), ["LW1", "LW2"],
+                    positions[:, 0], positions[:, 1], positions[:, 2])  # fmt: skip
+    done = run_cli(
+        "sim2real", scenario, real, "--twin", scenario, "--twin", dt,
+        "--policies", "greedy,hgad", "--json", check=True,
+    )  # fmt: skip
+    document = json.loads(done.stdout)
+    exact, flat = document["twins"]
+    assert exact["twin"] == str(scenario) and flat["twin"] == str(dt)
+    for twin in (exact, flat):
+        assert set(twin["rmse_db"]) == set(twin["bias_db"]) == {"LW1", "LW2"}
+        for policy in ("greedy", "hgad"):
+            entry = twin["policies"][policy]
+            assert set(entry) == {"real_mbit", "twin_mbit", "error"}
+            assert entry["error"] == pytest.approx(
+                (entry["twin_mbit"] - entry["real_mbit"]) / entry["real_mbit"]
+            )
+    # the model that made the flight predicts it (to the log's 0.01-dB rounding)
+    assert max(exact["rmse_db"].values()) < 0.01
+    assert all(abs(v["error"]) < 1e-3 for v in exact["policies"].values())
+    # a flat 45-dB twin is optimistic where the towers are far, and predicts more Mbit
+    assert min(flat["bias_db"].values()) > 5.0
+    assert flat["policies"]["greedy"]["twin_mbit"] >= flat["policies"]["greedy"]["real_mbit"]
+    out = tmp_path / "s2r"
+    run_cli(
+        "sim2real", scenario, noisy, "--twin", scenario, "--policies", "greedy",
+        "--out", out, "--no-pdf", check=True,
+    )  # fmt: skip
+    written = json.loads((out / "sim2real.json").read_text())
+    assert written["twins"][0]["rmse_db"]["LW1"] == pytest.approx(6.0, rel=0.2)
+    html = (out / "report.html").read_text()
+    for figure in ("sim2real-snr-time", "sim2real-scatter", "sim2real-policies"):
+        assert f'data-fig="{figure}"' in html
+        assert (out / "figures" / f"{figure}.png").stat().st_size > 5_000
+    (out / "report.html").unlink()
+    run_cli("report", out, "--no-pdf", check=True)  # rebuilt from the folder's files alone
+    assert "Sim-to-real" in (out / "report.html").read_text()
+    refused = run_cli("sim2real", scenario, noisy, "--twin", scenario, "--out", SAMPLES)
+    assert refused.returncode == 2 and "--out" in refused.stderr
+
+
+def test_sim2real_mistakes_are_one_line(tmp_path: Path) -> None:
+    scenario = tmp_path / "twin.toml"
+    scenario.write_text(SCENARIO)
+    real = _real_flight(tmp_path, scenario, 0.0)
+    cases = [
+        (["--twin", "examples/paper-rw-flight1.toml"], "replays a flight and predicts nothing"),
+        (["--twin", "missing.json"], "missing.json"),
+        (["--twin", str(scenario), "--policies", "gredy"], "gredy"),
+    ]
+    for args, needle in cases:
+        done = run_cli("sim2real", scenario, real, *args, cwd=ROOT)
+        assert done.returncode == 2, (args, done.stderr)
+        assert needle in done.stderr and len(done.stderr.strip().splitlines()) == 1

@@ -201,3 +201,24 @@ def test_handover_counts_with_gaps_in_service_equal_metrics():
     prefix = np.where(np.arange(30)[:, None] < rng.integers(0, 31, 200), served % 3, -1)
     want = [handovers(prefix[:, b]) for b in range(prefix.shape[1])]
     np.testing.assert_array_equal(handover_counts(prefix), want)
+
+
+def test_batches_share_a_mode_and_sensor_count_and_stay_within_memory() -> None:
+    """batch_groups: one batch per (mode, sensor count), longest mission first, and a batch of
+    long missions is cut to what BATCH_MEMORY_BYTES holds (a user's hour-long missions do
+    not fill memory at the default of 4,096 a batch)."""
+    from types import SimpleNamespace
+
+    from skymule.sim.run import BATCH_MEMORY_BYTES, batch_bytes, batch_groups
+
+    def mission(mode: str, n_sensors: int, n_slots: int) -> SimpleNamespace:
+        return SimpleNamespace(mode=mode, n_sensors=n_sensors, n_slots=n_slots, navigator=None)
+
+    short = [mission("fixed", 4, 500 - i % 3) for i in range(5)] + [mission("fixed", 3, 500)]
+    groups = list(batch_groups(short, 4096))
+    assert groups == [[0, 3, 1, 4, 2], [5]]  # 500, 500, 499, 499, 498 slots; then N = 3
+    assert [len(g) for g in batch_groups(short, 2)] == [2, 2, 1, 1]
+    long_slots = 360_000  # 100 h at 1 s
+    per_batch = BATCH_MEMORY_BYTES // batch_bytes(long_slots, 8)
+    long = [mission("autonomous", 8, long_slots) for _ in range(per_batch + 1)]
+    assert [len(g) for g in batch_groups(long, 4096)] == [per_batch, 1]

@@ -254,18 +254,15 @@ def policy_modules(spec: SweepSpec) -> list[str]:
 #: Memory a chunk may use in a worker [byte] (its batch arrays and built tracks).
 CHUNK_MEMORY_BYTES = 256 * 2**20
 
-#: Bytes per mission-slot and sensor the batched engine and its summaries hold (float buffers,
-#: rates and SNR seen), and per mission-slot (served, downloaded, sample, hovering, ...).
-_BYTES_PER_SLOT_SENSOR = 40
-_BYTES_PER_SLOT = 48
-
 
 def mission_bytes(scenario: Scenario) -> int:
     """Estimated peak bytes one mission adds to a chunk (slots x sensors, its own track)."""
+    from skymule.sim.run import batch_bytes
+
     duration = scenario.mission.duration_s or 3600.0
     slots = max(1, math.ceil(duration / scenario.mission.slot_s))
     sensors = max(1, len(scenario.sensors))
-    per_slot = _BYTES_PER_SLOT + _BYTES_PER_SLOT_SENSOR * sensors
+    per_slot = batch_bytes(1, sensors)
     if scenario.radio.fading != "none":
         per_slot += 8 * sensors
     if _needs_seed(scenario):

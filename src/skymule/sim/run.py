@@ -71,19 +71,37 @@ def run_mission(mission: Mission, policy: BatchPolicy | Policy, engine: str = "a
     return MissionLog(run_missions([mission], policy, engine=engine))
 
 
+#: Bytes per mission-slot and sensor a batch holds (float buffers, rates and SNR seen), and
+#: per mission-slot (served, downloaded, sample, hovering, ...).
+BYTES_PER_SLOT_SENSOR = 40
+BYTES_PER_SLOT = 48
+
+#: A batch holds at most this much (its logs and tables): :func:`batch_groups` caps it.
+BATCH_MEMORY_BYTES = 256 * 2**20
+
+
+def batch_bytes(n_slots: int, n_sensors: int) -> int:
+    """Estimated bytes one mission of ``n_slots`` slots and ``n_sensors`` sensors adds to a
+    batch."""
+    return n_slots * (BYTES_PER_SLOT + BYTES_PER_SLOT_SENSOR * max(1, n_sensors))
+
+
 def batch_groups(missions: Sequence[Mission], batch_size: int) -> Iterator[list[int]]:
     """Indices of missions that can share a batch (mode, sensor count, autonomous: geofence),
-    at most ``batch_size`` each; within a group longest first, so that the missions of one
-    batch end at about the same slot (a mission that is over costs its batch a little every
-    slot until the batch ends)."""
+    at most ``batch_size`` each and within :data:`BATCH_MEMORY_BYTES`; within a group longest
+    first, so that the missions of one batch end at about the same slot (a mission that is
+    over costs its batch a little every slot until the batch ends)."""
     groups: dict[tuple[Any, ...], list[int]] = {}
     for index, mission in enumerate(missions):
         fence = mission.navigator.fence_key if mission.navigator is not None else b""
         groups.setdefault((mission.mode, mission.n_sensors, fence), []).append(index)
     for indices in groups.values():
         indices = sorted(indices, key=lambda i: -missions[i].n_slots)  # stable: ties in order
-        for start in range(0, len(indices), batch_size):
-            yield indices[start : start + batch_size]
+        longest = missions[indices[0]]
+        by_memory = BATCH_MEMORY_BYTES // batch_bytes(longest.n_slots, longest.n_sensors)
+        size = max(1, min(batch_size, by_memory))
+        for start in range(0, len(indices), size):
+            yield indices[start : start + size]
 
 
 def summarize_missions(
@@ -91,7 +109,7 @@ def summarize_missions(
     specs: Sequence[PolicySpec],
     scenario_names: Sequence[str],
     *,
-    batch_size: int = 1000,
+    batch_size: int = 4096,
     engine: str = "auto",
 ) -> list[dict[str, Any]]:
     """``summary.json`` rows of ``missions``, each under its own ``[policy]``, in input order.

@@ -31,6 +31,7 @@ from skymule.learning.missions import HELD_OUT, HELD_OUT_FAULTS, draw_missions
 from skymule.policies import HGAD, Greedy
 from skymule.policies.learned import LearnedPolicy, load_net, shipped_weights
 from skymule.policies.planner import Planner
+from skymule.sim import compiled
 from skymule.sim.run import run_mission, run_missions
 from skymule.world import Mission
 
@@ -136,7 +137,7 @@ def speed(missions: list[Mission], repeat: int) -> None:
         f"{policy.runner.decisions / len(batch):.1f} decisions per mission)"
     )
     # the scorer alone on a batch of decisions (every mission deciding at its start)
-    from skymule.policies.learned import scores
+    from skymule.policies.learned import compiled_scores, scores
     from skymule.sim.autonomous import AutonomousEngine
 
     engine = AutonomousEngine(batch, detail=False)
@@ -146,14 +147,19 @@ def speed(missions: list[Mission], repeat: int) -> None:
     rows = np.arange(len(batch))
     here = np.asarray(seen.position_m[:, :2], float)
     decision = policy.runner.decision(rows, here, seen.slot, seen.remaining_bit, seen.rate_bps)
-    start = time.process_time()
-    for _ in range(repeat):
-        np.argmax(scores(net, None, decision), axis=1)
-    cpu = time.process_time() - start
-    print(
-        f"scorer on a batch of {len(batch)} decisions (numpy): "
-        f"{repeat * len(batch) / cpu:,.0f} decisions per CPU-s"
-    )
+    forms = {"numpy": lambda: scores(net, None, decision)}
+    if compiled.available():  # what LearnedPolicy runs with numba installed
+        forms["compiled"] = lambda: compiled_scores(net, decision)
+        forms["compiled"]()  # compile (or load from the cache) outside the timing
+    for form, score in forms.items():
+        start = time.process_time()
+        for _ in range(repeat):
+            np.argmax(score(), axis=1)
+        cpu = time.process_time() - start
+        print(
+            f"scorer on a batch of {len(batch)} decisions ({form}): "
+            f"{repeat * len(batch) / cpu:,.0f} decisions per CPU-s"
+        )
     start = time.process_time()
     run_missions(batch, HGAD(), detail=False)
     print(f"  hgad in the same engine: {slots / (time.process_time() - start):,.0f} "

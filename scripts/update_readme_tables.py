@@ -733,6 +733,8 @@ def learned_table(ctx: Context, old: list[str]) -> list[str]:
     ((batch, scored),) = _numbers(
         r"scorer on a batch of ([\d,]+) decisions \(numpy\): ([\d,]+) decisions per CPU-s", out
     )
+    twin = re.findall(r"on a batch of [\d,]+ decisions \(compiled\): ([\d,]+) decisions", out)
+    twin_text = f", its compiled twin {_f(twin[0]):,.0f}" if twin else ""  # numba installed
     lines += [
         "",
         f"Speed (same run): one decision of one mission (features and network) "
@@ -740,7 +742,8 @@ def learned_table(ctx: Context, old: list[str]) -> list[str]:
         f"CPU-s, i.e. {_f(slots):,.0f} mission-slots (a serve and a goal each) per CPU-s, engine "
         f"included (HGAD {_f(hgad_slots):,.0f}), "
         f"{_f(per_mission):.1f} decisions per mission; the scorer alone on a batch of {batch} "
-        f"decisions {_f(scored):,.0f} decisions per CPU-s (`python benchmarks/bench_learned.py`).",
+        f"decisions {_f(scored):,.0f} decisions per CPU-s (numpy){twin_text} "
+        "(`python benchmarks/bench_learned.py`).",
     ]
     return lines
 

@@ -223,6 +223,9 @@ def scores(net: OptionNet, model: np.ndarray | None, decision: Decision) -> np.n
     return np.where(allowed, flat, -np.inf)
 
 
+_FRACTIONS = np.asarray(FRACTIONS)
+
+
 def compiled_scores(net: OptionNet, decision: Decision) -> np.ndarray:
     """:func:`scores` of model 0 by the compiled twin
     (:func:`skymule.policies.learned_kernel.score_rows`; plain Python without numba)."""
@@ -231,11 +234,14 @@ def compiled_scores(net: OptionNet, decision: Decision) -> np.ndarray:
     d = decision
     rows, n = d.travel.shape
     out = np.empty((rows, n * N_DURATIONS + 1))
+    # C-contiguous arguments: numba types any other layout in Python, ~40 us a call
+    c = np.ascontiguousarray
     score_kernel()(
-        d.travel, d.back, d.pair, d.home, d.slots_left, d.n_slots, d.slot_s, d.remaining,
-        d.initial, d.peak, d.rate_now, d.usable, d.visited, d.near, np.asarray(FRACTIONS),
-        net.encoder_w[0], net.encoder_b[0], net.hidden_w[0], net.hidden_b[0], net.out_w[0],
-        float(net.out_b[0]), net.linear_w[0], net.home_w[0], float(net.home_b[0]), out,
+        c(d.travel), c(d.back), c(d.pair), c(d.home), c(d.slots_left), c(d.n_slots),
+        c(d.slot_s), c(d.remaining), c(d.initial), c(d.peak), c(d.rate_now), c(d.usable),
+        c(d.visited), c(d.near), _FRACTIONS, net.encoder_w[0], net.encoder_b[0],
+        net.hidden_w[0], net.hidden_b[0], net.out_w[0], float(net.out_b[0]), net.linear_w[0],
+        net.home_w[0], float(net.home_b[0]), out,
     )  # fmt: skip
     return out
 

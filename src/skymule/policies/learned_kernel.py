@@ -68,6 +68,9 @@ def score_rows(
     encoded = np.zeros((n, hidden))
     mission = np.zeros(n_mission)
     x = np.zeros(n_sensor + n_option + n_mission + 2 * hidden)
+    base = np.empty(n_hidden)
+    per_sensor = np.empty(n_hidden)
+    acts = np.empty(n_hidden)
     for r in range(rows):
         left = slots_left[r]
         dt = slot_s[r]
@@ -201,23 +204,43 @@ def score_rows(
         for h in range(2 * hidden):
             value_home += x[n_sensor + n_option + n_mission + h] * home_w[n_mission + h]
         out[r, n * width] = value_home
+        # the hidden layer's inputs are [sensor | option | mission | pooled]: the mission's and
+        # the pool's part is the same for every option of this decision and the sensor's for
+        # every duration, so each is summed once (the order differs from numpy's product by
+        # round-off only)
+        shared = n_sensor + n_option
+        base_linear = out_b
+        for f in range(shared, shared + n_mission):
+            base_linear += x[f] * linear_w[f]
+        for u in range(n_hidden):
+            base[u] = hidden_b[u]
+        for f in range(shared, x.shape[0]):
+            xf = x[f]
+            for u in range(n_hidden):
+                base[u] += xf * hidden_w[f, u]
         for k in range(n):
+            sensor_linear = base_linear
+            for u in range(n_hidden):
+                per_sensor[u] = base[u]
             for f in range(n_sensor):
-                x[f] = sensor[k, f]
+                xf = sensor[k, f]
+                sensor_linear += xf * linear_w[f]
+                for u in range(n_hidden):
+                    per_sensor[u] += xf * hidden_w[f, u]
             for j in range(width):
                 if not allowed[k, j]:
                     out[r, k * width + j] = -math.inf
                     continue
-                for f in range(n_option):
-                    x[n_sensor + f] = option[k, j, f]
-                value = out_b
-                for f in range(n_sensor + n_option + n_mission):
-                    value += x[f] * linear_w[f]
+                value = sensor_linear
                 for u in range(n_hidden):
-                    acc = hidden_b[u]
-                    for f in range(x.shape[0]):
-                        acc += x[f] * hidden_w[f, u]
-                    value += math.tanh(acc) * out_w[u]
+                    acts[u] = per_sensor[u]
+                for f in range(n_option):
+                    xf = option[k, j, f]
+                    value += xf * linear_w[n_sensor + f]
+                    for u in range(n_hidden):
+                        acts[u] += xf * hidden_w[n_sensor + f, u]
+                for u in range(n_hidden):
+                    value += math.tanh(acts[u]) * out_w[u]
                 out[r, k * width + j] = value
 
 

@@ -13,7 +13,7 @@ policy on the engine), Greedy, HGAD, the planner and the autonomous upper bound;
 with a 95% confidence interval (normal approximation, 1.96 standard errors) and the mean gap
 to the bound; printed as a Markdown table whatever the outcome.
 
-Run: python benchmarks/train_ppo.py --minutes 20 --out models/ppo_lake_wheeler.zip
+Run: python benchmarks/train_ppo.py --minutes 20 --out runs/ppo_lake_wheeler.zip
 Smoke test: python benchmarks/train_ppo.py --tiny --out /tmp/ppo_tiny.zip
 """
 
@@ -127,7 +127,7 @@ def main() -> None:
     parser.add_argument(
         "--out",  # the tiny smoke run never writes over the committed model
         default=size(
-            "models/ppo_lake_wheeler.zip", str(Path(tempfile.gettempdir()) / "ppo_tiny.zip")
+            "runs/ppo_lake_wheeler.zip", str(Path(tempfile.gettempdir()) / "ppo_tiny.zip")
         ),
     )
     parser.add_argument("--minutes", type=float, default=25.0, help="wall-time training budget")

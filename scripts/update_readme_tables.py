@@ -20,7 +20,8 @@ Options:
   --readme PATH       the file to rewrite (default: README.md next to scripts/)
   --saved FILE[,FILE] sweep-scale table: parse these saved outputs of
                       `bench_sweep.py --missions ...` (runs too long to repeat here)
-                      instead of re-running its default sizes
+                      instead of re-running its default sizes; learned table: a saved
+                      output of `bench_learned.py` instead of running it
 
 Tables, what they run and roughly how long on the 2-core machine they were written on:
   presets       skymule compare {paper-sim-fixed, aadm-default} --policies greedy,hgad   ~3 s
@@ -38,6 +39,9 @@ Tables, what they run and roughly how long on the 2-core machine they were writt
   speed         benchmarks/bench_{engine,sweep,channel,bound,autonomous,planner,startup}.py ~15 min
                 (SPEED_BENCHES; sweeps and planner against PREVIOUS_REV in the same run;
                 the 100,000-mission sweep only with --all: +10 min)
+  learned       benchmarks/bench_learned.py: learned vs greedy, hgad, planner, bound on 200
+                held-out missions per row, with and without faults                      ~25 min
+                (--saved FILE: parse a saved run of it instead of running it)
   suite         python -m pytest -q (only with --all)                                     ~3 min
 Rows that are not re-run keep their current text.
 """
@@ -666,6 +670,84 @@ def suite_table(ctx: Context, old: list[str]) -> list[str]:
     )
 
 
+def _fields(line: str) -> dict[str, str]:
+    return dict(part.split("=", 1) for part in line.split()[1:])
+
+
+def learned_table(ctx: Context, old: list[str]) -> list[str]:
+    """The learned policy against the others, per fault condition and sensor count, and its
+    speed, from ``bench_learned.py`` (or its saved output)."""
+    saved = [path.read_text() for path in ctx.saved]
+    out = next((text for text in saved if "vs-hgad: " in text), None)
+    if out is None:
+        out = ctx.bench("bench_learned.py")
+    rows = [_fields(line) for line in out.splitlines() if line.startswith("row: ")]
+    versus = [_fields(line) for line in out.splitlines() if line.startswith("vs-hgad: ")]
+    if not rows or not versus:
+        raise SystemExit(f"bench_learned.py printed no row:/vs-hgad: lines:\n{out[-3000:]}")
+    cell = {(r["condition"], r["n"], r["policy"]): r for r in rows}
+    table = []
+    for v in versus:
+        key = (v["condition"], v["n"])
+
+        def mean(policy: str, key: tuple[str, str] = key) -> str:
+            r = cell[(*key, policy)]
+            return f"{_f(r['mean']):.1f} ± {_f(r['ci']):.1f}"
+
+        def diff(policy: str, key: tuple[str, str] = key) -> str:
+            r = cell[(*key, policy)]
+            return f"{_f(r['diff']):+.1f} ± {_f(r['diff_ci']):.1f}"
+
+        table.append(
+            [
+                "faults" if v["condition"] == "faults" else "none",
+                v["n"],
+                v["missions"],
+                mean("learned"),
+                mean("greedy"),
+                mean("hgad"),
+                mean("planner"),
+                mean("bound"),
+                diff("hgad"),
+                f"{100 * _f(v['rel']):+.1f}% ± {100 * _f(v['rel_ci']):.1f}",
+                f"{100 * _f(v['worst']):+.1f}%, {v['below5']}",
+                diff("planner"),
+                f"{100 * _f(cell[(*key, 'learned')]['gap']):.1f}%",
+            ]
+        )
+    header = [
+        "faults", "N", "missions", "learned", "greedy", "hgad", "planner", "bound",
+        "learned − hgad", "vs hgad", "worst vs hgad, missions < −5%", "learned − planner",
+        "learned's gap to bound",
+    ]  # fmt: skip
+    lines = markdown(header, list("lrrrrrrrrrrrr"), table)
+    ((per_us, _decisions),) = _numbers(
+        r"inference, one mission: ([\d.]+) us CPU per decision.*?(\d+) decisions", out
+    )
+    ((rate, slots, per_mission),) = _numbers(
+        r"batched in the engine, [\d,]+ missions: ([\d,]+) decisions per CPU-s \(([\d,]+) "
+        r"mission-slots per CPU-s, engine included; ([\d.]+) decisions per mission\)",
+        out,
+    )
+    ((hgad_slots,),) = _numbers(r"hgad in the same engine: ([\d,]+) mission-slots", out)
+    ((batch, scored),) = _numbers(
+        r"scorer on a batch of ([\d,]+) decisions \(numpy\): ([\d,]+) decisions per CPU-s", out
+    )
+    twin = re.findall(r"on a batch of [\d,]+ decisions \(compiled\): ([\d,]+) decisions", out)
+    twin_text = f", its compiled twin {_f(twin[0]):,.0f}" if twin else ""  # numba installed
+    lines += [
+        "",
+        f"Speed (same run): one decision of one mission (features and network) "
+        f"{_f(per_us):.1f} µs CPU; batched in the engine {_f(rate):,.0f} option decisions per "
+        f"CPU-s, i.e. {_f(slots):,.0f} mission-slots (a serve and a goal each) per CPU-s, engine "
+        f"included (HGAD {_f(hgad_slots):,.0f}), "
+        f"{_f(per_mission):.1f} decisions per mission; the scorer alone on a batch of {batch} "
+        f"decisions {_f(scored):,.0f} decisions per CPU-s (numpy){twin_text} "
+        "(`python benchmarks/bench_learned.py`).",
+    ]
+    return lines
+
+
 SIM2REAL_LINE = re.compile(
     r"^  (?P<map>\S.*?\S)\s{2,}(?P<split>(?:time|flight) \(.*?\))\s+(?P<rmse>[\d.]+)\s+"
     r"(?P<over>[+-][\d.]+)\s+(?P<bias>[+-][\d.]+)\s+(?P<cover>\d+%|n/a)\s+(?P<greedy>\S+)\s+"
@@ -709,6 +791,7 @@ TABLES: dict[str, Callable[[Context, list[str]], list[str]]] = {
     "sweep-scale": sweep_scale_table,
     "sim2real": sim2real_table,
     "speed": speed_table,
+    "learned": learned_table,
     "suite": suite_table,
 }
 

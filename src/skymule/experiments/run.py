@@ -242,13 +242,13 @@ def _run_items(items: Sequence[_Item]) -> pd.DataFrame:
 
 def policy_modules(spec: SweepSpec) -> list[str]:
     """The modules of the ``module:Class`` policies a sweep runs (base and ``policy.name``)."""
-    from skymule.policies.registry import LEARNED_PREFIX
+    from skymule.policies.registry import is_plugin
 
     names = [spec.base.policy.name]
     for axis in spec.discrete:
         if axis.key == "policy.name":
             names.extend(str(v) for v in axis.values or ())
-    return [n.partition(":")[0] for n in names if ":" in n and not n.startswith(LEARNED_PREFIX)]
+    return [n.partition(":")[0] for n in names if is_plugin(n)]
 
 
 #: Memory a chunk may use in a worker [byte] (its batch arrays and built tracks).

@@ -1,9 +1,10 @@
 """Policies, resolved by name through :data:`POLICIES`, or your own by import path.
 
-``policy.name`` (and ``--policy``/``--policies``) accepts a registry name or
-``"package.module:Class"``. A policy is an object with ``name``, ``reset`` and ``act``, in one
-of two forms (:mod:`skymule.policies.base`): per mission, or batched (``batched = True``:
-B missions at once, as Greedy, HGAD and hgad-robust are). Its parameters come from the
+``policy.name`` (and ``--policy``/``--policies``) accepts a registry name,
+``"package.module:Class"``, ``"rl:model.zip"`` or ``"learned:weights.npz"``. A policy is an
+object with ``name``, ``reset`` and ``act``, in one of two forms
+(:mod:`skymule.policies.base`): per mission, or batched (``batched = True``: B missions at
+once, as Greedy, HGAD, hgad-robust and learned are). Its parameters come from the
 scenario's ``[policy.params]`` table:
 
 * a registered policy declares a pydantic parameter model at registration
@@ -42,6 +43,7 @@ from skymule.policies.builtin import HGAD, Greedy, RobustHGAD
 from skymule.policies.registry import (
     LEARNED_PREFIX,
     POLICIES,
+    WEIGHTS_PREFIX,
     HGADParams,
     NoParams,
     PolicyFactory,
@@ -115,6 +117,7 @@ POLICIES.register(
 POLICIES.register(
     "optimal-fixed", _by_path("skymule.policies.optimal_fixed:OptimalFixed"), params=NoParams
 )
+POLICIES.register("learned", _by_path("skymule.policies.learned:shipped_policy"), params=NoParams)
 
 
 @dataclass(frozen=True)
@@ -150,6 +153,11 @@ def make_policy(spec: PolicySpec) -> Policy | BatchPolicy:
     if spec.name.startswith(LEARNED_PREFIX):  # a trained model (skymule.policies.rl, extra rl)
         learned: Policy = importlib.import_module("skymule.policies.rl").RLPolicy(spec)
         return learned
+    if spec.name.startswith(WEIGHTS_PREFIX):  # the learned option scorer, your own weights
+        weights: BatchPolicy = importlib.import_module("skymule.policies.learned").learned_policy(
+            spec.name
+        )
+        return weights
     if ":" not in spec.name:
         return POLICIES.get(spec.name)(spec.policy_params())
     target = import_target(spec.name)

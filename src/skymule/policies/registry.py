@@ -5,7 +5,8 @@
 model as ``params`` metadata (``POLICIES.meta(name, "params")``). :mod:`skymule.policies`
 registers the built-in policies in it when imported (which importing this module does first,
 as its parent package); you can register your own the same way. Names of the form
-``"package.module:Class"`` (plug-ins) and ``"rl:model.zip"`` (learned models) need no entry.
+``"package.module:Class"`` (plug-ins), ``"rl:model.zip"`` (learned models) and
+``"learned:weights.npz"`` (the ``learned`` policy with your own weights) need no entry.
 
 Files are shared, so naming a plug-in or a model in one runs nothing by itself: checking a
 name (:func:`check_policy_name`) never imports or reads anything; the module is imported
@@ -85,13 +86,18 @@ POLICIES: Registry[PolicyFactory] = Registry(
 LEARNED_PREFIX = "rl:"
 """Policy names ``rl:path/to/model.zip``: a model trained in skymule's environments."""
 
+WEIGHTS_PREFIX = "learned:"
+"""Policy names ``learned:path/to/weights.npz``: the ``learned`` option scorer with your own
+weights (:mod:`skymule.policies.learned`; plain arrays, no code)."""
+
 
 _IMPORT_PATH = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:[A-Za-z_]\w*$")
 
 
 def is_plugin(name: str) -> bool:
-    """True for an import path ``"package.module:Class"`` (not a learned ``rl:`` model)."""
-    return ":" in name and not name.startswith(LEARNED_PREFIX)
+    """True for an import path ``"package.module:Class"`` (not an ``rl:`` model or
+    ``learned:`` weights file)."""
+    return ":" in name and not name.startswith((LEARNED_PREFIX, WEIGHTS_PREFIX))
 
 
 def plugin_module(name: str) -> str | None:
@@ -105,6 +111,9 @@ def check_policy_name(name: str) -> str:
     if name.startswith(LEARNED_PREFIX):
         if len(name) == len(LEARNED_PREFIX):
             raise SkymuleError(f"policy {name!r}: give rl:path/to/model.zip")
+    elif name.startswith(WEIGHTS_PREFIX):
+        if len(name) == len(WEIGHTS_PREFIX):
+            raise SkymuleError(f"policy {name!r}: give learned:path/to/weights.npz")
     elif ":" in name:
         if _IMPORT_PATH.match(name) is None:
             raise SkymuleError(f"policy {name!r}: an import path is 'package.module:Class'")
@@ -156,6 +165,8 @@ def policy_params_model(name: str) -> type[BaseModel] | None:
     :class:`SkymuleError` for an unknown name or a plug-in that fails to import.
     """
     if name.startswith(LEARNED_PREFIX):  # rl:path/to/model.zip: the model is the parameter
+        return None
+    if name.startswith(WEIGHTS_PREFIX):  # learned:path/to/weights.npz: likewise
         return None
     if ":" in name:
         return _params_of(import_target(name))

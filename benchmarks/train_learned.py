@@ -97,7 +97,6 @@ def plot_curve(csv_path: Path, figure: Path) -> None:
     ax.set_ylabel("download vs HGAD [%]")
     ax.set_title("learned: validation missions (300 s, Lake Wheeler)")
     ax.legend(fontsize=8)
-    figure.parent.mkdir(parents=True, exist_ok=True)
     write_with(figure, lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
     plt.close(fig)
 

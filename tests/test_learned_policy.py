@@ -320,3 +320,4 @@ def test_numpy_and_compiled_scorers_fly_the_same_missions(random_missions: list[
     a = run_missions(random_missions, policy, detail=False).downloaded_bit
     b = run_missions(random_missions, numpy_form, detail=False).downloaded_bit
     np.testing.assert_array_equal(a, b)
+

@@ -46,10 +46,10 @@ from skymule.limits import (
 )
 from skymule.overrides import apply_override
 from skymule.policies.registry import (
-    LEARNED_PREFIX,
     POLICIES,
     NoParams,
     check_policy_name,
+    is_model_file,
     is_plugin,
     policy_params_model,
 )
@@ -396,7 +396,7 @@ RUNNING = "running"
 def policy_param_names(name: str) -> frozenset[str] | None:
     """The parameters policy ``name`` declares (None: a plug-in without ``Params``, which takes
     the whole table). A plug-in's module is imported: call it for a policy that runs."""
-    if name.startswith(LEARNED_PREFIX):
+    if is_model_file(name):
         return frozenset()
     try:
         model = policy_params_model(name)

@@ -94,10 +94,16 @@ weights (:mod:`skymule.policies.learned`; plain arrays, no code)."""
 _IMPORT_PATH = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:[A-Za-z_]\w*$")
 
 
+def is_model_file(name: str) -> bool:
+    """True for ``rl:PATH`` and ``learned:PATH``: a policy whose file is its parameter (it
+    takes no ``[policy.params]``)."""
+    return name.startswith((LEARNED_PREFIX, WEIGHTS_PREFIX))
+
+
 def is_plugin(name: str) -> bool:
     """True for an import path ``"package.module:Class"`` (not an ``rl:`` model or
     ``learned:`` weights file)."""
-    return ":" in name and not name.startswith((LEARNED_PREFIX, WEIGHTS_PREFIX))
+    return ":" in name and not is_model_file(name)
 
 
 def plugin_module(name: str) -> str | None:
@@ -164,9 +170,7 @@ def policy_params_model(name: str) -> type[BaseModel] | None:
     Imports a plug-in's module (only for a policy that runs). Raises the one-line
     :class:`SkymuleError` for an unknown name or a plug-in that fails to import.
     """
-    if name.startswith(LEARNED_PREFIX):  # rl:path/to/model.zip: the model is the parameter
-        return None
-    if name.startswith(WEIGHTS_PREFIX):  # learned:path/to/weights.npz: likewise
+    if is_model_file(name):  # rl:model.zip, learned:weights.npz: the file is the parameter
         return None
     if ":" in name:
         return _params_of(import_target(name))

@@ -174,7 +174,7 @@ def draw_ranking(figures: Path, result: dict[str, Any], formats: tuple[str, ...]
     policies = list(result["twins"][0]["policies"])
     labels = [twin_label(r["twin"]) for r in ranking]
     y = np.arange(len(ranking))[::-1]
-    offsets = np.linspace(-0.25, 0.25, len(policies) + 2)[1:-1] if len(policies) else []
+    offsets: np.ndarray = np.linspace(-0.25, 0.25, len(policies) + 2)[1:-1]
     height = max(2.0, 0.9 + 2 * ROW_HEIGHT_IN * len(ranking))
     with paper_style():
         fig, axes = panel_figure(2, height, sharey=True)

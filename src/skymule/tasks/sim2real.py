@@ -469,7 +469,7 @@ def score_predictions(
         counts["n_scored"][name] = int(ok.sum())
         counts["n_missing"][name] = missing
         counts["n_deep_drops"][name] = deep
-    best_guess = np.nanmax(np.where(np.isfinite(predicted_db), rate_bps(predicted_db), 0), 1)
+    best_guess = np.max(np.where(np.isfinite(predicted_db), rate_bps(predicted_db), 0.0), axis=1)
     best_seen = np.max(rate_bps(measured_db), axis=1)
     return Scores(towers, rate_errors(best_guess, best_seen, boot), counts)
 
@@ -607,9 +607,19 @@ def mean_regret(numbers: Sequence[PolicyNumbers], boot: Bootstrap) -> Estimate:
             with np.errstate(divide="ignore", invalid="ignore"):
                 values.append(np.where(total > 0, (total - np.sum(executed, axis=-1)) / total,
                                        np.nan))  # fmt: skip
-        return np.nanmean(np.stack(values), axis=0)
+        return _nan_mean(np.stack(values), axis=0)
 
     return block_bootstrap(mean, padded, boot)
+
+
+def _nan_mean(values: Any, axis: int | None = None) -> Any:
+    """The mean of the finite values (NaN where there is none), without a warning."""
+    values = np.asarray(values, float)
+    finite_ = np.isfinite(values)
+    count = finite_.sum(axis=axis)
+    total = np.where(finite_, values, 0.0).sum(axis=axis)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(count > 0, total / np.maximum(count, 1), np.nan)
 
 
 def sim2real(
@@ -628,8 +638,6 @@ def sim2real(
     fitted on them); ``download_log``: the real flight's download log (its serving decisions
     are then the same decisions of the same-decisions error).
     """
-    import warnings
-
     from skymule.geo import sensor_positions_m
     from skymule.io.traces import TraceError, positions_local, read_trace
     from skymule.policies import check_policies
@@ -666,11 +674,9 @@ def sim2real(
         predicted = np.asarray(mission.source.snr_db(twin_positions), float)
         sigma_of = getattr(mission.source, "sigma_db", None)
         sigma = None if sigma_of is None else np.asarray(sigma_of(twin_positions), float)
-        with warnings.catch_warnings():  # all-NaN slices of a tower with no samples
-            warnings.simplefilter("ignore", RuntimeWarning)
-            scores = score_predictions(
-                predicted, measured, mission.sensor_names, mission.rate_bps, boot, sigma
-            )
+        scores = score_predictions(
+            predicted, measured, mission.sensor_names, mission.rate_bps, boot, sigma
+        )
         twin_runs = _runs(variant, names, mission)
         twin_rates = _track_rates(next(iter(twin_runs.values())))
         numbers = {
@@ -690,12 +696,10 @@ def sim2real(
         )
     sensor_m = sensor_positions_m(base.sensors, real.frame) if base.sensors else np.full(
         (len(real.sensor_names), 3), np.nan)  # fmt: skip
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        references, notes = _references(
-            base, real_trace, positions, measured, real.sensor_names, sensor_m,
-            calibration, twins, real.frame, real.rate_bps, boot,
-        )  # fmt: skip
+    references, notes = _references(
+        base, real_trace, positions, measured, real.sensor_names, sensor_m,
+        calibration, twins, real.frame, real.rate_bps, boot,
+    )  # fmt: skip
     ranking = rank_twins(results, boot)
     real_mbit = {p: float(r.summary["total_downloaded_mbit"]) for p, r in real_runs.items()}
     return Sim2Real(
@@ -711,10 +715,8 @@ def rank_twins(results: Sequence[TwinResult], boot: Bootstrap) -> list[Ranked]:
         Ranked(
             result.twin,
             mean_regret(list(result.policies.values()), boot),
-            float(
-                np.nanmean([abs(n.same_decisions_error.value) for n in result.policies.values()])
-            ),
-            float(np.nanmean([row["rmse_db"].value for row in result.scores.towers.values()])),
+            float(_nan_mean([abs(n.same_decisions_error.value) for n in result.policies.values()])),
+            float(_nan_mean([row["rmse_db"].value for row in result.scores.towers.values()])),
         )
         for result in results
     ]

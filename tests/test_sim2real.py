@@ -299,7 +299,7 @@ def test_a_biased_twin_with_the_same_decisions_costs_nothing_but_misses_the_mbit
     biased = tmp_path / "biased.toml"
     biased.write_text(BIG_BUFFERS.replace('model = "fspl"', 'model = "fspl"\ntx_power_dbm = 16.0'))
     real = _real_flight(tmp_path, scenario, 0.0)
-    result = sim2real(scenario, real, [str(biased)], ["greedy", "hgad"])
+    result = sim2real(str(scenario), real, [str(biased)], ["greedy", "hgad"])
     (twin,) = result.twins
     greedy = twin.policies["greedy"]
     assert greedy.regret.value == 0.0
@@ -325,7 +325,7 @@ def test_sim2real_on_the_samples_prints_references_policy_numbers_and_the_twin_t
     tmp_path: Path,
 ) -> None:
     """Several twins on the shipped flight, with its download log and a calibration set."""
-    args = [
+    args: list[str | Path] = [
         "sim2real", "paper-sim-fixed", SAMPLES / "flight_merged.csv",
         "--twin", SAMPLES / "dt_flight.csv", "--twin", SAMPLES / "flight2_merged.csv",
         "--twin", "paper-sim-fixed", "--policies", "greedy,hgad",

@@ -154,4 +154,4 @@ def test_rank_by_puts_nan_last_and_keeps_ties_in_order() -> None:
 def test_scaled_estimates_keep_low_below_high() -> None:
     flipped = Estimate(0.1, 0.05, 0.2).scaled(-100.0)
     assert flipped.value == pytest.approx(-10.0)
-    assert (flipped.low, flipped.high) == (pytest.approx(-20.0), pytest.approx(-5.0))
+    assert flipped.low == pytest.approx(-20.0) and flipped.high == pytest.approx(-5.0)

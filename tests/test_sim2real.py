@@ -301,19 +301,21 @@ def test_a_biased_twin_with_the_same_decisions_costs_nothing_but_misses_the_mbit
     real = _real_flight(tmp_path, scenario, 0.0)
     result = sim2real(str(scenario), real, [str(biased)], ["greedy", "hgad"])
     (twin,) = result.twins
-    greedy = twin.policies["greedy"]
+    greedy = twin.numbers["greedy"]
     assert greedy.regret.value == 0.0
     assert greedy.same_decisions_error.value > 0.03  # measured 0.074: the table saturates
     assert greedy.same_decisions_error.low > 0.0  # the interval excludes 0 too
     assert greedy.own_error is not None and greedy.own_error.value > 0.03
-    for numbers in twin.policies.values():
+    for numbers in twin.numbers.values():
         assert numbers.same_real_mbit == pytest.approx(numbers.real_mbit, rel=1e-9)
         assert numbers.decisions == "policy on the real trace"
-    hgad = twin.policies["hgad"]
+    hgad = twin.numbers["hgad"]
     if hgad.hover_slots_real or hgad.hover_slots_twin:
         assert hgad.own_error is None and "hovers" in (hgad.own_error_note or "")
+    assert twin.policies["greedy"]["regret"] == 0.0  # the plain-dict view reads the same
+    assert twin.scores["bias_db"]["LW1"] == twin.metrics.towers["LW1"]["bias_db"].value
     # the twin's bias shows in the table, not in the references
-    assert twin.scores.towers["LW1"]["bias_db"].value == pytest.approx(6.0, abs=0.02)
+    assert twin.metrics.towers["LW1"]["bias_db"].value == pytest.approx(6.0, abs=0.02)
     labels = [r.reference for r in result.references]
     assert labels == ["noise floor", "free space", "oracle log-distance"]
     assert any("--calibration" in note for note in result.notes)

@@ -186,15 +186,36 @@ class PolicyNumbers:
 
 @dataclass(frozen=True)
 class TwinResult:
-    """One twin scored against the real flight."""
+    """One twin scored against the real flight: its scores and its policy-level numbers.
+
+    ``scores``, ``coverage`` and ``policies`` read as before (plain dicts: per metric per
+    tower, per tower, per policy), ``metrics`` and ``numbers`` hold the estimates with their
+    intervals.
+    """
 
     twin: str
-    scores: Scores
-    policies: dict[str, PolicyNumbers]
+    metrics: Scores
+    numbers: dict[str, PolicyNumbers]
+
+    @property
+    def scores(self) -> dict[str, dict[str, float]]:
+        """Per metric (``rmse_db``, ``bias_db``, ...), per tower: the value."""
+        document = self.metrics.to_json()
+        return {k: v for k, v in document.items() if k not in ("ci", "best_link", "coverage_95")}
+
+    @property
+    def coverage(self) -> dict[str, float] | None:
+        """Per tower: the share inside the twin's 95% interval, or None (no sigma)."""
+        document = self.metrics.to_json()
+        return document.get("coverage_95")
+
+    @property
+    def policies(self) -> dict[str, dict[str, Any]]:
+        """Per policy: the JSON fields (``real_mbit``, ``twin_mbit``, ``error``, ...)."""
+        return {p: v.to_json() for p, v in self.numbers.items()}
 
     def to_json(self) -> dict[str, Any]:
-        policies = {p: v.to_json() for p, v in self.policies.items()}
-        return {"twin": self.twin, **self.scores.to_json(), "policies": policies}
+        return {"twin": self.twin, **self.metrics.to_json(), "policies": self.policies}
 
 
 @dataclass(frozen=True)
@@ -714,9 +735,9 @@ def rank_twins(results: Sequence[TwinResult], boot: Bootstrap) -> list[Ranked]:
     ranked = [
         Ranked(
             result.twin,
-            mean_regret(list(result.policies.values()), boot),
-            float(_nan_mean([abs(n.same_decisions_error.value) for n in result.policies.values()])),
-            float(_nan_mean([row["rmse_db"].value for row in result.scores.towers.values()])),
+            mean_regret(list(result.numbers.values()), boot),
+            float(_nan_mean([abs(n.same_decisions_error.value) for n in result.numbers.values()])),
+            float(_nan_mean([row["rmse_db"].value for row in result.metrics.towers.values()])),
         )
         for result in results
     ]

@@ -15,6 +15,7 @@ from skymule.metrics.sim2real import (
     coverage,
     execute,
     fit_log_distance,
+    on_path_slots,
     own_error_defined,
     rank_by,
     regret,
@@ -140,11 +141,15 @@ def test_a_biased_twin_with_the_same_decisions_has_no_regret_but_a_rate_error() 
     assert regret(wrong, best).low > 0.3
 
 
-def test_own_error_is_defined_only_without_hovering() -> None:
+def test_own_error_is_defined_only_without_hovering_and_on_path_until_a_hover() -> None:
     still = np.zeros(5, bool)
     hover = np.array([False, True, False, False, False])
     assert own_error_defined(still, still)
     assert not own_error_defined(hover, still) and not own_error_defined(still, hover)
+    # both on the recorded path up to and including the slot after which one first hovers
+    assert on_path_slots(still, still) == 5
+    assert on_path_slots(hover, still) == 2
+    assert on_path_slots(still, np.array([False, False, False, True, True])) == 4
 
 
 def test_rank_by_puts_nan_last_and_keeps_ties_in_order() -> None:

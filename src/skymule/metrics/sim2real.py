@@ -296,6 +296,16 @@ def own_error_defined(hover_real: np.ndarray, hover_twin: np.ndarray) -> bool:
     return not (np.any(hover_real) or np.any(hover_twin))
 
 
+def on_path_slots(hover_real: np.ndarray, hover_twin: np.ndarray) -> int:
+    """Slots in which both sides are still on the recorded path with its timing: up to and
+    including the first slot after which either side hovers (all slots if neither does)."""
+    firsts = [int(np.argmax(h)) for h in (np.asarray(hover_real), np.asarray(hover_twin))
+              if np.any(h)]  # fmt: skip
+    if not firsts:
+        return max(len(hover_real), len(hover_twin))
+    return min(firsts) + 1
+
+
 def rank_by(keys: Sequence[tuple[float, ...]]) -> list[int]:
     """Indices of ``keys`` in increasing lexicographic order, a NaN after every number (ties
     keep the given order)."""
@@ -322,6 +332,7 @@ __all__ = [
     "coverage",
     "execute",
     "fit_log_distance",
+    "on_path_slots",
     "own_error_defined",
     "rank_by",
     "rate_errors",

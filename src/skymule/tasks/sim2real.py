@@ -65,6 +65,7 @@ from skymule.metrics.sim2real import (
     coverage,
     execute,
     fit_log_distance,
+    on_path_slots,
     own_error_defined,
     rank_by,
     rate_errors,
@@ -88,6 +89,10 @@ RATE_METRICS = ("rate_rmse_mbps", "rate_bias_mbps")
 
 def _ci(estimate: Estimate) -> list[float]:
     return [estimate.low, estimate.high]
+
+
+def _value(estimate: Estimate | None) -> float | None:
+    return None if estimate is None else estimate.value
 
 
 @dataclass(frozen=True)
@@ -138,6 +143,8 @@ class PolicyNumbers:
     executed_mbit: float
     regret: Estimate
     own_error: Estimate | None
+    on_path_slots: int
+    own_error_on_path: Estimate | None
     hover_slots_real: int
     hover_slots_twin: int
     last_sample_real: int
@@ -153,8 +160,9 @@ class PolicyNumbers:
             return None
         return (
             f"hovers ({self.hover_slots_real} slots on the real trace, {self.hover_slots_twin} "
-            f"on the twin): a hover freezes the trace's sample index, so after it the two "
-            f"sides are where the recorded flight was not; last sample reached "
+            f"on the twin, the first after slot {self.on_path_slots - 1}): a hover freezes the "
+            f"trace's sample index, so after it the two sides are where the recorded flight was "
+            f"not; last sample reached "
             f"{self.last_sample_real} (real) and {self.last_sample_twin} (twin) of "
             f"{self.n_samples}"
         )
@@ -176,6 +184,11 @@ class PolicyNumbers:
             "own_error": None if self.own_error is None else self.own_error.value,
             "own_error_ci": None if self.own_error is None else _ci(self.own_error),
             "own_error_note": self.own_error_note,
+            "on_path_slots": self.on_path_slots,
+            "own_error_on_path": _value(self.own_error_on_path),
+            "own_error_on_path_ci": None
+            if self.own_error_on_path is None
+            else _ci(self.own_error_on_path),
             "hover_slots_real": self.hover_slots_real,
             "hover_slots_twin": self.hover_slots_twin,
             "last_sample_real": self.last_sample_real,
@@ -436,6 +449,10 @@ def policy_numbers(
     own = None
     if own_error_defined(hover_real, hover_twin):
         own = relative_change(twin_bits, real_bits, boot)
+    on_path = on_path_slots(hover_real, hover_twin)
+    own_on_path = None
+    if own is None and on_path >= 2:
+        own_on_path = relative_change(twin_bits[:on_path], real_bits[:on_path], boot)
     real_samples = _decisions_of(real_run).sample
     return PolicyNumbers(
         real_mbit=float(real_run.summary["total_downloaded_mbit"]),
@@ -447,6 +464,8 @@ def policy_numbers(
         executed_mbit=float(executed.sum()) / 1e6,
         regret=regret(executed, best, boot),
         own_error=own,
+        on_path_slots=on_path,
+        own_error_on_path=own_on_path,
         hover_slots_real=int(np.sum(hover_real)),
         hover_slots_twin=int(np.sum(hover_twin)),
         last_sample_real=int(real_samples[-1]) if real_samples.size else 0,
@@ -859,26 +878,28 @@ def snr_table(document: dict[str, Any]) -> tuple[list[str], list[dict[str, str]]
     return ["row", "sensor", *(h for h, _, _ in SNR_COLUMNS.values())], rows
 
 
+def _percent(entry: dict[str, Any], key: str) -> str:
+    return fmt_ci(entry.get(key), entry.get(f"{key}_ci"), PERCENT_PLACES, 100.0)
+
+
 def policy_table(document: dict[str, Any]) -> tuple[list[str], list[dict[str, str]]]:
     """The policy-level table: the three numbers [%] with CIs, hover slots, last samples."""
     rows = []
     for twin in document["twins"]:
         for policy, v in twin["policies"].items():
-            own = v.get("own_error")
-            rows.append({
-                "twin": label_of(twin["twin"]),
-                "policy": policy,
-                "decisions": v.get("decisions", ""),
-                "same-decisions error [%]": fmt_ci(v.get("same_decisions_error"),
-                                                   v.get("same_decisions_error_ci"),
-                                                   PERCENT_PLACES, 100.0),
-                "regret [%]": fmt_ci(v.get("regret"), v.get("regret_ci"), PERCENT_PLACES, 100.0),
-                "own error [%]": "undefined: hovers" if own is None else fmt_ci(
-                    own, v.get("own_error_ci"), PERCENT_PLACES, 100.0),
-                "hover slots real/twin": f"{v.get('hover_slots_real')}/{v.get('hover_slots_twin')}",
-                "last sample real/twin": f"{v.get('last_sample_real')}/"
-                                         f"{v.get('last_sample_twin')} of {v.get('n_samples')}",
-            })  # fmt: skip
+            defined = v.get("own_error") is not None
+            samples = f"{v.get('last_sample_real')}/{v.get('last_sample_twin')}"
+            cells = [
+                label_of(twin["twin"]),
+                policy,
+                str(v.get("decisions", "")),
+                _percent(v, "same_decisions_error"),
+                _percent(v, "regret"),
+                _percent(v, "own_error") if defined else "undefined: hovers",
+                f"{v.get('hover_slots_real')}/{v.get('hover_slots_twin')}",
+                f"{samples} of {v.get('n_samples')}",
+            ]
+            rows.append(dict(zip(POLICY_COLUMNS, cells, strict=True)))
     return list(POLICY_COLUMNS), rows
 
 

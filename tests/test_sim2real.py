@@ -371,6 +371,9 @@ def test_sim2real_on_the_samples_prints_references_policy_numbers_and_the_twin_t
         assert len(values) == 1
     references = {r["reference"]: r for r in document["references"]}
     assert references["log-distance"]["fitted_on"] == "dt_flight.csv"
+    # the two-ray twin misses this flight by more than free space does, and is told so
+    worse = [n for n in document["notes"] if n.startswith("dt_flight.csv: mean SNR RMSE")]
+    assert len(worse) == 1 and "worse than free space" in worse[0] and worse[0] in text
     floor = references["noise floor"]["rmse_db"]
     oracle = references["oracle log-distance"]["rmse_db"]
     assert all(floor[t] < oracle[t] for t in floor)  # no trend beats the trace's own noise

@@ -740,12 +740,38 @@ def sim2real(
         base, real_trace, positions, measured, real.sensor_names, sensor_m,
         calibration, twins, real.frame, real.rate_bps, boot,
     )  # fmt: skip
+    notes += worse_than_references(results, references)
     ranking = rank_twins(results, boot)
     real_mbit = {p: float(r.summary["total_downloaded_mbit"]) for p, r in real_runs.items()}
     return Sim2Real(
         label, str(real_trace), real_mbit, tuple(results), pd.concat(frames),
         tuple(references), tuple(ranking), boot, tuple(notes),
     )  # fmt: skip
+
+
+BASELINES = ("free space", "log-distance")
+"""References a twin should beat: a formula, and a trend fitted on the calibration set."""
+
+
+def mean_rmse(scores: Scores) -> float:
+    """The mean over the towers of the SNR RMSE [dB] (NaN towers left out)."""
+    return float(_nan_mean([row["rmse_db"].value for row in scores.towers.values()]))
+
+
+def worse_than_references(
+    results: Sequence[TwinResult], references: Sequence[Reference]
+) -> list[str]:
+    """One note per twin whose mean SNR RMSE is above a baseline reference's."""
+    notes = []
+    baselines = [r for r in references if r.reference in BASELINES]
+    for result in results:
+        own = mean_rmse(result.metrics)
+        worse = [(r.reference, mean_rmse(r.scores)) for r in baselines]
+        worse = [(name, value) for name, value in worse if own > value]
+        if worse:
+            than = ", ".join(f"{name} ({value:.1f} dB)" for name, value in worse)
+            notes.append(f"{label_of(result.twin)}: mean SNR RMSE {own:.1f} dB, worse than {than}")
+    return notes
 
 
 def rank_twins(results: Sequence[TwinResult], boot: Bootstrap) -> list[Ranked]:
@@ -756,7 +782,7 @@ def rank_twins(results: Sequence[TwinResult], boot: Bootstrap) -> list[Ranked]:
             result.twin,
             mean_regret(list(result.numbers.values()), boot),
             float(_nan_mean([abs(n.same_decisions_error.value) for n in result.numbers.values()])),
-            float(_nan_mean([row["rmse_db"].value for row in result.metrics.towers.values()])),
+            mean_rmse(result.metrics),
         )
         for result in results
     ]

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from skymule.sim.contract import NO_SENSOR, served_bits
+from skymule.units import BITS_PER_MBIT
 
 BLOCK_SAMPLES = 10
 """Consecutive samples per bootstrap block (10 s at one sample a second: several shadowing
@@ -163,7 +164,7 @@ def rate_errors(
     predicted_bps: np.ndarray, measured_bps: np.ndarray, boot: Bootstrap = DEFAULT_BOOTSTRAP
 ) -> dict[str, Estimate]:
     """RMSE and bias (predicted - measured) of a rate [Mbit/s] from paired rates [bit/s]."""
-    error = (np.asarray(predicted_bps, float) - np.asarray(measured_bps, float)) / 1e6
+    error = (np.asarray(predicted_bps, float) - np.asarray(measured_bps, float)) / BITS_PER_MBIT
     return {
         "rate_rmse_mbps": block_bootstrap(_rmse, [error], boot),
         "rate_bias_mbps": block_bootstrap(_bias, [error], boot),

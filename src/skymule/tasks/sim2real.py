@@ -76,6 +76,7 @@ from skymule.metrics.sim2real import (
 )
 from skymule.scenario import Scenario, load_scenario
 from skymule.tasks.radiomaps import is_map_file, is_trace_file
+from skymule.units import BITS_PER_MBIT
 
 RESULT_JSON = "sim2real.json"
 SAMPLES_CSV = "sim2real_snr.csv"
@@ -458,10 +459,10 @@ def policy_numbers(
         real_mbit=float(real_run.summary["total_downloaded_mbit"]),
         twin_mbit=float(twin_run.summary["total_downloaded_mbit"]),
         decisions=same.origin,
-        same_real_mbit=float(same_real.sum()) / 1e6,
-        same_twin_mbit=float(same_twin.sum()) / 1e6,
+        same_real_mbit=float(same_real.sum()) / BITS_PER_MBIT,
+        same_twin_mbit=float(same_twin.sum()) / BITS_PER_MBIT,
         same_decisions_error=relative_change(same_twin, same_real, boot),
-        executed_mbit=float(executed.sum()) / 1e6,
+        executed_mbit=float(executed.sum()) / BITS_PER_MBIT,
         regret=regret(executed, best, boot),
         own_error=own,
         on_path_slots=on_path,

@@ -7,11 +7,28 @@ SNR measurement error). Per condition and sensor count: mean download with a 95%
 interval (1.96 standard errors), the mean gap to the autonomous upper bound (fault-free: an
 upper bound with faults too), and learned minus each other policy per mission (paired
 difference, 95% CI), learned's mean and worst mission relative to HGAD and how many missions
-it loses to HGAD by more than 5%. Then the speed: one decision of one mission (inference,
-features included) and the batched form inside the engine.
+it loses to HGAD by more than 5%. Then the decision regret on the recorded sample flights
+(:func:`recorded_regret`), and the speed: one decision of one mission (inference, features
+included) and the batched form inside the engine.
 
     python benchmarks/bench_learned.py                 # 200 missions per row (~20 min)
     python benchmarks/bench_learned.py --missions 50 --counts 4
+    python benchmarks/bench_learned.py --sections recorded,speed
+
+**Decision regret on recorded traces.** ``skymule sim2real`` cannot score ``learned`` (nor the
+planner): it replays the recorded flight sample by sample along its own path, and a policy
+that steers leaves that path, to places where nothing was measured. Here the "real" world is
+instead a radio map fitted (kriging, as ``skymule sim2real`` fits a flight ``--twin``) to the
+recorded flight ``examples/samples/flight_merged.csv`` alone: SNR anywhere, equal to the
+recording's smooth part on its lawnmower path (90 m between passes) and interpolated between
+passes. Each policy flies ``paper-sim-autonomous`` (cut to the flight's 360 s) on the real map
+and on each twin (the DT export ``dt_flight.csv`` and the second flight ``flight2_merged.csv``,
+each fitted the same way, and the preset's free space); the twin's decisions (path and whom to
+serve, slot by slot) are executed on the real map under the slot contract
+(:func:`skymule.metrics.sim2real.execute`) and compared with the policy flown on the real map:
+regret = (real policy - executed) / real policy, with the 90% block-bootstrap interval of
+``skymule sim2real``. The replay is checked against the engine (the policy's own decisions
+on the real map replay to its downloads exactly).
 
 ``scripts/update_readme_tables.py --only learned`` writes the README table from its
 ``row:`` lines.
@@ -22,21 +39,30 @@ from __future__ import annotations
 import argparse
 import time
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 from _sizes import size
 
 from skymule.bounds.autonomous import autonomous_bound
+from skymule.io.traces import read_trace
 from skymule.learning.missions import HELD_OUT, HELD_OUT_FAULTS, draw_missions
+from skymule.metrics.sim2real import DEFAULT_BOOTSTRAP, Estimate, execute, regret
 from skymule.policies import HGAD, Greedy
 from skymule.policies.learned import LearnedPolicy, load_net, shipped_weights
 from skymule.policies.planner import Planner
+from skymule.scenario import Scenario, load_scenario
 from skymule.sim import compiled
 from skymule.sim.run import run_mission, run_missions
-from skymule.world import Mission
+from skymule.world import Mission, build_mission
 
 HELD_OUT_SEED = 20250601
 CONDITIONS = {"none": HELD_OUT, "faults": HELD_OUT_FAULTS}
+SAMPLES = Path(__file__).resolve().parents[1] / "examples" / "samples"
+REAL_FLIGHT = "flight_merged.csv"
+TWINS = ("dt_flight.csv", "flight2_merged.csv", "paper-sim-autonomous")
+RECORDED_POLICIES = ("greedy", "hgad", "planner", "learned")
 
 
 def planner_and_bound(mission: Mission) -> tuple[float, float]:
@@ -166,17 +192,113 @@ def speed(missions: list[Mission], repeat: int) -> None:
           "mission-slots per CPU-s")  # fmt: skip
 
 
+def on_map(base: Scenario, twin: str) -> Scenario:
+    """``base`` under ``twin``: a recorded flight (.csv, fitted to a kriging map on the fly,
+    as ``skymule sim2real`` fits one) or the preset itself (its model)."""
+    if not twin.endswith(".csv"):
+        return base
+    signal = base.signal.model_copy(
+        update={"source": "radiomap", "traces": [str(SAMPLES / twin)], "map": None, "trace": None}
+    )
+    return base.model_copy(update={"signal": signal})
+
+
+def _flown(scenario: Scenario, policies: tuple[str, ...]) -> tuple[Mission, dict[str, Any]]:
+    from skymule.tasks.compare import compare_policies
+
+    mission = build_mission(scenario)
+    runs = compare_policies(scenario, list(policies), bound=False, mission=mission).runs
+    return mission, {run.policy: run.result.log for run in runs}
+
+
+def recorded_regret(
+    policies: tuple[str, ...] = RECORDED_POLICIES, twins: tuple[str, ...] = TWINS
+) -> dict[str, dict[str, tuple[Estimate, float, float]]]:
+    """Per twin and policy on the recorded sample flight (module docstring): the decision
+    regret, the Mbit its decisions on the twin download on the real map, and the Mbit the
+    policy downloads flown on the real map."""
+    base = load_scenario("paper-sim-autonomous")
+    flight = read_trace(SAMPLES / REAL_FLIGHT)
+    slot_s = base.mission.slot_s
+    seconds = slot_s * round(float(flight.time_s[-1] - flight.time_s[0]) / slot_s + 1.0)
+    base = base.model_copy(
+        update={"mission": base.mission.model_copy(update={"duration_s": seconds})}
+    )
+    real, best = _flown(on_map(base, REAL_FLIGHT), policies)
+    assert real.source is not None
+    source = real.source
+
+    def replay(log: Any) -> np.ndarray:
+        rates = np.asarray(real.rate_bps(source.snr_db(log.position_m)), float)
+        return execute(rates, np.arange(log.n_slots), log.served, real.buffers_bit, real.slot_s)
+
+    for name, log in best.items():  # the replay is the engine's, bit for bit
+        if not np.allclose(replay(log), log.downloaded_bit, rtol=1e-12, atol=1e-3):
+            raise SystemExit(f"recorded: {name}'s own decisions do not replay to its downloads")
+    out: dict[str, dict[str, tuple[Estimate, float, float]]] = {}
+    for twin in twins:
+        _, flown = _flown(on_map(base, twin), policies)
+        out[twin] = {}
+        for name in policies:
+            executed, own = replay(flown[name]), np.asarray(best[name].downloaded_bit, float)
+            size_t = max(executed.size, own.size)
+            estimate = regret(
+                np.pad(executed, (0, size_t - executed.size)),
+                np.pad(own, (0, size_t - own.size)),
+                DEFAULT_BOOTSTRAP,
+            )
+            out[twin][name] = (estimate, executed.sum() / 1e6, own.sum() / 1e6)
+    return out
+
+
+def report_recorded(result: dict[str, dict[str, tuple[Estimate, float, float]]]) -> None:
+    """Print the regret table and its ``recorded:`` lines, and learned against HGAD."""
+    policies = list(next(iter(result.values())))
+    print(
+        f"\ndecision regret on the recorded flight {REAL_FLIGHT} (real = its kriging map; "
+        "paper-sim-autonomous, 360 s), % with 90% CI, and Mbit executed on the real map:"
+    )
+    print("  twin                  " + "".join(f"{p:>30s}" for p in policies))
+    for twin, row in result.items():
+        cells = "".join(
+            f"{100 * e.value:6.1f} [{100 * e.low:5.1f},{100 * e.high:5.1f}] {mbit:7.1f}"
+            for e, mbit, _ in row.values()
+        )
+        print(f"  {twin:22s}{cells}")
+        for name, (e, mbit, own) in row.items():
+            print(f"recorded: twin={twin} policy={name} regret={e.value:.4f} low={e.low:.4f} "
+                  f"high={e.high:.4f} executed_mbit={mbit:.1f} real_mbit={own:.1f}")  # fmt: skip
+    means = {p: float(np.mean([row[p][0].value for row in result.values()])) for p in policies}
+    executed = {p: float(np.mean([row[p][1] for row in result.values()])) for p in policies}
+    own = {p: next(iter(result.values()))[p][2] for p in policies}
+    print("  flown on the real map " + "".join(f"{own[p]:30.1f}" for p in policies))
+    print("  mean over twins       " + "".join(
+        f"{100 * means[p]:21.1f}% {executed[p]:7.1f}" for p in policies))  # fmt: skip
+    if "learned" in means and "hgad" in means:
+        worse = [t for t, row in result.items() if row["learned"][0].value > row["hgad"][0].value]
+        verdict = "no worse than" if means["learned"] <= means["hgad"] else "worse than"
+        print(
+            f"  learned's mean regret {100 * means['learned']:.1f}% is {verdict} HGAD's "
+            f"{100 * means['hgad']:.1f}%; above HGAD's on {len(worse)} of {len(result)} twins "
+            f"({', '.join(worse) or 'none'})"
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--missions", type=int, default=size(200, 3))
     parser.add_argument("--counts", default=size("3,4,6,8", "3,4"))
     parser.add_argument("--conditions", default="none,faults")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument(
+        "--sections", default="held-out,recorded,speed", help="any of held-out, recorded, speed"
+    )
     args = parser.parse_args()
+    sections = set(args.sections.split(","))
     counts = [int(c) for c in args.counts.split(",")]
     start = time.perf_counter()
     first: list[Mission] = []
-    for condition in args.conditions.split(","):
+    for condition in args.conditions.split(",") if "held-out" in sections else ():
         for n in counts:
             missions = draw_missions(HELD_OUT_SEED, n, args.missions, CONDITIONS[condition])
             first = first or missions
@@ -184,7 +306,11 @@ def main() -> None:
             got["buffered"] = np.array([m.buffers_bit.sum() for m in missions])
             report(condition, n, got)
     print(f"\n(evaluation {time.perf_counter() - start:.0f} s wall)")
-    speed(first, size(20, 2))
+    if "recorded" in sections:
+        report_recorded(recorded_regret())
+    if "speed" in sections:
+        first = first or draw_missions(HELD_OUT_SEED, counts[0], args.missions, HELD_OUT)
+        speed(first, size(20, 2))
 
 
 if __name__ == "__main__":

@@ -38,7 +38,12 @@ EXPECTED = {
     "bench_startup.py": ["--help", "run", "x --help in wall time", "CPU"],
     "bench_sweep.py": ["sample-10k", "us CPU/mission", "process executor", "seed axis"],
     "train_ppo.py": ["hgad", "bound", "PPO - HGAD"],
-    "bench_learned.py": ["learned vs hgad", "row: condition=faults", "inference, one mission"],
+    "bench_learned.py": [
+        "learned vs hgad",
+        "row: condition=faults",
+        "recorded: twin=dt_flight.csv policy=learned",
+        "inference, one mission",
+    ],
     "train_learned.py": ["es: 2 generations", "validation of the kept model", "learning curve"],
 }
 

@@ -313,6 +313,24 @@ def test_the_compiled_twin_scores_as_numpy(n: int, monkeypatch: pytest.MonkeyPat
     np.testing.assert_allclose(compiled_scores(net, decision), expected, rtol=1e-9, atol=1e-12)
 
 
+def test_the_compiled_twins_tanh_is_the_librarys_to_round_off() -> None:
+    from skymule.policies.learned_kernel import tanh
+    from skymule.sim import compiled
+
+    grid = np.concatenate([np.geomspace(1e-300, 1e300, 20_001), np.linspace(0.0, 40.0, 40_001)])
+    values = np.concatenate([grid, -grid, [0.0, -0.0, np.inf, -np.inf]])
+    forms = [tanh]  # plain Python (no numba), and compiled where numba is installed
+    if compiled.available():
+        import numba
+
+        forms.append(numba.njit(tanh))
+    for form in forms:
+        ours = np.array([form(float(a)) for a in values])
+        assert np.abs(ours - np.tanh(values)).max() <= 2.3e-16
+        assert np.array_equal(np.signbit(ours), np.signbit(np.tanh(values)))
+        assert np.isnan(form(float("nan")))
+
+
 def test_numpy_and_compiled_scorers_fly_the_same_missions(random_missions: list[Mission]) -> None:
     policy = make_policy(PolicySpec(name="learned"))
     numpy_form = make_policy(PolicySpec(name="learned"))
@@ -320,4 +338,3 @@ def test_numpy_and_compiled_scorers_fly_the_same_missions(random_missions: list[
     a = run_missions(random_missions, policy, detail=False).downloaded_bit
     b = run_missions(random_missions, numpy_form, detail=False).downloaded_bit
     np.testing.assert_array_equal(a, b)
-

@@ -2,7 +2,9 @@
 model as loops that numba compiles (``fast`` extra), for one decision at a time.
 
 numpy pays a few microseconds per array operation, and a decision of one mission is a few
-hundred small operations; compiled, the same arithmetic takes microseconds. Without numba the
+hundred small operations; compiled, the same arithmetic takes microseconds. Most of those are
+the hidden layer's tanh (32 per option): :func:`tanh` computes it from one ``exp``, which is
+about twice as fast as the C library's ``tanh`` and within 2.3e-16 of it. Without numba the
 numpy form runs (:func:`skymule.policies.learned.scores`). ``tests/test_learned_policy.py``
 holds the two equal (to round-off: numpy's matrix products sum in another order) and runs this
 one as plain Python where numba is absent.
@@ -185,7 +187,7 @@ def score_rows(
                     acc += sensor[k, f] * encoder_w[f, h]
                 for f in range(n_mission):
                     acc += mission[f] * encoder_w[n_sensor + f, h]
-                encoded[k, h] = math.tanh(acc)
+                encoded[k, h] = tanh(acc)
             if live:
                 count += 1
                 for h in range(hidden):
@@ -240,8 +242,17 @@ def score_rows(
                     for u in range(n_hidden):
                         acts[u] += xf * hidden_w[n_sensor + f, u]
                 for u in range(n_hidden):
-                    value += math.tanh(acts[u]) * out_w[u]
+                    value += tanh(acts[u]) * out_w[u]
                 out[r, k * width + j] = value
+
+
+def tanh(a: float) -> float:
+    """tanh(a) as 1 - 2 / (exp(2|a|) + 1) with a's sign: one ``exp`` (cheaper than libm's
+    ``tanh``, which the scorer calls ~30 times per option), within 2.3e-16 of ``math.tanh``
+    in absolute terms (tested from 1e-300 to 1e300 of either sign); +-1 for +-inf, NaN for
+    NaN. |a| is capped at 20, past which tanh rounds to +-1 (and exp would overflow)."""
+    y = math.exp(2.0 * min(abs(a), 20.0))
+    return math.copysign(1.0 - 2.0 / (y + 1.0), a)
 
 
 def any_pending_or_usable(count_usable: int) -> bool:
@@ -254,4 +265,4 @@ def score_kernel() -> Callable[..., None]:
     """:func:`score_rows`, compiled by numba when it is installed (else plain Python)."""
     if not compiled.available():
         return score_rows
-    return compiled.jit(score_rows, (any_pending_or_usable,), (any_pending_or_usable,))
+    return compiled.jit(score_rows, (any_pending_or_usable, tanh), (any_pending_or_usable, tanh))

@@ -77,36 +77,44 @@ def mean_ci(values: np.ndarray) -> tuple[float, float]:
     return float(values.mean()), float(half)
 
 
-def totals(missions: list[Mission], workers: int) -> dict[str, np.ndarray]:
-    """Bits downloaded per mission by every policy, and the bound."""
+def totals(
+    missions: list[Mission], workers: int, candidate: str | None = None, planner: bool = True
+) -> dict[str, np.ndarray]:
+    """Bits downloaded per mission by every policy, and the bound (without ``planner``: no
+    planner, no bound); ``candidate``: other weights flown as one more policy."""
     net = load_net(shipped_weights())
     out = {
         "learned": run_missions(missions, LearnedPolicy(net), detail=False).downloaded_bit,
         "greedy": run_missions(missions, Greedy(), detail=False).downloaded_bit,
         "hgad": run_missions(missions, HGAD(), detail=False).downloaded_bit,
     }
+    if candidate is not None:
+        policy = LearnedPolicy(load_net(candidate), "candidate")
+        out["candidate"] = run_missions(missions, policy, detail=False).downloaded_bit
     got = {name: bits.sum(axis=1) for name, bits in out.items()}
-    with ProcessPoolExecutor(workers) as pool:
-        rows = np.array(list(pool.map(planner_and_bound, missions, chunksize=4)))
-    got["planner"], got["bound"] = rows[:, 0], rows[:, 1]
+    if planner:
+        with ProcessPoolExecutor(workers) as pool:
+            rows = np.array(list(pool.map(planner_and_bound, missions, chunksize=4)))
+        got["planner"], got["bound"] = rows[:, 0], rows[:, 1]
     return got
 
 
 def report(condition: str, n: int, got: dict[str, np.ndarray]) -> None:
     """Print one block and its ``row:`` lines (the README table's source)."""
-    bound = got["bound"]
+    bound = got.get("bound")
     learned = got["learned"]
     hgad = got["hgad"]
     label = "with" if condition == "faults" else "without"
     buffered = got["buffered"].mean() / 1e6
     print(f"\n{label} faults, {n} sensors, {len(learned)} missions ({buffered:.1f} Mbit buffered):")
-    print("  policy    mean Mbit ± 95% CI   gap to bound   learned - policy [Mbit] ± 95% CI")
-    for name in ("learned", "greedy", "hgad", "planner", "bound"):
+    print("  policy     mean Mbit ± 95% CI   gap to bound   learned - policy [Mbit] ± 95% CI")
+    names = ("learned", "candidate", "greedy", "hgad", "planner", "bound")
+    for name in (name for name in names if name in got):
         mean, half = mean_ci(got[name] / 1e6)
-        gap = float(np.mean((bound - got[name]) / bound))
+        gap = float(np.mean((bound - got[name]) / bound)) if bound is not None else np.nan
         diff, diff_half = mean_ci((learned - got[name]) / 1e6)
         print(
-            f"  {name:8s} {mean:8.1f} ± {half:5.1f}   {gap:6.1%}   {diff:+8.1f} ± {diff_half:5.1f}"
+            f"  {name:9s} {mean:8.1f} ± {half:5.1f}   {gap:6.1%}   {diff:+8.1f} ± {diff_half:5.1f}"
         )
         print(
             f"row: condition={condition} n={n} policy={name} mean={mean:.1f} ci={half:.1f} "
@@ -124,6 +132,28 @@ def report(condition: str, n: int, got: dict[str, np.ndarray]) -> None:
         f"vs-hgad: condition={condition} n={n} rel={rel_mean:.4f} rel_ci={rel_half:.4f} "
         f"worst={relative.min():.4f} below5={below} ahead={int((learned > hgad).sum())} "
         f"missions={len(learned)}"
+    )
+    if "candidate" in got:
+        report_candidate(condition, n, got)
+
+
+def report_candidate(condition: str, n: int, got: dict[str, np.ndarray]) -> None:
+    """The candidate weights against the shipped model and HGAD, per mission."""
+    candidate, learned, hgad = got["candidate"], got["learned"], got["hgad"]
+    versus = (candidate - learned) / learned
+    v_mean, v_half = mean_ci(versus)
+    on_hgad = (candidate - hgad) / hgad
+    h_mean, _ = mean_ci(on_hgad)
+    below3 = int((on_hgad < -0.03).sum())
+    print(
+        f"  candidate vs learned: {v_mean:+.2%} ± {v_half:.2%} per mission, better in "
+        f"{int((candidate > learned).sum())}, worse in {int((candidate < learned).sum())}; "
+        f"vs hgad {h_mean:+.2%}, worst {on_hgad.min():+.2%}, more than 3% below in {below3}"
+    )
+    print(
+        f"candidate: condition={condition} n={n} vs_learned={v_mean:.4f} "
+        f"vs_learned_ci={v_half:.4f} vs_hgad={h_mean:.4f} worst_hgad={on_hgad.min():.4f} "
+        f"below3={below3} missions={len(candidate)}"
     )
 
 
@@ -293,6 +323,10 @@ def main() -> None:
     parser.add_argument(
         "--sections", default="held-out,recorded,speed", help="any of held-out, recorded, speed"
     )
+    parser.add_argument("--candidate", help="other weights (.npz) to fly next to the shipped ones")
+    parser.add_argument(
+        "--no-planner", action="store_true", help="held-out: skip the planner and the bound"
+    )
     args = parser.parse_args()
     sections = set(args.sections.split(","))
     counts = [int(c) for c in args.counts.split(",")]
@@ -302,7 +336,7 @@ def main() -> None:
         for n in counts:
             missions = draw_missions(HELD_OUT_SEED, n, args.missions, CONDITIONS[condition])
             first = first or missions
-            got = totals(missions, args.workers)
+            got = totals(missions, args.workers, args.candidate, not args.no_planner)
             got["buffered"] = np.array([m.buffers_bit.sum() for m in missions])
             report(condition, n, got)
     print(f"\n(evaluation {time.perf_counter() - start:.0f} s wall)")

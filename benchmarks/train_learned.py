@@ -34,9 +34,9 @@ import numpy as np
 from _sizes import size
 
 from skymule.io.atomic import atomic_path, write_with
-from skymule.learning.es import ESConfig, fitness, hgad_downloads, relative_gain, train_es
+from skymule.learning.es import ESConfig, fitness, reference_downloads, relative_gain, train_es
 from skymule.learning.missions import HELD_OUT, draw_missions
-from skymule.policies.learned import LearnedPolicy, OptionNet, save_net
+from skymule.policies.learned import LearnedPolicy, OptionNet, load_net, save_net
 from skymule.sim.run import run_missions
 
 VALIDATION_SEED = 11
@@ -44,11 +44,12 @@ ROOT = Path(__file__).resolve().parents[1]
 TMP = Path(tempfile.gettempdir())
 
 
-def validator(counts: dict[int, int]) -> Any:
-    """validate(net) -> figures: mean and worst gain over HGAD per sensor count, and the
-    score that picks the kept model (the training fitness over all validation missions)."""
+def validator(counts: dict[int, int], teacher: str = "hgad") -> Any:
+    """validate(net) -> figures: mean and worst gain over the reference (HGAD, or the
+    planner with ``--teacher planner``) per sensor count, and the score that picks the kept
+    model (the training fitness over all validation missions)."""
     sets = {n: draw_missions(VALIDATION_SEED, n, k, HELD_OUT) for n, k in counts.items()}
-    reference = {n: hgad_downloads(m) for n, m in sets.items()}
+    reference = {n: reference_downloads(m, teacher) for n, m in sets.items()}
 
     def validate(net: OptionNet) -> dict[str, float]:
         figures: dict[str, float] = {}
@@ -122,23 +123,48 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=size(2, 1))
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--validate-every", type=int, default=size(10, 1))
+    parser.add_argument(
+        "--teacher",
+        choices=("hgad", "planner"),
+        default="hgad",
+        help="the reference of the fitness and the validation (es only)",
+    )
+    parser.add_argument("--start", help="weights (.npz) to fine-tune instead of a new model (es)")
+    parser.add_argument("--pairs", type=int, help="antithetic pairs per generation (es)")
+    parser.add_argument("--missions-per-count", type=int, help="missions per generation (es)")
+    parser.add_argument("--pool", type=int, help="training missions per sensor count (es)")
+    parser.add_argument("--sigma", type=float, help="perturbation scale (es)")
+    parser.add_argument("--learning-rate", type=float, help="Adam step (es)")
     args = parser.parse_args()
     tiny = size(False, True)
-    validate = validator({4: 4, 8: 2} if tiny else {4: 64, 8: 32})
+    validate = validator({4: 4, 8: 2} if tiny else {4: 64, 8: 32}, args.teacher)
     seconds = args.minutes * 60.0
     start = time.monotonic()
     if args.algorithm == "es":
+        chosen = {
+            "pairs": args.pairs,
+            "missions_per_count": args.missions_per_count,
+            "pool_per_count": args.pool,
+            "sigma": args.sigma,
+            "learning_rate": args.learning_rate,
+        }
         config = ESConfig(
             seed=args.seed,
             workers=args.workers,
+            teacher=args.teacher,
             **(
-                {"pairs": 2, "missions_per_count": 2, "pool_per_count": 3, "sensor_counts": (3, 4)}
-                if tiny
-                else {}
+                ({"pairs": 2, "missions_per_count": 2, "pool_per_count": 3, "sensor_counts": (3, 4)}
+                if tiny else {})
+                | {k: v for k, v in chosen.items() if v is not None}
             ),
-        )
+        )  # fmt: skip
         result = train_es(
-            config, seconds, validate, args.validate_every, max_generations=size(None, 2)
+            config,
+            seconds,
+            validate,
+            args.validate_every,
+            max_generations=size(None, 2),
+            start_net=None if args.start is None else load_net(args.start),
         )
         net, curve = result.net, result.curve
         print(

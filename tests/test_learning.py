@@ -7,7 +7,7 @@ import pytest
 
 from skymule.learning.es import centred_ranks, downloads, fitness, relative_gain
 from skymule.learning.missions import HELD_OUT_FAULTS, TRAINING, draw_missions
-from skymule.policies.learned import LearnedPolicy, initial_net
+from skymule.policies.learned import LearnedPolicy, OptionNet, initial_net
 from skymule.sim.run import run_missions
 
 
@@ -59,3 +59,31 @@ def test_a_ppo_update_keeps_the_weights_finite() -> None:
     _update(model, optimizer, [data], PPOConfig(minibatch=8), rng)
     after = model.to_net().flat()
     assert np.isfinite(after).all() and not np.array_equal(before, after)
+
+
+def test_fine_tuning_keeps_the_start_unless_a_validated_centre_beats_it() -> None:
+    from skymule.learning.es import ESConfig, train_es
+
+    start = initial_net(np.random.default_rng(2))
+    config = ESConfig(pairs=2, missions_per_count=2, pool_per_count=2, sensor_counts=(3,),
+                      workers=1, teacher="planner")  # fmt: skip
+
+    def only_the_start(net: OptionNet) -> dict[str, float]:
+        return {"score": 1.0 if np.array_equal(net.flat(), start.flat()) else -1.0}
+
+    kept = train_es(config, 600.0, only_the_start, 1, 2, lambda _: None, start_net=start)
+    np.testing.assert_array_equal(kept.net.flat(), start.flat())
+    assert len(kept.curve) == 2 and all(row["score"] == -1.0 for row in kept.curve)
+
+    def any_change(net: OptionNet) -> dict[str, float]:
+        return {"score": 0.0 if np.array_equal(net.flat(), start.flat()) else 1.0}
+
+    moved = train_es(config, 600.0, any_change, 1, 2, lambda _: None, start_net=start)
+    assert not np.array_equal(moved.net.flat(), start.flat())
+
+
+def test_an_unknown_teacher_is_refused() -> None:
+    from skymule.learning.es import reference_downloads
+
+    with pytest.raises(ValueError, match="teacher = 'greedy'; allowed: hgad, planner"):
+        reference_downloads(draw_missions(1, 3, 1, TRAINING), "greedy")

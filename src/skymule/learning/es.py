@@ -33,7 +33,7 @@ import numpy as np
 from skymule.learning.missions import TRAINING, Draw, draw_missions
 from skymule.policies.builtin import HGAD
 from skymule.policies.learned import LearnedPolicy, OptionNet, initial_net
-from skymule.sim.run import run_missions
+from skymule.sim.run import run_mission, run_missions
 from skymule.world import Mission
 
 
@@ -54,6 +54,7 @@ class ESConfig:
     seed: int = 0
     workers: int = 2
     draw: Draw = field(default=TRAINING)
+    teacher: str = "hgad"  # the reference each mission's gain is taken against: hgad or planner
 
 
 def relative_gain(bits: np.ndarray, reference: np.ndarray) -> np.ndarray:
@@ -90,6 +91,18 @@ def hgad_downloads(missions: Sequence[Mission]) -> np.ndarray:
     return run_missions(list(missions), HGAD(), detail=False).downloaded_bit.sum(axis=1)
 
 
+def reference_downloads(missions: Sequence[Mission], teacher: str) -> np.ndarray:
+    """(missions,) bits the reference policy ``teacher`` (hgad or planner) downloads on each
+    mission (the planner one mission at a time: it is not batched)."""
+    if teacher == "hgad":
+        return hgad_downloads(missions)
+    if teacher != "planner":
+        raise ValueError(f"teacher = {teacher!r}; allowed: hgad, planner")
+    from skymule.policies.planner import Planner
+
+    return np.array([run_mission(m, Planner()).downloaded_bit.sum() for m in missions])
+
+
 class Pool:
     """Training missions of some sensor counts and HGAD's download on each."""
 
@@ -97,7 +110,7 @@ class Pool:
         self.missions = {
             n: draw_missions(config.seed, n, config.pool_per_count, config.draw) for n in counts
         }
-        self.hgad = {n: hgad_downloads(m) for n, m in self.missions.items()}
+        self.hgad = {n: reference_downloads(m, config.teacher) for n, m in self.missions.items()}
 
     def evaluate(
         self, n: int, picks: np.ndarray, rows: np.ndarray, template: OptionNet
@@ -166,13 +179,16 @@ def train_es(
     validate_every: int = 10,
     max_generations: int | None = None,
     log: Callable[[str], None] = print,
+    start_net: OptionNet | None = None,
 ) -> ESResult:
     """Train for ``seconds`` of wall time (or ``max_generations``); ``validate(net)`` scores
     the centre every ``validate_every`` generations (its ``"score"`` picks the model kept)
-    and its figures form the learning curve."""
+    and its figures form the learning curve. ``start_net`` (M = 1): fine-tune that model
+    instead of starting from :func:`initial_net`; it is then validated first and kept unless a
+    later centre scores better."""
     rng = np.random.default_rng(config.seed)
     start = time.monotonic()
-    net = initial_net(rng, config.hidden, config.width)
+    net = initial_net(rng, config.hidden, config.width) if start_net is None else start_net
     theta = net.flat()[0]
     adam = Adam(theta.size, config.learning_rate)
     workers = max(1, min(config.workers, len(config.sensor_counts)))
@@ -195,6 +211,9 @@ def train_es(
     log(f"training missions built in {time.monotonic() - start:.0f} s")
     curve: list[dict[str, float]] = []
     best_score, best_theta = -np.inf, theta.copy()
+    if start_net is not None:
+        best_score = validate(start_net)["score"]
+        log(f"starting model: validation score {best_score:+.4f}")
     generation = flown = 0
     try:
         while time.monotonic() - start < seconds and (
@@ -247,7 +266,7 @@ def train_es(
             proc.join(timeout=30)
             if proc.is_alive():
                 proc.terminate()
-    if not curve:  # too short to validate: keep the last centre
+    if not curve and start_net is None:  # too short to validate: keep the last centre
         best_theta = theta
     return ESResult(
         net.with_flat(best_theta[None]), generation, flown, time.monotonic() - start, curve

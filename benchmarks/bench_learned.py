@@ -14,6 +14,10 @@ included) and the batched form inside the engine.
     python benchmarks/bench_learned.py                 # 200 missions per row (~20 min)
     python benchmarks/bench_learned.py --missions 50 --counts 4
     python benchmarks/bench_learned.py --sections recorded,speed
+    python benchmarks/bench_learned.py --candidate W.npz --no-planner --sections held-out
+
+``--candidate`` flies other weights next to the shipped ones on the same missions and prints
+them against the shipped model and HGAD per mission (``candidate:`` lines).
 
 **Decision regret on recorded traces.** ``skymule sim2real`` cannot score ``learned`` (nor the
 planner): it replays the recorded flight sample by sample along its own path, and a policy

@@ -299,9 +299,11 @@ def report_recorded(result: dict[str, dict[str, tuple[Estimate, float, float]]])
             for e, mbit, _ in row.values()
         )
         print(f"  {twin:22s}{cells}")
-        for name, (e, mbit, own) in row.items():
-            print(f"recorded: twin={twin} policy={name} regret={e.value:.4f} low={e.low:.4f} "
-                  f"high={e.high:.4f} executed_mbit={mbit:.1f} real_mbit={own:.1f}")  # fmt: skip
+        for name, (e, mbit, real_mbit) in row.items():
+            print(
+                f"recorded: twin={twin} policy={name} regret={e.value:.4f} low={e.low:.4f} "
+                f"high={e.high:.4f} executed_mbit={mbit:.1f} real_mbit={real_mbit:.1f}"
+            )
     means = {p: float(np.mean([row[p][0].value for row in result.values()])) for p in policies}
     executed = {p: float(np.mean([row[p][1] for row in result.values()])) for p in policies}
     own = {p: next(iter(result.values()))[p][2] for p in policies}

@@ -50,7 +50,7 @@ import numpy as np
 from _sizes import size
 
 from skymule.bounds.autonomous import autonomous_bound
-from skymule.io.traces import read_trace
+from skymule.io.traces import positions_local, read_trace
 from skymule.learning.missions import HELD_OUT, HELD_OUT_FAULTS, draw_missions
 from skymule.metrics.sim2real import DEFAULT_BOOTSTRAP, Estimate, execute, regret
 from skymule.policies import HGAD, Greedy
@@ -58,6 +58,7 @@ from skymule.policies.learned import LearnedPolicy, load_net, shipped_weights
 from skymule.policies.planner import Planner
 from skymule.scenario import Scenario, load_scenario
 from skymule.sim import compiled
+from skymule.sim.contract import NO_SENSOR
 from skymule.sim.run import run_mission, run_missions
 from skymule.world import Mission, build_mission
 
@@ -67,6 +68,9 @@ SAMPLES = Path(__file__).resolve().parents[1] / "examples" / "samples"
 REAL_FLIGHT = "flight_merged.csv"
 TWINS = ("dt_flight.csv", "flight2_merged.csv", "paper-sim-autonomous")
 RECORDED_POLICIES = ("greedy", "hgad", "planner", "learned")
+OFF_PATH_M = 45.0
+"""Half the recorded lawnmower's 90 m between passes: farther from every sample, the real map
+extrapolates."""
 
 
 def planner_and_bound(mission: Mission) -> tuple[float, float]:
@@ -245,12 +249,17 @@ def _flown(scenario: Scenario, policies: tuple[str, ...]) -> tuple[Mission, dict
     return mission, {run.policy: run.result.log for run in runs}
 
 
+RegretTable = dict[str, dict[str, tuple[Estimate, float, float]]]
+
+
 def recorded_regret(
     policies: tuple[str, ...] = RECORDED_POLICIES, twins: tuple[str, ...] = TWINS
-) -> dict[str, dict[str, tuple[Estimate, float, float]]]:
+) -> tuple[RegretTable, dict[str, float]]:
     """Per twin and policy on the recorded sample flight (module docstring): the decision
     regret, the Mbit its decisions on the twin download on the real map, and the Mbit the
-    policy downloads flown on the real map."""
+    policy downloads flown on the real map; and per policy the share of its serving slots on
+    the real map farther than :data:`OFF_PATH_M` from every recorded sample (where the real
+    map is the kriging fit's extrapolation, not an interpolation between passes)."""
     base = load_scenario("paper-sim-autonomous")
     flight = read_trace(SAMPLES / REAL_FLIGHT)
     slot_s = base.mission.slot_s
@@ -261,6 +270,12 @@ def recorded_regret(
     real, best = _flown(on_map(base, REAL_FLIGHT), policies)
     assert real.source is not None
     source = real.source
+    recorded = positions_local(flight, real.frame.to_local)[:, :2]
+    off_path = {}
+    for name, log in best.items():
+        serving = log.position_m[log.served != NO_SENSOR, :2]
+        gap = np.hypot(*(serving[:, None, :] - recorded[None]).transpose(2, 0, 1)).min(axis=1)
+        off_path[name] = float(np.mean(gap > OFF_PATH_M)) if gap.size else 0.0
 
     def replay(log: Any) -> np.ndarray:
         rates = np.asarray(real.rate_bps(source.snr_db(log.position_m)), float)
@@ -269,7 +284,7 @@ def recorded_regret(
     for name, log in best.items():  # the replay is the engine's, bit for bit
         if not np.allclose(replay(log), log.downloaded_bit, rtol=1e-12, atol=1e-3):
             raise SystemExit(f"recorded: {name}'s own decisions do not replay to its downloads")
-    out: dict[str, dict[str, tuple[Estimate, float, float]]] = {}
+    out: RegretTable = {}
     for twin in twins:
         _, flown = _flown(on_map(base, twin), policies)
         out[twin] = {}
@@ -282,10 +297,10 @@ def recorded_regret(
                 DEFAULT_BOOTSTRAP,
             )
             out[twin][name] = (estimate, executed.sum() / 1e6, own.sum() / 1e6)
-    return out
+    return out, off_path
 
 
-def report_recorded(result: dict[str, dict[str, tuple[Estimate, float, float]]]) -> None:
+def report_recorded(result: RegretTable, off_path: dict[str, float]) -> None:
     """Print the regret table and its ``recorded:`` lines, and learned against HGAD."""
     policies = list(next(iter(result.values())))
     print(
@@ -308,6 +323,10 @@ def report_recorded(result: dict[str, dict[str, tuple[Estimate, float, float]]])
     executed = {p: float(np.mean([row[p][1] for row in result.values()])) for p in policies}
     own = {p: next(iter(result.values()))[p][2] for p in policies}
     print("  flown on the real map " + "".join(f"{own[p]:30.1f}" for p in policies))
+    print(
+        f"  serving slots more than {OFF_PATH_M:.0f} m from every recorded sample (there the "
+        "real map extrapolates): " + ", ".join(f"{p} {off_path[p]:.0%}" for p in policies)
+    )
     print("  mean over twins       " + "".join(
         f"{100 * means[p]:21.1f}% {executed[p]:7.1f}" for p in policies))  # fmt: skip
     if "learned" in means and "hgad" in means:
@@ -347,7 +366,7 @@ def main() -> None:
             report(condition, n, got)
     print(f"\n(evaluation {time.perf_counter() - start:.0f} s wall)")
     if "recorded" in sections:
-        report_recorded(recorded_regret())
+        report_recorded(*recorded_regret())
     if "speed" in sections:
         first = first or draw_missions(HELD_OUT_SEED, counts[0], args.missions, HELD_OUT)
         speed(first, size(20, 2))

@@ -40,6 +40,9 @@ from skymule.policies.learned import LearnedPolicy, OptionNet, load_net, save_ne
 from skymule.sim.run import run_missions
 
 VALIDATION_SEED = 11
+TINY_ES: dict[str, Any] = {
+    "pairs": 2, "missions_per_count": 2, "pool_per_count": 3, "sensor_counts": (3, 4),
+}  # fmt: skip
 ROOT = Path(__file__).resolve().parents[1]
 TMP = Path(tempfile.gettempdir())
 
@@ -141,7 +144,7 @@ def main() -> None:
     seconds = args.minutes * 60.0
     start = time.monotonic()
     if args.algorithm == "es":
-        chosen = {
+        chosen: dict[str, Any] = {
             "pairs": args.pairs,
             "missions_per_count": args.missions_per_count,
             "pool_per_count": args.pool,
@@ -152,12 +155,8 @@ def main() -> None:
             seed=args.seed,
             workers=args.workers,
             teacher=args.teacher,
-            **(
-                ({"pairs": 2, "missions_per_count": 2, "pool_per_count": 3, "sensor_counts": (3, 4)}
-                if tiny else {})
-                | {k: v for k, v in chosen.items() if v is not None}
-            ),
-        )  # fmt: skip
+            **(TINY_ES if tiny else {}) | {k: v for k, v in chosen.items() if v is not None},
+        )
         result = train_es(
             config,
             seconds,
@@ -174,14 +173,10 @@ def main() -> None:
     else:
         from skymule.learning.ppo import PPOConfig, train_ppo
 
-        config_ppo = PPOConfig(
-            seed=args.seed,
-            **(
-                {"missions_per_batch": 3, "pool_per_count": 3, "sensor_counts": (3, 4)}
-                if tiny
-                else {}
-            ),
-        )
+        tiny_ppo: dict[str, Any] = {
+            "missions_per_batch": 3, "pool_per_count": 3, "sensor_counts": (3, 4),
+        }  # fmt: skip
+        config_ppo = PPOConfig(seed=args.seed, **(tiny_ppo if tiny else {}))
         result_ppo = train_ppo(
             config_ppo, seconds, validate, args.validate_every, max_iterations=size(None, 2)
         )

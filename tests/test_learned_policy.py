@@ -6,6 +6,7 @@ import subprocess
 import sys
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -319,7 +320,7 @@ def test_the_compiled_twins_tanh_is_the_librarys_to_round_off() -> None:
 
     grid = np.concatenate([np.geomspace(1e-300, 1e300, 20_001), np.linspace(0.0, 40.0, 40_001)])
     values = np.concatenate([grid, -grid, [0.0, -0.0, np.inf, -np.inf]])
-    forms = [tanh]  # plain Python (no numba), and compiled where numba is installed
+    forms: list[Any] = [tanh]  # plain Python (no numba), and compiled where numba is installed
     if compiled.available():
         import numba
 

@@ -2,7 +2,8 @@
 shadowing, and radio-map queries (fast path and dense reference). Prints wall-clock
 seconds (best of 3).
 
-    python benchmarks/bench_channel.py [--json PATH]   (SKYMULE_BENCH_TINY=1: 2,000 positions, 1 run)
+    python benchmarks/bench_channel.py [--json PATH]
+    (SKYMULE_BENCH_TINY=1: 2,000 positions, 1 run)
 
 ``--json benchmarks/results/channel.json``: the speed table's SNR row (docs/speed.md).
 """

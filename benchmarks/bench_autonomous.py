@@ -159,7 +159,7 @@ def speed(n_random: int, n_batched: int, repeats: int, revision: str | None) -> 
             old = ""
             if name in reference:
                 old = f", {rates[engine] / reference[name]:.1f}x the previous reference"
-            print(  # the engine last: README's parser reads the last line of each policy
+            print(
                 f"  {name:6s} {rates[engine]:8.1f} missions, {slots / seconds:10,.0f} "
                 f"mission-slots, {rates[engine] / single[name]:5.1f}x one at a time{old} "
                 f"({engine}{versus})"

@@ -100,4 +100,4 @@ def main(n_missions: int = size(2000, 10), json_path: Path | None = None) -> Non
 
 if __name__ == "__main__":
     json_path = json_option()
-    main(*(int(a) for a in sys.argv[1:]), json_path=json_path)
+    main(int(sys.argv[1]) if len(sys.argv) > 1 else size(2000, 10), json_path=json_path)

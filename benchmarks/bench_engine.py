@@ -209,4 +209,5 @@ if __name__ == "__main__":
     json_path = json_option()
     defaults = size((1000, 100, 3), (4, 1, 1))
     given = [int(a) for a in sys.argv[1:]]
-    main(*given, *defaults[len(given) :], json_path=json_path)  # type: ignore[arg-type]
+    n_missions, n_single, repeats = [*given, *defaults[len(given) :]][:3]
+    main(n_missions, n_single, repeats, json_path=json_path)

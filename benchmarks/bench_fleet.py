@@ -101,7 +101,7 @@ def main(argv: list[str] | None = None) -> np.ndarray:
     bound = table[:, -1]
     print(f"{missions} random missions, {args.uavs} UAVs, seed {args.seed}")
     print(f"{'policy':<14}{'mean Mbit':>11}{'95% CI':>10}{'gap to bound':>14}")
-    rows = []
+    rows: list[list[str]] = []
     for column, policy in enumerate(POLICIES, start=1):
         mean, half = mean_ci(table[:, column])
         gap = float(np.mean(bound - table[:, column]))

@@ -285,4 +285,6 @@ def main(
 
 if __name__ == "__main__":
     json_path = json_option()
-    main(*(int(a) for a in sys.argv[1:]), json_path=json_path)  # type: ignore[arg-type]
+    names = ("n_fixed", "n_autonomous", "n_single", "repeats")
+    sizes = {name: int(a) for name, a in zip(names, sys.argv[1:], strict=False)}
+    main(**sizes, json_path=json_path)

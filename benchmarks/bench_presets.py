@@ -135,7 +135,7 @@ def bounds() -> Table:
     return table(["preset", "bound [Mbit] (no hover)", "greedy", "hgad", "optimal-fixed"], rows)
 
 
-PLANNER_CASES = (
+PLANNER_CASES: tuple[tuple[str, list[str]], ...] = (
     ("paper-sim-autonomous", []),
     ("same, 300 s", ["mission.duration_s=300"]),
     ("same, 1500 Mbit per tower", [f"sensors[{i}].buffer_mbit=1500" for i in range(4)]),

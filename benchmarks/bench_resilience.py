@@ -51,7 +51,7 @@ def with_faults(base: Scenario, faults: list[dict[str, Any]], label: str) -> Sce
 
 
 def compare(preset: str, missions: int) -> list[list[str]]:
-    rows = []
+    rows: list[list[str]] = []
     base = load_scenario(preset)
     policies = POLICIES[preset]
     faulty = with_faults(base, FAULTS, "faults")
@@ -63,7 +63,7 @@ def compare(preset: str, missions: int) -> list[list[str]]:
         for row in table(study).itertuples():
             print(f"  {row.policy:14s} {row.mbit_mean:9.1f} +- {row.mbit_ci95:6.1f} Mbit")
             mbit = f"{row.mbit_mean:.1f} ± {row.mbit_ci95:.1f}"
-            rows.append([preset, label, row.policy, mbit, ""])
+            rows.append([preset, label, str(row.policy), mbit, ""])
         for robust, plain in PAIRS:
             if robust not in policies:
                 continue

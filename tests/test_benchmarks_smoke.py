@@ -17,6 +17,7 @@ import runpy
 import shutil
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -87,9 +88,9 @@ def run_script(name: str, args: list[str], monkeypatch: pytest.MonkeyPatch) -> N
     runpy.run_path(str(BENCHMARKS / name), run_name="__main__")
 
 
-def written_tables(path: Path, saved: str | None) -> dict[str, dict[str, object]]:
+def written_tables(path: Path, saved: str | None) -> dict[str, dict[str, Any]]:
     """The tables of ``path``, checked against the renderer's format and the saved file."""
-    tables: dict[str, dict[str, object]] = RENDER["load_tables"](path.parent)
+    tables: dict[str, dict[str, Any]] = RENDER["load_tables"](path.parent)
     assert tables and all(t["rows"] for t in tables.values()), tables
     for table in tables.values():  # every table renders
         RENDER["markdown"](table["columns"], table["rows"], table.get("align"))

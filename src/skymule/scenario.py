@@ -1,6 +1,6 @@
 """Scenario files: a validated, serialisable description of one mission.
 
-A scenario is TOML (see the README for the schema). It is validated by pydantic models that
+A scenario is TOML (schema: docs/cli.md). It is validated by pydantic models that
 forbid unknown keys, so a misspelt field is an error, never silently ignored. Mbit and lat/lon
 appear here, at the edge; :mod:`skymule.world` turns a scenario into SI arrays.
 

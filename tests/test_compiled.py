@@ -19,8 +19,9 @@ from engine_cases import assert_logs_equal, random_mission, random_spec
 from skymule.errors import SkymuleError
 from skymule.policies import batch_policy
 from skymule.radio.rates import BUILTIN_RATE_TABLES, StepTable, rate_bps
+from skymule.rules import contract
 from skymule.scenario import PolicySpec, load_scenario
-from skymule.sim import compiled, contract, kernels
+from skymule.sim import compiled, kernels
 from skymule.sim.batch_faults import BatchFaults, apply_faults, kernel_faults
 from skymule.sim.fixed import FixedEngine, compiled_reason, run_compiled
 from skymule.sim.run import run_missions, summarize_missions

@@ -28,10 +28,10 @@ from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
 from skymule.metrics.flights import Flights
 from skymule.metrics.summary import Summaries, summaries
 from skymule.policies import batch_policy
+from skymule.rules.contract import NO_SENSOR
 from skymule.scenario import PolicySpec, load_scenario
 from skymule.sim import compiled, summary_kernels
 from skymule.sim.compiled_summaries import compiled_summaries, flights_summaries
-from skymule.sim.contract import NO_SENSOR
 from skymule.sim.fixed import FixedEngine
 from skymule.sim.run import run_missions, summarize_missions
 from skymule.world import build_mission

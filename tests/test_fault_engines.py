@@ -16,10 +16,10 @@ from skymule.io.runs import slots_frame
 from skymule.metrics.flights import MissionLog
 from skymule.metrics.summary import summarize
 from skymule.policies import batch_policy
+from skymule.rules.contract import NO_SENSOR
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
 from skymule.sim import compiled
 from skymule.sim.autonomous import AutonomousEngine
-from skymule.sim.contract import NO_SENSOR
 from skymule.sim.fixed import FixedEngine
 from skymule.sim.fleet import build_fleet
 from skymule.sim.run import run_mission, run_missions, summarize_missions

@@ -71,16 +71,16 @@ def test_find_cycle_finds_a_planted_cycle() -> None:
 def test_a_module_named_in_a_string_is_an_edge(tmp_path: Path) -> None:
     source = tmp_path / "lazy.py"
     source.write_text(
-        'import importlib\nimportlib.import_module("skymule.sim.contract")\n'
+        'import importlib\nimportlib.import_module("skymule.rules.contract")\n'
         'POLICY = "skymule.policies.builtin:Greedy"\nTEXT = "skymule.sim is fast"\n'
     )
-    modules = {"skymule.sim", "skymule.sim.contract", "skymule.policies.builtin"}
-    assert _imports(source, modules) == {"skymule.sim.contract", "skymule.policies.builtin"}
+    modules = {"skymule.sim", "skymule.rules.contract", "skymule.policies.builtin"}
+    assert _imports(source, modules) == {"skymule.rules.contract", "skymule.policies.builtin"}
 
 
 def test_the_package_has_no_import_cycles() -> None:
     graph = import_graph()
-    assert "skymule.sim.contract" in graph
+    assert "skymule.rules.contract" in graph
     assert find_cycle(graph) is None, " -> ".join(find_cycle(graph) or [])
 
 

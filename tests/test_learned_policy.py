@@ -299,11 +299,9 @@ def test_a_fleet_flies_learned_uavs_on_shared_buffers() -> None:
 
 @pytest.mark.parametrize("n", [3, 4, 8])
 def test_the_compiled_twin_scores_as_numpy(n: int, monkeypatch: pytest.MonkeyPatch) -> None:
-    from skymule.policies import learned_kernel, options
+    from skymule.policies import learned_kernel
     from skymule.policies.learned import compiled_scores
 
-    assert tuple(learned_kernel.FRACTIONS) == options.FRACTIONS
-    assert learned_kernel.HGAD_HOVER_S == options.HGAD_HOVER_S
     net = load_net(shipped_weights())
     decision = _decision(np.random.default_rng(n), n)
     expected = scores(net, None, decision)

@@ -14,8 +14,8 @@ from skymule.policies import make_policy
 from skymule.policies.base import Observation
 from skymule.policies.planner import ground_speed_mps
 from skymule.policies.planner_robust import RobustPlanner
+from skymule.rules.contract import NO_SENSOR
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
-from skymule.sim.contract import NO_SENSOR
 from skymule.sim.run import mission_context, run_mission
 from skymule.world import Mission, build_mission
 from test_autonomous_bound import random_scenario

@@ -13,8 +13,8 @@ import pytest
 from conftest import run_cli
 from skymule.metrics.flights import MissionLog
 from skymule.policies import make_policy
+from skymule.rules.contract import NO_SENSOR
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
-from skymule.sim.contract import NO_SENSOR
 from skymule.sim.run import run_mission
 from skymule.tasks.resilience import LEVELS, leveled, run_study
 from skymule.world import Mission, build_mission

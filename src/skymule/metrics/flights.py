@@ -16,7 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from skymule.sim.contract import NO_SENSOR
+from skymule.rules.contract import NO_SENSOR
+from skymule.rules.defaults import AADM_WINDOW_S
 
 
 @dataclass(frozen=True, eq=False)
@@ -312,7 +313,7 @@ def flight_record(
     hover_points_m: np.ndarray | None = None,
     visit_radius_m: float = 50.0,
     target: np.ndarray | None = None,
-    aadm_window_s: float = 500.0,
+    aadm_window_s: float = AADM_WINDOW_S,
     **extra: Any,
 ) -> Flights:
     """The record of one flight (B = 1) from its per-slot arrays: its path is its own track,

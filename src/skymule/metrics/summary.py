@@ -15,10 +15,11 @@ from typing import Any
 
 import numpy as np
 
-from skymule.aadm.score import AADM_WINDOW_S, AadmScore, aadm_scores
 from skymule.energy import propulsion_power_w
 from skymule.metrics.flights import NO_SENSOR, Flights, MissionLog, unique_rows
 from skymule.metrics.visits import first_visit_slots, order_from_first
+from skymule.rules.defaults import AADM_WINDOW_S
+from skymule.rules.score import AadmScore, aadm_scores
 from skymule.units import BITS_PER_MBIT
 
 HEADLINE_METRICS = (

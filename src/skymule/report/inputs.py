@@ -14,10 +14,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from skymule.aadm.score import aadm_score_one
 from skymule.errors import SkymuleError
 from skymule.io.runs import is_run_dir, read_run, read_run_scenario, sensor_names_of
 from skymule.report.site import SiteGeometry, site_geometry
+from skymule.rules.score import aadm_score_one
 
 COMPARISON_FILE = "comparison.csv"
 

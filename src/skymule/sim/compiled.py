@@ -7,7 +7,7 @@ one slot at a time and pays numpy's per-call overhead in every slot; here one mi
 all its slots in registers before the next (``docs/speed-notes.md``).
 
 The rules are not re-stated here: the loop calls the one-mission kernels of
-:mod:`skymule.sim.kernels` and :func:`skymule.sim.contract.served_bits`, registered with
+:mod:`skymule.sim.kernels` and :func:`skymule.rules.contract.served_bits`, registered with
 numba so the same Python functions run compiled. Fault draws (outages, burst loss, SNR
 errors, missed polls) are applied per mission and slot as the numpy loop applies them
 (:func:`skymule.sim.kernels.fault_view`). Missions with per-slot fading, and SNR errors on a
@@ -36,8 +36,9 @@ from typing import Any
 import numpy as np
 
 from skymule.errors import SkymuleError
-from skymule.sim import contract, kernels, summary_kernels
-from skymule.sim.contract import NO_SENSOR
+from skymule.rules import contract
+from skymule.rules.contract import NO_SENSOR
+from skymule.sim import kernels, summary_kernels
 from skymule.sim.kernels import KernelFaults
 
 ENGINES = ("auto", "numpy", "compiled")
@@ -80,7 +81,7 @@ def no_totals(n_sensors: int) -> tuple[summary_kernels.SummaryTables, summary_ke
         near=np.zeros((0, n_sensors), np.int64),
         group=np.zeros(0, np.int64),
         aadm_threshold_bit=np.zeros(0),
-        aadm_window_s=np.zeros(0),
+        aadm_window_slots=np.zeros(0),
         aadm_per_slot=False,
         width=0,
     )

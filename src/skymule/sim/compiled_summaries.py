@@ -16,10 +16,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 import skymule.metrics.summary as metrics
-from skymule.aadm.score import AADM_WINDOW_S, COMPLETE_RTOL, aadm_from_progress
 from skymule.metrics import visits
 from skymule.metrics.flights import Flights
-from skymule.sim import compiled, contract, summary_kernels
+from skymule.rules import contract
+from skymule.rules.defaults import AADM_WINDOW_S
+from skymule.rules.score import COMPLETE_RTOL, aadm_from_progress
+from skymule.sim import compiled, summary_kernels
 from skymule.sim.columns import mission_geometry
 
 if TYPE_CHECKING:
@@ -55,7 +57,8 @@ def summary_tables(
     # aadm_scores pads arrays with no slot to one; it masks slots per mission only when some
     # window closes before the last slot of the padded arrays
     width = max(width, 1)
-    per_slot = bool((contract.window_slots(window_s, slot_s) < width).any())
+    inside = contract.window_slots(window_s, slot_s)
+    per_slot = bool((inside < width).any())
     return summary_kernels.SummaryTables(
         steps_m=steps,
         power_w=power,
@@ -63,7 +66,7 @@ def summary_tables(
         near=near,
         group=group,
         aadm_threshold_bit=buffers_bit.sum(axis=1) * (1.0 - COMPLETE_RTOL),
-        aadm_window_s=window_s,
+        aadm_window_slots=np.broadcast_to(inside, window_s.shape).astype(float),
         aadm_per_slot=per_slot,
         width=width,
     )

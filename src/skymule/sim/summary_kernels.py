@@ -26,7 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from skymule.sim.contract import NO_SENSOR
+from skymule.rules.contract import NO_SENSOR
 
 #: numpy's pairwise summation sums blocks of at most this many values with 8 accumulators.
 PAIRWISE_BLOCK = 128
@@ -66,7 +66,8 @@ class SummaryTables(NamedTuple):
         near: (G, N) first track sample within the visit radius of each sensor (K: never).
         group: (B,) each mission's row in ``near``.
         aadm_threshold_bit: (B,) bits that count as everything (total x (1 - rtol)).
-        aadm_window_s: (B,) the AADM download window [s].
+        aadm_window_slots: (B,) slots counted by the AADM download window
+            (``rules.contract.window_slots``).
         aadm_per_slot: True when some window closes inside the batch's slots: only slots
             starting before their mission's window count (``aadm_scores``'s mask).
         width: T_max, the slots of the batch's padded arrays.
@@ -78,7 +79,7 @@ class SummaryTables(NamedTuple):
     near: np.ndarray
     group: np.ndarray
     aadm_threshold_bit: np.ndarray
-    aadm_window_s: np.ndarray
+    aadm_window_slots: np.ndarray
     aadm_per_slot: bool
     width: int
 
@@ -224,7 +225,7 @@ def mission_totals(
     hover_slots = 0
     hovered_serving = False
     threshold = tables.aadm_threshold_bit[b]
-    window = tables.aadm_window_s[b] - 1e-9
+    window = tables.aadm_window_slots[b]
     aadm = 0.0
     aadm_first = -1
     straight = True
@@ -240,7 +241,7 @@ def mission_totals(
             hovered_serving = hovered_serving or sensor != NO_SENSOR
         elif sample[t] != t:
             straight = False
-        counted = not tables.aadm_per_slot or t * slot_s < window
+        counted = not tables.aadm_per_slot or t < window
         got = downloaded[t] if counted else 0.0
         aadm = got if t == 0 else aadm + got
         if aadm_first < 0 and counted and aadm >= threshold:

@@ -8,7 +8,6 @@ compiled twin's equality in ``tests/test_compiled.py``.
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -18,6 +17,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from engine_cases import (
+    TWIN_RTOL,
     assert_logs_equal,
     assert_summaries_equal,
     random_geometry,
@@ -117,7 +117,7 @@ def test_summaries_of_a_batch_are_those_of_skymule_run(base_mission):
     for engine in ("numpy", "auto"):
         rows = summarize_missions(missions, specs, names, batch_size=6, engine=engine)
         for row, mission, spec, name in zip(rows, missions, specs, names, strict=True):
-            assert_summaries_equal(row, summarize(alone(mission, spec), name))
+            assert_summaries_equal(row, summarize(alone(mission, spec), name), TWIN_RTOL)
 
 
 def test_summaries_on_the_paper_preset(base_mission):
@@ -131,7 +131,7 @@ def test_summaries_on_the_paper_preset(base_mission):
         specs.append(PolicySpec(name=("greedy", "hgad")[index % 2]))
     rows = summarize_missions(missions, specs, ["x"] * 8)
     for row, mission, spec in zip(rows, missions, specs, strict=True):
-        assert_summaries_equal(row, summarize(alone(mission, spec), "x"))
+        assert_summaries_equal(row, summarize(alone(mission, spec), "x"), TWIN_RTOL)
     assert rows[7]["aadm_complete"] and rows[1]["hover_time_s"] > 0
 
 
@@ -175,10 +175,7 @@ def test_sweep_rows_equal_skymule_run(tmp_path):
     for row, mission in zip(frame.to_dict("records"), missions, strict=True):
         scenario = scenario_from_dict(mission.scenario, "t", Path("."))
         want = _flat_summary(simulate(scenario).summary)
-        for key, value in want.items():
-            got = row[key]
-            nan = isinstance(value, float) and math.isnan(value)
-            assert (isinstance(got, float) and math.isnan(got)) if nan else got == value, key
+        assert_summaries_equal({key: row[key] for key in want}, want, TWIN_RTOL)
 
 
 def handovers(served) -> int:

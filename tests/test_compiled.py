@@ -15,7 +15,13 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from engine_cases import assert_logs_equal, random_mission, random_spec
+from engine_cases import (
+    TWIN_RTOL,
+    assert_logs_equal,
+    assert_summaries_equal,
+    random_mission,
+    random_spec,
+)
 from skymule.errors import SkymuleError
 from skymule.policies import batch_policy
 from skymule.radio.rates import BUILTIN_RATE_TABLES, StepTable, rate_bps
@@ -174,7 +180,8 @@ def test_compiled_summaries_equal_numpy_on_paper_preset(base_mission):
     specs = [PolicySpec(name="greedy"), PolicySpec(name="hgad", max_hover_s=20.0)] * 10
     names = ["paper"] * 20
     numpy_rows = summarize_missions(missions, specs, names, engine="numpy")
-    assert summarize_missions(missions, specs, names, engine="compiled") == numpy_rows
+    got = summarize_missions(missions, specs, names, engine="compiled")
+    assert_summaries_equal(got, numpy_rows, TWIN_RTOL)
     assert any(row["hover_time_s"] > 0 for row in numpy_rows)
 
 

@@ -281,10 +281,8 @@ class HGADTours:
         here = position[todo]
         away = (here[:, 0] != point[:, 0]) | (here[:, 1] != point[:, 1])
         if self._robust:
-            from skymule.flight.navigation import math_hypot
-
             dx, dy = here[:, 0] - point[:, 0], here[:, 1] - point[:, 1]
-            away &= math_hypot(dx, dy).astype(float) > self._arrive_m[todo]
+            away &= np.hypot(dx, dy) > self._arrive_m[todo]
         return away
 
     def act(

@@ -150,8 +150,6 @@ def slot_loop(
     hovering_row = np.empty(t_max, np.bool_)
     sample_row = np.empty(t_max, np.int64)
     scratch = np.empty((2, t_max))
-    stack = np.empty((128, 3), np.int64)
-    partial = np.empty(128)
     memo = np.full(4, -1.0)
     seen_rate = np.empty(n_sensors)
     seen_snr = np.empty(n_sensors)
@@ -246,7 +244,7 @@ def slot_loop(
         if want_totals:
             summary_kernels.mission_totals(
                 b, served_row, downloaded_row, hovering_row, sample_row, run, dt, tables,
-                scratch, stack, partial, memo, totals,
+                scratch, memo, totals,
             )  # fmt: skip
     if not keep_logs:
         return
@@ -333,8 +331,6 @@ def compiled_loop() -> Callable[..., None]:
             contract.served_bits,
             *choose,
             kernels.step_rate,
-            summary_kernels.block_sum,
-            summary_kernels.pairwise_sum,
             summary_kernels.slots_before,
             summary_kernels.mission_totals,
         ),
@@ -349,8 +345,6 @@ def compiled_reduce() -> Callable[..., None]:
     return jit(
         summary_kernels.reduce_rows,
         (
-            summary_kernels.block_sum,
-            summary_kernels.pairwise_sum,
             summary_kernels.slots_before,
             summary_kernels.mission_totals,
             summary_kernels.first_target_arrivals,

@@ -26,8 +26,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from _sizes import size
 
+from _sizes import size
 from skymule.experiments.layouts import random_autonomous_scenario
 from skymule.metrics.summary import summarize
 from skymule.policies import HGAD, Greedy

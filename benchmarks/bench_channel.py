@@ -10,8 +10,8 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from _sizes import size
 
+from _sizes import size
 from skymule.geo import LocalFrame, sensor_positions_m
 from skymule.radio.channel import signal_source
 from skymule.radio.kriging import krige_dense

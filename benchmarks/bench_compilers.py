@@ -18,8 +18,8 @@ import time
 from dataclasses import replace
 
 import numpy as np
-from _sizes import size
 
+from _sizes import size
 from skymule.policies import Greedy
 from skymule.scenario import load_scenario
 from skymule.sim.fixed import stack_tracks

@@ -20,9 +20,9 @@ import math
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
-from _sizes import size
 from shapely.geometry import Point
 
+from _sizes import size
 from skymule.bounds.fleet import fleet_bound
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
 from skymule.scenario import Scenario, UavSpec, load_scenario

@@ -29,8 +29,8 @@ from typing import Any
 
 import numpy as np
 import shapely
-from _sizes import size
 
+from _sizes import size
 from skymule.errors import SkymuleError
 from skymule.experiments.layouts import random_autonomous_scenario
 from skymule.metrics.flights import NO_SENSOR, MissionLog

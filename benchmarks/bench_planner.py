@@ -28,8 +28,8 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
-from _sizes import size
 
+from _sizes import size
 from skymule.bounds.autonomous import autonomous_bound
 from skymule.experiments.layouts import random_autonomous_scenario
 from skymule.metrics.flights import MissionLog

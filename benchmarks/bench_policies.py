@@ -33,8 +33,8 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
-from _sizes import size
 
+from _sizes import size
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
 from skymule.policies.base import (
     Action,

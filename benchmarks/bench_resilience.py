@@ -23,8 +23,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from _sizes import size
 
+from _sizes import size
 from skymule.scenario import Scenario, load_scenario, scenario_from_dict
 from skymule.tasks.resilience import leveled, mean_ci, paired_difference, run_study, table
 

@@ -9,7 +9,6 @@ import argparse
 import time
 
 from _sizes import size
-
 from skymule.policies import make_policy
 from skymule.scenario import load_scenario
 from skymule.sim.run import run_mission

@@ -28,8 +28,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from _sizes import size
 
+from _sizes import size
 from skymule.bounds.autonomous import autonomous_bound
 from skymule.envs.datamule import DataMuleEnv
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario

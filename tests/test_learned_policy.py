@@ -37,7 +37,7 @@ def short(duration_s: float = 150.0) -> Scenario:
 
 @pytest.fixture(scope="module")
 def random_missions() -> list[Mission]:
-    from skymule.learning.missions import HELD_OUT, draw_missions
+    from learning.missions import HELD_OUT, draw_missions
 
     return draw_missions(5, 4, 6, HELD_OUT)
 
@@ -264,7 +264,7 @@ def test_the_runner_refuses_fixed_contexts() -> None:
 
 def test_the_torch_mirror_scores_as_numpy() -> None:
     torch = pytest.importorskip("torch", reason="the PPO comparison needs the rl extra")
-    from skymule.learning.ppo import TorchScorer
+    from learning.ppo import TorchScorer
     from skymule.policies.options import option_features
 
     net = load_net(shipped_weights())

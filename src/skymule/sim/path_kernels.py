@@ -3,7 +3,8 @@ rows, as plain loops numba can compile (the batched autonomous engine's ``compil
 
 Nothing here tests visibility: the geofence predicate (shapely ``covers``) stays in Python,
 between these kernels (:mod:`skymule.sim.batch_paths`). What is here is the rest of a
-shortest-path query, written so every float is the one the numpy methods compute, up to summation order:
+shortest-path query, written so every float is the one the numpy methods compute (up to the
+order of a sum):
 
 * the same operations in the same order (``(d_s + D) + d_g``, first index of the minimum,
   stable order of ties);

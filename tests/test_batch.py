@@ -12,7 +12,6 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -35,11 +34,6 @@ from skymule.scenario import PolicySpec, load_scenario, scenario_from_dict
 from skymule.sim.run import run_mission, run_missions, summarize_missions
 from skymule.tasks.simulate import simulate
 from skymule.world import build_mission
-
-
-@pytest.fixture(scope="module")
-def base_mission():
-    return build_mission(load_scenario("paper-sim-fixed"))
 
 
 def alone(mission, spec, engine: str = "numpy"):

@@ -16,6 +16,7 @@ import pytest
 import shapely
 from shapely.geometry import Polygon
 
+from conftest import preset_mission
 from engine_cases import TWIN_RTOL, assert_logs_equal, assert_summaries_equal
 from skymule.errors import SkymuleError
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
@@ -234,7 +235,7 @@ def test_a_batch_needs_one_fence_and_autonomous_missions(preset):
     greedy = [PolicySpec(name="greedy")] * 2
     with pytest.raises(SkymuleError, match="another geofence"):
         run_missions([mission, small], batch_policy(greedy))
-    fixed = build_mission(load_scenario("paper-sim-fixed"))
+    fixed = preset_mission("paper-sim-fixed")
     with pytest.raises(SkymuleError, match="one trajectory mode"):
         run_missions([mission, fixed], batch_policy(greedy))
 

@@ -15,6 +15,9 @@ from pathlib import Path
 
 import pytest
 
+#: Every benchmark script at its tiny size: in the default run, skipped by ``-m 'not slow'``.
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 BENCHMARKS = ROOT / "benchmarks"
 README_TABLES = runpy.run_path(str(ROOT / "scripts" / "update_readme_tables.py"))

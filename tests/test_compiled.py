@@ -26,12 +26,11 @@ from skymule.errors import SkymuleError
 from skymule.policies import batch_policy
 from skymule.radio.rates import BUILTIN_RATE_TABLES, StepTable, rate_bps
 from skymule.rules import contract
-from skymule.scenario import PolicySpec, load_scenario
+from skymule.scenario import PolicySpec
 from skymule.sim import compiled, kernels
 from skymule.sim.batch_faults import BatchFaults, apply_faults, kernel_faults
 from skymule.sim.fixed import FixedEngine, compiled_reason, run_compiled
 from skymule.sim.run import run_missions, summarize_missions
-from skymule.world import build_mission
 
 needs_numba = pytest.mark.skipif(not compiled.available(), reason="numba not installed")
 
@@ -136,11 +135,6 @@ def test_fault_kernels_equal_apply_faults(seed, n, uses_error):
     )  # fmt: skip
     for ours, theirs in zip(got, want[:3], strict=True):
         np.testing.assert_array_equal(ours, theirs[:, 0], strict=True)
-
-
-@pytest.fixture(scope="module")
-def base_mission():
-    return build_mission(load_scenario("paper-sim-fixed"))
 
 
 def loops() -> list[object]:

@@ -47,11 +47,6 @@ SETTINGS = settings(
 )
 
 
-@pytest.fixture(scope="module")
-def base_mission():
-    return build_mission(load_scenario("paper-sim-fixed"))
-
-
 def assert_arrays_close(ours: np.ndarray, theirs: np.ndarray, name: str) -> None:
     """Same dtype and shape; floats within :data:`TWIN_RTOL` (numba sums in order, numpy
     pairwise: bit for bit when the kernels run as plain Python), the rest exactly."""

@@ -71,6 +71,9 @@ WARMED = """
 import sys
 from skymule.experiments.executors import open_executor
 
+#: Worker processes and Dask clusters: in the default run, skipped by ``-m 'not slow'``.
+pytestmark = pytest.mark.slow
+
 def loaded(name):
     return name in sys.modules
 

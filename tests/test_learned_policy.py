@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import preset_mission
 from skymule.errors import SkymuleError
 from skymule.policies import batch_policy, make_policy
 from skymule.policies.learned import (
@@ -249,7 +250,7 @@ def test_the_cli_runs_learned_and_refuses_bad_weights(tmp_path: Path) -> None:
 
 
 def test_fixed_paths_are_one_clear_error() -> None:
-    mission = build_mission(load_scenario("paper-sim-fixed"))
+    mission = preset_mission("paper-sim-fixed")
     with pytest.raises(SkymuleError, match=r"trajectory\.mode = 'autonomous'"):
         run_mission(mission, make_policy(PolicySpec(name="learned")))
 
@@ -257,7 +258,7 @@ def test_fixed_paths_are_one_clear_error() -> None:
 def test_the_runner_refuses_fixed_contexts() -> None:
     from skymule.sim.run import mission_context
 
-    context = mission_context(build_mission(load_scenario("paper-sim-fixed")))
+    context = mission_context(preset_mission("paper-sim-fixed"))
     with pytest.raises(ValueError, match="autonomous"):
         OptionRunner([context], lambda d: np.zeros(len(d.rows), np.int64))
 
@@ -318,4 +319,3 @@ def test_numpy_and_compiled_scorers_fly_the_same_missions(random_missions: list[
     a = run_missions(random_missions, policy, detail=False).downloaded_bit
     b = run_missions(random_missions, numpy_form, detail=False).downloaded_bit
     np.testing.assert_array_equal(a, b)
-

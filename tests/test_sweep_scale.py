@@ -204,6 +204,9 @@ def cluster() -> Iterator[str]:
 POLICY = '''
 import numpy as np
 
+#: Sweeps across processes and a Dask cluster: in the default run, skipped by ``-m 'not slow'``.
+pytestmark = pytest.mark.slow
+
 class FirstWithData:
     """Serve the first sensor that holds data (a plug-in the workers cannot import)."""
 

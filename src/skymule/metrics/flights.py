@@ -121,6 +121,12 @@ class Flights:
         """B, the number of flights."""
         return int(self.n_run.shape[0])
 
+    def score_windows_s(self) -> np.ndarray:
+        """(B,) the download window the AADM score counts in [s] (the default where unset)."""
+        if self.aadm_window_s is None:
+            return np.full(self.size, AADM_WINDOW_S)
+        return np.asarray(self.aadm_window_s, float)
+
     def mission(self, b: int) -> MissionLog:
         """Flight b as a :class:`MissionLog` (views, no copies)."""
         return MissionLog(self, b)
@@ -264,8 +270,7 @@ class MissionLog:
 
     @property
     def aadm_window_s(self) -> float:
-        window = self.flights.aadm_window_s
-        return 500.0 if window is None else float(window[self.index])
+        return float(self.flights.score_windows_s()[self.index])
 
     @property
     def target(self) -> np.ndarray | None:

@@ -20,7 +20,6 @@ import skymule.metrics.summary as metrics
 from skymule.metrics import visits
 from skymule.metrics.flights import Flights
 from skymule.rules import contract
-from skymule.rules.defaults import AADM_WINDOW_S
 from skymule.rules.score import COMPLETE_RTOL, aadm_from_progress
 from skymule.sim import compiled, summary_kernels
 from skymule.sim.columns import mission_geometry
@@ -205,11 +204,7 @@ def flights_summaries(flights: Flights, use_numba: bool = True) -> metrics.Summa
     batched autonomous engine's), whose first visits follow the targets.
     """
     n_missions, n_sensors = flights.buffers_bit.shape
-    window = (
-        np.full(n_missions, AADM_WINDOW_S)
-        if flights.aadm_window_s is None
-        else np.asarray(flights.aadm_window_s, float)
-    )
+    window = flights.score_windows_s()
     targets = target_tables(flights)
     near_rows = None if flights.target is None else np.flatnonzero(~targets.by_target)
     tables = summary_tables(

@@ -413,6 +413,8 @@ class Planner:
             leg_each, leg_together = legs[(a, b)]
             each += leg_each
             together += leg_together
+        # what the legs' slots could carry, capped by the buffers: min(sum R dt, Q), an
+        # optimistic route total (each sensor as if alone), not a slot's served bits
         en_route = np.minimum(remaining, each)
         if en_route.sum() > together > 0:
             en_route *= together / en_route.sum()

@@ -96,3 +96,24 @@ def test_home_budget_is_the_calm_wind_and_bound_forms() -> None:
     # the bound's reach radius around home at the start of slot t: (T - t) steps
     np.testing.assert_array_equal(home.home_budget(n_slots, slots - 1, step_m), (10 - slots) * 5.0)
     assert home.time_left_s(n_slots, 4, 0.5) == 3.0
+
+
+def test_the_aadm_score_by_hand_and_as_rewards() -> None:
+    """S = max(0, W - t1) + 100 D_down / D_tot, t1 the end of the completing slot; the
+    per-slot rewards of an episode add up to its score."""
+    from skymule.rules.score import aadm_scores, slot_rewards
+
+    bits = np.zeros((2, 600))
+    bits[0, :470] = 1.0  # 470 bits over slots 0..469: complete at the end of slot 469
+    bits[1, 100:600] = 1.0  # 500 bits, but slots 500.. are past the window: 400 count
+    total = np.array([470.0, 500.0])
+    score = aadm_scores(bits, total, np.array([600, 600]), 1.0, AADM_WINDOW_S)
+    np.testing.assert_array_equal(score.t1_s, [470.0, 500.0])
+    np.testing.assert_array_equal(score.score, [30.0 + 100.0, 100.0 * 400 / 500])
+    counted, completed = np.zeros(2), np.zeros(2, bool)
+    window, live, slot_s = np.full(2, AADM_WINDOW_S), np.ones(2, bool), np.ones(2)
+    rewards = np.zeros(2)
+    for t in range(600):
+        ran = np.full(2, t + 1)
+        rewards += slot_rewards(bits[:, t], ran, live, slot_s, total, window, counted, completed)
+    np.testing.assert_allclose(rewards, score.score, rtol=1e-12)

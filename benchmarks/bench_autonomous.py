@@ -28,9 +28,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+
 from _results import json_option, table, write
 from _sizes import size
-
 from skymule.experiments.layouts import random_autonomous_scenario
 from skymule.metrics.summary import summarize
 from skymule.policies import HGAD, Greedy

@@ -30,9 +30,9 @@ import argparse
 import time
 
 import numpy as np
+
 from _results import json_option, table, write
 from _sizes import size
-
 from skymule.bounds.autonomous import best_rate_bps, time_sharing_lp
 from skymule.bounds.fixed import LP_METHOD, fixed_path_bound
 from skymule.bounds.fleet import fleet_time_sharing_lp

@@ -14,9 +14,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+
 from _results import json_option, table, write
 from _sizes import size
-
 from skymule.geo import LocalFrame, sensor_positions_m
 from skymule.radio.channel import signal_source
 from skymule.radio.kriging import krige_dense

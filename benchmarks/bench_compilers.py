@@ -19,9 +19,9 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+
 from _results import json_option, table, write
 from _sizes import size
-
 from skymule.policies import Greedy
 from skymule.scenario import load_scenario
 from skymule.sim.fixed import stack_tracks

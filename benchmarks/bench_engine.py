@@ -32,9 +32,9 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+
 from _results import json_option, table, write
 from _sizes import size
-
 from skymule.policies import batch_policy
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
 from skymule.sim import compiled

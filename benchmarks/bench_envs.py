@@ -18,9 +18,9 @@ import argparse
 import time
 
 import numpy as np
+
 from _results import json_option, table, write
 from _sizes import size
-
 from skymule.envs.datamule import DataMuleEnv
 from skymule.envs.vector import DataMuleVectorEnv
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario

@@ -20,11 +20,11 @@ import math
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
+from shapely.geometry import Point
+
 from _results import json_option, write
 from _results import table as results_table
 from _sizes import size
-from shapely.geometry import Point
-
 from skymule.bounds.fleet import fleet_bound
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
 from skymule.scenario import Scenario, UavSpec, load_scenario

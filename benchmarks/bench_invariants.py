@@ -29,10 +29,10 @@ from typing import Any
 
 import numpy as np
 import shapely
+
 from _results import json_option, write
 from _results import table as results_table
 from _sizes import size
-
 from skymule.errors import SkymuleError
 from skymule.experiments.layouts import random_autonomous_scenario
 from skymule.metrics.flights import NO_SENSOR, MissionLog

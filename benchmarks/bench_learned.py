@@ -25,11 +25,11 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+
 from _results import json_option, table, write
 from _sizes import size
-
+from learning.missions import HELD_OUT, HELD_OUT_FAULTS, draw_missions
 from skymule.bounds.autonomous import autonomous_bound
-from skymule.learning.missions import HELD_OUT, HELD_OUT_FAULTS, draw_missions
 from skymule.policies import HGAD, Greedy
 from skymule.policies.learned import LearnedPolicy, load_net, shipped_weights
 from skymule.policies.planner import Planner

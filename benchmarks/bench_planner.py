@@ -33,9 +33,9 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+
 from _results import json_option, table, write
 from _sizes import size
-
 from skymule.bounds.autonomous import autonomous_bound
 from skymule.experiments.layouts import random_autonomous_scenario
 from skymule.metrics.flights import MissionLog

@@ -35,9 +35,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from _results import json_option, table, write
 from _sizes import size
-
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
 from skymule.policies.base import (
     Action,

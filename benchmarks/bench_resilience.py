@@ -23,10 +23,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from _results import json_option, write
 from _results import table as results_table
 from _sizes import size
-
 from skymule.scenario import Scenario, load_scenario, scenario_from_dict
 from skymule.tasks.resilience import leveled, mean_ci, paired_difference, run_study, table
 

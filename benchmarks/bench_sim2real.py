@@ -42,9 +42,9 @@ from pathlib import Path
 
 import numpy as np
 import scipy.ndimage
-from _sizes import size, tiny
 from threadpoolctl import threadpool_limits
 
+from _sizes import size, tiny
 from skymule.flight.paths import sample_path
 from skymule.geo import LocalFrame, sensor_positions_m
 from skymule.io.traces import Trace, read_trace, write_aadm_log, write_dt_export

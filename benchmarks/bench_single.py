@@ -10,7 +10,6 @@ import time
 
 from _results import json_option, table, write
 from _sizes import size
-
 from skymule.policies import make_policy
 from skymule.scenario import load_scenario
 from skymule.sim.run import run_mission

@@ -4,15 +4,15 @@ Reproduces the shipped model (``src/skymule/data/learned_policy.npz``):
 
     nice python benchmarks/train_learned.py --minutes 28 > train.log
 
-Evolution strategies (:mod:`skymule.learning.es`, numpy only, ``--workers`` processes) on
+Evolution strategies (:mod:`learning.es`, numpy only, ``--workers`` processes) on
 random Lake Wheeler missions with 3..8 sensors, random channels and faults
-(:mod:`skymule.learning.missions`). Every ``--validate-every`` generations the current model
+(:mod:`learning.missions`). Every ``--validate-every`` generations the current model
 flies 64 four-sensor and 32 eight-sensor validation missions (their own seed, not the
 benchmark's held-out one) against HGAD; the best validated model is kept. Writes the weights,
 the learning curve as CSV (``--curve``) and its figure (``--figure``, drawn from the CSV).
 
 ``--algorithm ppo`` trains the same network on the same options with PPO instead
-(:mod:`skymule.learning.ppo`, needs torch: the ``rl`` extra) for the measured comparison:
+(:mod:`learning.ppo`, needs torch: the ``rl`` extra) for the measured comparison:
 
     nice python benchmarks/train_learned.py --algorithm ppo --minutes 10 --out /tmp/ppo.npz
     nice python benchmarks/train_learned.py --algorithm es --minutes 10 --out /tmp/es.npz
@@ -32,12 +32,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from _results import json_option, table, write
 from _sizes import size
-
+from learning.es import ESConfig, fitness, hgad_downloads, relative_gain, train_es
+from learning.missions import HELD_OUT, draw_missions
 from skymule.io.atomic import atomic_path, write_with
-from skymule.learning.es import ESConfig, fitness, hgad_downloads, relative_gain, train_es
-from skymule.learning.missions import HELD_OUT, draw_missions
 from skymule.policies.learned import LearnedPolicy, OptionNet, save_net
 from skymule.sim.run import run_missions
 
@@ -149,7 +149,7 @@ def main() -> None:
             f"in {result.seconds:.0f} s"
         )
     else:
-        from skymule.learning.ppo import PPOConfig, train_ppo
+        from learning.ppo import PPOConfig, train_ppo
 
         config_ppo = PPOConfig(
             seed=args.seed,

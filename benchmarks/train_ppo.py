@@ -28,9 +28,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from _results import json_option, table, write
 from _sizes import size
-
 from skymule.bounds.autonomous import autonomous_bound
 from skymule.envs.datamule import DataMuleEnv
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario

@@ -22,6 +22,9 @@ from typing import Any
 
 import pytest
 
+#: Every benchmark script at its tiny size: in the default run, skipped by ``-m 'not slow'``.
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 BENCHMARKS = ROOT / "benchmarks"
 RESULTS = BENCHMARKS / "results"

@@ -23,6 +23,9 @@ from pathlib import Path
 
 import pytest
 
+#: Signals to child processes: in the default run, skipped by ``-m 'not slow'``.
+pytestmark = pytest.mark.slow
+
 SWEEP = """
 base = "paper-sim-autonomous"
 seed = 1

@@ -97,6 +97,8 @@ def test_ctrl_c_prints_one_line_and_the_resume_command(
         _signal_group(sweep.pid, how)
         _, stderr = sweep.communicate(timeout=120)
     assert sweep.returncode == (143 if how == "sigterm" else 130), stderr
-    [line] = stderr.strip().splitlines()
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1, stderr
+    [line] = lines
     assert line.startswith("skymule: interrupted; kept ")
     assert f"Resume with: skymule sweep sweep.toml --out {out} --executor {executor}" in line

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import functools
 import math
-import tomllib
 from collections.abc import Iterable, Sequence
 from importlib import resources
 from pathlib import Path
@@ -32,11 +31,12 @@ from pydantic_core import ErrorDetails, PydanticCustomError
 
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.faults.specs import SINGLE_KINDS, fault_params
-from skymule.io.textfiles import read_text
+from skymule.io.textfiles import parse_toml, read_text
 from skymule.limits import (
     ALTITUDE_LIMIT,
     COORDINATE_LIMIT,
     MAX_ALTITUDE_M,
+    MAX_BANDWIDTH_HZ,
     MAX_BUFFER_MBIT,
     MAX_COORDINATE_M,
     MAX_DURATION_S,
@@ -166,7 +166,8 @@ class RadioSpec(_Spec):
     tx_gain_dbi: float = 10.0
     rx_gain_dbi: float = 2.0
     noise_dbm: float = -90.0
-    bandwidth_hz: PositiveFloat = 1.4e6
+    bandwidth_hz: Annotated[float, Field(gt=0, le=MAX_BANDWIDTH_HZ)] = 1.4e6
+    """Channel bandwidth [Hz], at most :data:`~skymule.limits.MAX_BANDWIDTH_HZ` (100 GHz)."""
     rate_table: str = "aadm-lte-cqi"
     shadowing_std_db: Annotated[float, Field(ge=0, le=30)] = 0.0
     """Log-normal shadowing standard deviation [dB] (0: none); model sources only."""
@@ -719,6 +720,6 @@ def load_scenario(
 
 def _toml(text: str, source: str) -> dict[str, Any]:
     try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
+        return parse_toml(text)
+    except ValueError as exc:  # tomllib.TOMLDecodeError, or nested too deeply
         raise ScenarioError(f"{source}: not valid TOML ({exc})") from None

@@ -38,6 +38,7 @@ import pyarrow.parquet as pq
 
 from skymule.errors import SkymuleError
 from skymule.io import atomic
+from skymule.io.textfiles import parse_json
 from skymule.metrics.summary import HEADLINE_METRICS
 
 PARTS = "results"
@@ -89,7 +90,7 @@ class Holder:
 
 def _read_holder(path: Path) -> Holder | None:
     try:
-        data = json.loads(path.read_text())
+        data = parse_json(path.read_text())
         return Holder(int(data["pid"]), str(data["host"]), str(data["started"]))
     except FileNotFoundError:
         return None
@@ -149,7 +150,7 @@ def claim(out: Path, digest: str, source: str) -> None:
     meta = out / METADATA
     if meta.exists():
         try:
-            data = json.loads(meta.read_text())
+            data = parse_json(meta.read_text())
             held, scheme, held_source = data["sweep_sha256"], data["id_scheme"], data["source"]
         except (OSError, ValueError, KeyError, TypeError):
             raise SkymuleError(f"--out {out}: {meta} is damaged; use a new --out folder") from None

@@ -29,7 +29,7 @@ from skymule.io.runschema import (
     validate_scenario_json,
     validate_summary,
 )
-from skymule.io.textfiles import read_text
+from skymule.io.textfiles import parse_json, read_text
 from skymule.metrics.flights import NO_SENSOR, MissionLog
 from skymule.metrics.summary import power_w, speed_mps, step_lengths_m
 from skymule.units import BITS_PER_MBIT
@@ -92,7 +92,7 @@ def is_run_dir(path: Path) -> bool:
 def _read_json(path: Path) -> Any:
     text = read_text(path, "run file")
     try:
-        return json.loads(text)
+        return parse_json(text)
     except ValueError as exc:
         raise SkymuleError(
             f"{path}: not valid JSON ({exc}); rewrite the run with `skymule run`"

@@ -6,7 +6,10 @@ Every way reading can fail (missing, a folder, unreadable, not UTF-8) becomes a
 
 from __future__ import annotations
 
+import json
+import tomllib
 from pathlib import Path
+from typing import Any
 
 from skymule.errors import SkymuleError
 
@@ -31,3 +34,40 @@ def read_text(path: Path, what: str = "file") -> str:
         ) from None
     except OSError as exc:
         raise SkymuleError(f"{path}: cannot read ({exc.strerror or exc})") from None
+
+
+class JsonError(ValueError):
+    """A text that is not a JSON document this reader accepts (a ValueError, as
+    :class:`json.JSONDecodeError` is, so callers catching ValueError catch it)."""
+
+
+def parse_json(text: str) -> Any:
+    """``json.loads(text)``, with nesting too deep for Python's parser refused as
+    :class:`JsonError` (a ValueError) instead of a RecursionError.
+
+    Every reader of a JSON file a user gives (radio maps, GeoJSON fences, ``.plan`` files,
+    run folders, ``sweep.json``) parses through here, so 0.1 MB of ``[[[...`` is one line.
+    """
+    try:
+        return json.loads(text)
+    except RecursionError:
+        raise JsonError("nested too deeply to be read (a damaged or hostile file)") from None
+
+
+def read_json(path: Path, what: str = "file") -> Any:
+    """The parsed JSON of ``path``; one-line SkymuleError naming the file if it cannot be read
+    or parsed (:func:`read_text`, :func:`parse_json`)."""
+    text = read_text(path, what)
+    try:
+        return parse_json(text)
+    except ValueError as exc:
+        raise SkymuleError(f"{what} {str(path)!r}: not valid JSON ({exc})") from None
+
+
+def parse_toml(text: str) -> dict[str, Any]:
+    """``tomllib.loads(text)``, with nesting too deep for the parser refused as a ValueError
+    (:class:`JsonError`'s sibling case; ``tomllib.TOMLDecodeError`` is a ValueError too)."""
+    try:
+        return tomllib.loads(text)
+    except RecursionError:
+        raise ValueError("nested too deeply to be read (a damaged or hostile file)") from None

@@ -14,6 +14,7 @@ from skymule.cli.folders import guard_analysis, inspect_folder
 from skymule.cli.missions import TrustOption
 from skymule.cli.tables import print_table
 from skymule.errors import SkymuleError
+from skymule.io.textfiles import json_safe
 
 
 def plot(
@@ -175,6 +176,8 @@ def fit_radiomap_command(
     from skymule.cli.missions import _working
     from skymule.tasks.radiomaps import RadioMapFit, fit_radiomap_files, parse_origin
 
+    if seed < 0:  # numpy's generators take non-negative seeds only
+        raise SkymuleError(f"--seed {seed}: allowed: a whole number 0 or above")
     with _working(f"fitting the radio map ({method})"):
         fit = fit_radiomap_files(
             traces,
@@ -208,8 +211,8 @@ def score_radiomap_command(
     from skymule.tasks.radiomaps import parse_origin, score_against_trace
 
     scores = score_against_trace(source, trace, origin=parse_origin(origin) if origin else None)
-    if json_out:
-        print(json.dumps(scores, indent=2))
+    if json_out:  # a score that is not a number (no samples) is null: NaN is not JSON
+        print(json.dumps(json_safe(scores), indent=2, allow_nan=False))
         return
     names = list(next(iter(scores.values())))
     rows = [{"sensor": n, **{k: v[n] for k, v in scores.items()}} for n in names]

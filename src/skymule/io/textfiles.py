@@ -7,6 +7,7 @@ Every way reading can fail (missing, a folder, unreadable, not UTF-8) becomes a
 from __future__ import annotations
 
 import json
+import math
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -71,3 +72,15 @@ def parse_toml(text: str) -> dict[str, Any]:
         return tomllib.loads(text)
     except RecursionError:
         raise ValueError("nested too deeply to be read (a damaged or hostile file)") from None
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` with NaN and infinities as None, so ``json.dumps(..., allow_nan=False)``
+    writes strict JSON (bare ``NaN`` is not JSON; other readers refuse it)."""
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

@@ -35,6 +35,7 @@ import numpy as np
 import pandas as pd
 
 from skymule.errors import SkymuleError
+from skymule.io.textfiles import json_safe
 from skymule.scenario import Scenario, load_scenario
 from skymule.tasks.radiomaps import is_map_file, is_trace_file
 
@@ -245,19 +246,9 @@ def write_sim2real(result: Sim2Real, out: Path) -> list[Path]:
     document = out / RESULT_JSON
     samples = out / SAMPLES_CSV
     atomic.write_text(samples, result.samples.to_csv(index=False, float_format="%.6g"))
-    atomic.write_text(document, json.dumps(_finite(result.to_json()), indent=2) + "\n")
+    text = json.dumps(json_safe(result.to_json()), indent=2, allow_nan=False)
+    atomic.write_text(document, text + "\n")
     return [document, samples]
-
-
-def _finite(value: Any) -> Any:
-    """``value`` with NaN and infinities as None (strict JSON)."""
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 def policy_rows(result: Sim2Real) -> list[dict[str, Any]]:

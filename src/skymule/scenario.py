@@ -447,6 +447,29 @@ def route_policy_params(
     ]
 
 
+def plugin_default_overrides(params: dict[str, Any], names: Sequence[str], owner: str) -> list[str]:
+    """One line for each ``[policy.params]`` key written for the scenario's own policy
+    ``owner`` that replaces the default a *plug-in* among ``names`` declares for it (a
+    preset's HGAD ``max_hover_s = 60`` given to a plug-in whose own default is 40): the value
+    is applied, as :func:`route_policy_params` shares it out, and the user is told."""
+    lines = []
+    shares = route_policy_params(params, names, owner)
+    for name, share in zip(names, shares, strict=True):
+        if name == owner or not is_plugin(name):
+            continue
+        model = policy_params_model(name)
+        fields = model.model_fields if model is not None else {}
+        for key, value in share.items():
+            field = fields.get(key)
+            if field is None or field.is_required() or field.default == value:
+                continue
+            lines.append(
+                f"policy.params.{key} = {value!r} (written for {owner!r}) replaces "
+                f"{name!r}'s own default {field.default!r}"
+            )
+    return lines
+
+
 def _pathloss_param_names() -> frozenset[str]:
     return _param_names_of_models(tuple(kind.params for _, kind in PATHLOSS_MODELS.items()))
 

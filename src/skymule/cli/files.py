@@ -73,7 +73,12 @@ def report(
     ] = None,
 ) -> None:
     """Write DIR/report.html (self-contained) and DIR/figures/*.png|pdf from its files."""
+    from skymule.cli.missions import warn
+    from skymule.report.inputs import bound_warnings
+
     path = _report(run_dir, pdf, baseline)
+    # a compare folder's bound whose condition fails is drawn as invalid: say so here too
+    warn([f"{run_dir / 'bound.json'}: {w}" for w in bound_warnings(run_dir)])
     kinds = "*.png, *.pdf" if pdf else "*.png"
     output.say(f"wrote {path} and {run_dir / 'figures'}/{kinds}")
 

@@ -85,6 +85,22 @@ def write_run(
     atomic.write_text(out_dir / SUMMARY_FILE, json.dumps(summary, indent=2))
 
 
+COMPARISON_FILE = "comparison.csv"
+"""The index of a compare folder, written after every run folder in it."""
+
+
+def check_complete_comparison(folder: Path) -> None:
+    """Refuse, in one line, a compare folder whose index (``comparison.csv``) is missing: a
+    compare interrupted before its last write, whose run folders may be only some of the
+    policies it was asked for."""
+    if not (folder / COMPARISON_FILE).is_file():
+        raise SkymuleError(
+            f"{folder}: an incomplete compare folder (run folders but no {COMPARISON_FILE}, "
+            "which compare writes last: it was interrupted); run the compare again with this "
+            "--out, or report one run folder inside it"
+        )
+
+
 def is_run_dir(path: Path) -> bool:
     return (path / SUMMARY_FILE).is_file() and (path / SLOTS_FILE).is_file()
 

@@ -19,7 +19,13 @@ import numpy as np
 import pandas as pd
 
 from skymule.errors import SkymuleError
-from skymule.io.runs import SLOTS_FILE, SUMMARY_FILE, is_run_dir, read_run
+from skymule.io.runs import (
+    SLOTS_FILE,
+    SUMMARY_FILE,
+    check_complete_comparison,
+    is_run_dir,
+    read_run,
+)
 from skymule.io.runschema import validate_summary
 from skymule.io.textfiles import parse_json
 from skymule.report.inputs import RunData, run_data
@@ -240,4 +246,5 @@ def load_fleet_input(path: Path) -> tuple[str, tuple[FleetRun, ...]]:
     if is_run_dir(path):
         return "run", (load_fleet_run(path),)
     children = sorted(p for p in path.iterdir() if is_run_dir(p))
+    check_complete_comparison(path)
     return "compare", tuple(load_fleet_run(child, child.name) for child in children)

@@ -33,7 +33,7 @@ from skymule.scenario import Scenario
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.fleet import Fleet, build_fleet
 from skymule.sim.run import run_missions
-from skymule.tasks.compare import COMPARISON_CSV, with_gap, write_bound
+from skymule.tasks.compare import COMPARISON_CSV, policy_folder, with_gap, write_bound
 from skymule.units import BITS_PER_MBIT
 
 FLEET_POLICIES = (COORDINATED,)
@@ -208,12 +208,12 @@ def compare_fleet(scenario: Scenario, policies: Sequence[str]) -> FleetCompariso
 def write_fleet_compare(comparison: FleetComparison, out: Path) -> list[Path]:
     """Write one run folder per policy, comparison.csv and bound.json; the top-level files."""
     for result in comparison.results:
-        result.write(out / result.summary["policy"])
+        result.write(out / policy_folder(result.summary["policy"]))
     written = [out / COMPARISON_CSV]
-    table = pd.DataFrame(comparison.rows())
-    atomic.write_with(written[0], lambda tmp: table.to_csv(tmp, index=False))
     if comparison.bound is not None:
         written.append(write_bound(out, comparison.bound))
+    table = pd.DataFrame(comparison.rows())  # the index last (io.runs.check_complete_comparison)
+    atomic.write_with(written[0], lambda tmp: table.to_csv(tmp, index=False))
     return written
 
 

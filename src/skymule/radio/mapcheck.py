@@ -92,6 +92,8 @@ def map_problem(radio_map: Any, where: str = "") -> str | None:
     if not (math.isfinite(lat) and abs(lat) <= 90 and math.isfinite(lon) and abs(lon) <= 180):
         return f"{where}origin = ({lat!r}, {lon!r}): allowed: lat -90 to 90, lon -180 to 180"
     for index, sensor in enumerate(radio_map.sensors):
+        if not isinstance(sensor.name, str) or not sensor.name.strip():
+            return f"{where}sensors[{index}].name = {sensor.name!r}: allowed: a sensor name"
         problem = _sensor_problem(f"{where}sensors[{index}] ({sensor.name})", sensor)
         if problem:
             return problem

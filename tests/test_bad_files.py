@@ -48,7 +48,7 @@ def _deep(tmp_path: Path, name: str, text: str = DEEP) -> Path:
 def test_deep_json_is_one_line_in_every_reader(tmp_path: Path) -> None:
     readers = [
         (read_radiomap, "map.json"),
-        (lambda p: load_geofence(p, LocalFrame(35.7, -78.7)), "fence.geojson"),
+        (lambda p: load_geofence(str(p), LocalFrame(35.7, -78.7)), "fence.geojson"),
         (read_qgc_plan, "mission.plan"),
     ]
     for read, name in readers:
@@ -200,6 +200,9 @@ def test_trace_snr_limits_keep_real_values(tmp_path: Path) -> None:
 
 
 def test_a_trace_time_of_1e300_is_refused_at_load(tmp_path: Path) -> None:
+    path = _dt_trace(tmp_path, [20.0, 21.0, 22.0], times=[0.0, 1.0, 1e8])
+    with pytest.raises(TraceError, match=r"'100000000.0' is 1e\+08 s after the first row"):
+        read_trace(path)  # a 1e8-s flight: refused as read, before any slot exists
     path = _dt_trace(tmp_path, [20.0, 21.0, 22.0], times=[0.0, 1.0, 1e300])
     with pytest.raises(TraceError, match=r"row 4, column 'Time': '1e\+300' is 1e\+300 s"):
         read_trace(path)

@@ -351,8 +351,9 @@ def test_weights_load_checked_or_are_one_line(scratch: Path, arrays: dict[str, n
     from skymule.policies.learned import WEIGHT_NAMES, expected_shapes, load_net
 
     path = scratch / "weights.npz"
+    named: dict[str, Any] = dict(arrays)
     with path.open("wb") as handle:
-        np.savez(handle, **arrays)
+        np.savez(handle, **named)
     try:
         net = load_net(path)
     except SkymuleError as exc:

@@ -119,7 +119,7 @@ def remove_stale_temporaries(folder: Path) -> list[Path]:
     mid-write left (SIGKILL runs no clean-up): those whose writer's pid no longer runs on
     this host. A live writer's, this process's and unknown names are kept; returns what was
     removed."""
-    removed = []
+    removed: list[Path] = []
     try:
         entries = list(folder.iterdir())
     except OSError:

@@ -323,10 +323,8 @@ def write_compare(
         written.append(_snr_cdf_figure(comparison, out))
     # the index last: a folder without it is an interrupted compare, which readers refuse
     table = pd.DataFrame([*comparison.rows(), *extra_rows])
-    written.insert(
-        0, atomic.write_with(out / COMPARISON_CSV, lambda t: table.to_csv(t, index=False))
-    )
-    return written
+    index = atomic.write_with(out / COMPARISON_CSV, lambda tmp: table.to_csv(tmp, index=False))
+    return [index, *written]
 
 
 def _snr_cdf_figure(comparison: Comparison, out: Path) -> Path:

@@ -126,6 +126,11 @@ def test_a_compare_interrupted_before_its_index_is_refused(
     assert "incomplete compare folder" in done.stderr and COMPARISON_CSV in done.stderr
     write_compare(comparison, out)  # run again: complete, and reported
     run_cli("report", out, "--no-pdf", check=True)
+    with monkeypatch.context() as patch:  # a rewrite cut short: the old index is gone first
+        patch.setattr(compare_task, "write_bound", killed)
+        with pytest.raises(KeyboardInterrupt):
+            write_compare(comparison, out)
+    assert not (out / COMPARISON_CSV).exists()
 
 
 PLUGIN = textwrap.dedent(

@@ -312,6 +312,7 @@ def write_compare(
     import pandas as pd
 
     out.mkdir(parents=True, exist_ok=True)
+    (out / COMPARISON_CSV).unlink(missing_ok=True)  # a rewrite cut short is incomplete too
     for run in comparison.runs:
         run.result.write(run_folder(out, run))
     written = []

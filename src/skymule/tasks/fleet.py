@@ -207,6 +207,7 @@ def compare_fleet(scenario: Scenario, policies: Sequence[str]) -> FleetCompariso
 
 def write_fleet_compare(comparison: FleetComparison, out: Path) -> list[Path]:
     """Write one run folder per policy, comparison.csv and bound.json; the top-level files."""
+    (out / COMPARISON_CSV).unlink(missing_ok=True)  # a rewrite cut short is incomplete too
     for result in comparison.results:
         result.write(out / policy_folder(result.summary["policy"]))
     written = [out / COMPARISON_CSV]

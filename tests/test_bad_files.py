@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import shutil
+import sys
 import tracemalloc
 from pathlib import Path
 from typing import Any
@@ -45,27 +46,36 @@ def _deep(tmp_path: Path, name: str, text: str = DEEP) -> Path:
     return path
 
 
-def test_deep_json_is_one_line_in_every_reader(tmp_path: Path) -> None:
+@pytest.mark.parametrize("limit", [1000, 20_000])
+def test_deep_json_is_one_line_in_every_reader(tmp_path: Path, limit: int) -> None:
+    """Refused from a bracket count before parsing, whatever the recursion limit (with a
+    raised one, json's C parser would recurse 50,000 C frames deep)."""
     readers = [
         (read_radiomap, "map.json"),
         (lambda p: load_geofence(str(p), LocalFrame(35.7, -78.7)), "fence.geojson"),
         (read_qgc_plan, "mission.plan"),
     ]
-    for read, name in readers:
-        with pytest.raises(SkymuleError) as caught:
-            read(_deep(tmp_path, name))
-        message = str(caught.value)
-        assert name in message and "nested too deeply" in message and "\n" not in message
+    saved = sys.getrecursionlimit()
+    sys.setrecursionlimit(limit)
+    try:
+        for read, name in readers:
+            with pytest.raises(SkymuleError) as caught:
+                read(_deep(tmp_path, name))
+            message = str(caught.value)
+            assert name in message and "nested more than 100 levels" in message
+            assert "\n" not in message
+    finally:
+        sys.setrecursionlimit(saved)
 
 
 def test_deep_json_in_a_run_folder_is_one_line(tmp_path: Path) -> None:
     run = tmp_path / "run"
     run_cli("run", "paper-sim-fixed", "--set", "mission.duration_s=20", "--out", run, check=True)
     (run / "summary.json").write_text(DEEP)
-    with pytest.raises(SkymuleError, match="nested too deeply"):
+    with pytest.raises(SkymuleError, match="nested more than 100 levels"):
         read_run(run)
     # report reads it twice: fleet_inputs' summary probe, then read_run
-    _one_line(run_cli("report", run, "--no-pdf"), "summary.json", "nested too deeply")
+    _one_line(run_cli("report", run, "--no-pdf"), "summary.json", "nested more than 100 levels")
 
 
 def test_deep_sweep_json_is_one_line(tmp_path: Path) -> None:
@@ -75,10 +85,16 @@ def test_deep_sweep_json_is_one_line(tmp_path: Path) -> None:
 
 
 def test_deep_toml_is_one_line(tmp_path: Path) -> None:
+    """Refused whatever the recursion limit (mypy, run in-process by another test, raises it
+    to 16384: tomllib then parses 5000 levels, and the depth check refuses them)."""
     scenario = _deep(tmp_path, "deep.toml", "a = " + "[" * 5000 + "]" * 5000 + "\n")
-    _one_line(run_cli("run", scenario), "deep.toml", "nested too deeply")
+    _one_line(run_cli("run", scenario), "deep.toml", "nested more than 100 levels")
     sweep = _deep(tmp_path, "sweep.toml", "a = " + "[" * 5000 + "]" * 5000 + "\n")
-    _one_line(run_cli("sweep", sweep, "--out", tmp_path / "o"), "sweep.toml", "nested too deeply")
+    _one_line(
+        run_cli("sweep", sweep, "--out", tmp_path / "o"),
+        "sweep.toml",
+        "nested more than 100 levels",
+    )
 
 
 # --- radio maps: shapes and values -----------------------------------------------------------

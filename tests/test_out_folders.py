@@ -273,3 +273,17 @@ def test_the_bars_draw_an_invalid_bound_dotted_and_labelled(tmp_path: Path) -> N
         (line,) = [ln for ln in ax.get_lines() if ln.get_label() == label]
         assert line.get_linestyle() == style
         plt.close(fig)
+
+
+def test_fleet_policies_sharing_a_class_name_get_two_folders(tmp_path: Path, plugin: str) -> None:
+    """A fleet compare named each run folder by the class name: the second run of two
+    plug-ins sharing it overwrote the first. Each is now its own folder and row."""
+    asked = [f"{plugin}:MostBits", f"{plugin}:MostBitsFirstSensor"]
+    fleet = ROOT / "examples" / "fleet-lake-wheeler.toml"
+    done = run_cli(
+        "compare", fleet, "--policies", ",".join(asked), "--out", tmp_path / "cmp", *SHORT
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert pd.read_csv(tmp_path / "cmp" / COMPARISON_CSV)["policy"].tolist() == asked
+    for name in asked:
+        assert (tmp_path / "cmp" / policy_folder(name) / "summary.json").is_file()

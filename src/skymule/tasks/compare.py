@@ -28,7 +28,7 @@ import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 from skymule.errors import SkymuleError
 from skymule.io import atomic
@@ -176,16 +176,23 @@ def _run_all(
     ]
 
 
-def distinct_labels(results: Sequence[RunResult], asked: Sequence[str]) -> list[RunResult]:
-    """``results`` with each summary's ``policy`` (the policy's own ``name``) kept when it is
-    one policy's, and replaced by the name as asked when several policies share it: two
-    plug-ins whose classes share a ``name`` (``mostbits:MostBits,mostbits:MostBitsBatched``)
-    are two rows, not two identical ones."""
-    labels = [str(r.summary.get("policy", a)) for r, a in zip(results, asked, strict=True)]
+_Result = TypeVar("_Result")
+
+
+def distinct_labels(results: Sequence[_Result], asked: Sequence[str]) -> list[_Result]:
+    """``results`` (frozen dataclasses with a ``summary`` dict: one UAV's or a fleet's) with
+    each summary's ``policy`` (the policy's own ``name``) kept when it is one policy's, and
+    replaced by the name as asked when several policies share it: two plug-ins whose classes
+    share a ``name`` (``mostbits:MostBits,mostbits:MostBitsBatched``) are two rows and two
+    folders, not two identical ones."""
+    summaries = [cast(Any, r).summary for r in results]
+    labels = [str(s.get("policy", a)) for s, a in zip(summaries, asked, strict=True)]
     shared = {label for label in labels if labels.count(label) > 1}
     return [
-        replace(r, summary={**r.summary, "policy": a}) if label in shared and a != label else r
-        for r, a, label in zip(results, asked, labels, strict=True)
+        cast(_Result, replace(cast(Any, r), summary={**s, "policy": a}))
+        if label in shared and a != label
+        else r
+        for r, s, a, label in zip(results, summaries, asked, labels, strict=True)
     ]
 
 

@@ -33,7 +33,13 @@ from skymule.scenario import Scenario
 from skymule.sim.contract import NO_SENSOR
 from skymule.sim.fleet import Fleet, build_fleet
 from skymule.sim.run import run_missions
-from skymule.tasks.compare import COMPARISON_CSV, policy_folder, with_gap, write_bound
+from skymule.tasks.compare import (
+    COMPARISON_CSV,
+    distinct_labels,
+    policy_folder,
+    with_gap,
+    write_bound,
+)
 from skymule.units import BITS_PER_MBIT
 
 FLEET_POLICIES = (COORDINATED,)
@@ -201,8 +207,8 @@ def compare_fleet(scenario: Scenario, policies: Sequence[str]) -> FleetCompariso
         bound, note = fleet_bound(fleet), ""
     except BoundError as exc:
         bound, note = None, str(exc)
-    results = tuple(simulate_fleet(scenario, name, fleet=fleet) for name in policies)
-    return FleetComparison(fleet, results, bound, note)
+    results = [simulate_fleet(scenario, name, fleet=fleet) for name in policies]
+    return FleetComparison(fleet, tuple(distinct_labels(results, policies)), bound, note)
 
 
 def write_fleet_compare(comparison: FleetComparison, out: Path) -> list[Path]:

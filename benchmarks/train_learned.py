@@ -18,7 +18,8 @@ the learning curve as CSV (``--curve``) and its figure (``--figure``, drawn from
     nice python benchmarks/train_learned.py --algorithm es --minutes 10 --out /tmp/es.npz
 
 Smoke test: SKYMULE_BENCH_TINY=1 python benchmarks/train_learned.py (seconds; writes to the
-temporary folder, never over the shipped model).
+temporary folder, never over the shipped model). ``--json PATH``: the kept model's validation
+figures as a table (``train-learned``).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from _results import json_option, table, write
 from _sizes import size
 
 from skymule.io.atomic import atomic_path, write_with
@@ -102,6 +104,7 @@ def plot_curve(csv_path: Path, figure: Path) -> None:
 
 
 def main() -> None:
+    json_path = json_option()
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--algorithm", choices=("es", "ppo"), default="es")
     parser.add_argument("--minutes", type=float, default=size(28.0, 5.0))
@@ -168,6 +171,9 @@ def main() -> None:
     final = validate(net)
     print(f"trained {args.algorithm} in {time.monotonic() - start:.0f} s -> {out}")
     print("validation of the kept model: " + "  ".join(f"{k} {v:+.4f}" for k, v in final.items()))
+    rows = [[name, f"{value:+.4f}"] for name, value in final.items()]
+    note = f"{args.algorithm}, {time.monotonic() - start:.0f} s wall, weights: {out}"
+    write(json_path, {"train-learned": table(["validation", "value"], rows, note=note)})
     if curve:
         write_curve(curve, Path(args.curve))
         plot_curve(Path(args.curve), Path(args.figure))

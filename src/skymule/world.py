@@ -128,6 +128,7 @@ class Mission:
 
     @property
     def n_sensors(self) -> int:
+        """How many sensors the mission has (N)."""
         return len(self.sensor_names)
 
     def rate_bps(self, snr_db: np.ndarray) -> np.ndarray:

@@ -39,6 +39,8 @@ from skymule.sim.autonomous import AutonomousEngine
 from skymule.sim.fleet import Fleet, build_fleet
 from skymule.units import BITS_PER_MBIT
 
+__all__ = ["DataMuleParallelEnv"]
+
 #: SNR sent for "no link" (-inf) [dB]: below every rate table's lowest entry.
 NO_LINK_DB = -100.0
 

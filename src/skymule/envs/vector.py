@@ -43,6 +43,8 @@ from skymule.sim.contract import NO_SENSOR
 from skymule.units import BITS_PER_MBIT
 from skymule.world import Mission, build_mission
 
+__all__ = ["DataMuleVectorEnv"]
+
 REWARDS = ("mbit", "aadm")
 
 

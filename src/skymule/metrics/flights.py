@@ -184,6 +184,7 @@ class MissionLog:
 
     @property
     def n_slots(self) -> int:
+        """T': how many slots the flight ran."""
         return int(self.flights.n_run[self.index])
 
     def _slots(self, values: np.ndarray | None) -> np.ndarray | None:

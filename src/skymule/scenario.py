@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import functools
 import math
-import tomllib
 from collections.abc import Iterable, Sequence
 from importlib import resources
 from pathlib import Path
@@ -32,11 +31,12 @@ from pydantic_core import ErrorDetails, PydanticCustomError
 
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.faults.specs import SINGLE_KINDS, fault_params
-from skymule.io.textfiles import read_text
+from skymule.io.textfiles import parse_toml, read_text
 from skymule.limits import (
     ALTITUDE_LIMIT,
     COORDINATE_LIMIT,
     MAX_ALTITUDE_M,
+    MAX_BANDWIDTH_HZ,
     MAX_BUFFER_MBIT,
     MAX_COORDINATE_M,
     MAX_DURATION_S,
@@ -166,7 +166,8 @@ class RadioSpec(_Spec):
     tx_gain_dbi: float = 10.0
     rx_gain_dbi: float = 2.0
     noise_dbm: float = -90.0
-    bandwidth_hz: PositiveFloat = 1.4e6
+    bandwidth_hz: Annotated[float, Field(gt=0, le=MAX_BANDWIDTH_HZ)] = 1.4e6
+    """Channel bandwidth [Hz], at most :data:`~skymule.limits.MAX_BANDWIDTH_HZ` (100 GHz)."""
     rate_table: str = "aadm-lte-cqi"
     shadowing_std_db: Annotated[float, Field(ge=0, le=30)] = 0.0
     """Log-normal shadowing standard deviation [dB] (0: none); model sources only."""
@@ -446,6 +447,29 @@ def route_policy_params(
     ]
 
 
+def plugin_default_overrides(params: dict[str, Any], names: Sequence[str], owner: str) -> list[str]:
+    """One line for each ``[policy.params]`` key written for the scenario's own policy
+    ``owner`` that replaces the default a *plug-in* among ``names`` declares for it (a
+    preset's HGAD ``max_hover_s = 60`` given to a plug-in whose own default is 40): the value
+    is applied, as :func:`route_policy_params` shares it out, and the user is told."""
+    lines = []
+    shares = route_policy_params(params, names, owner)
+    for name, share in zip(names, shares, strict=True):
+        if name == owner or not is_plugin(name):
+            continue
+        model = policy_params_model(name)
+        fields = model.model_fields if model is not None else {}
+        for key, value in share.items():
+            field = fields.get(key)
+            if field is None or field.is_required() or field.default == value:
+                continue
+            lines.append(
+                f"policy.params.{key} = {value!r} (written for {owner!r}) replaces "
+                f"{name!r}'s own default {field.default!r}"
+            )
+    return lines
+
+
 def _pathloss_param_names() -> frozenset[str]:
     return _param_names_of_models(tuple(kind.params for _, kind in PATHLOSS_MODELS.items()))
 
@@ -721,6 +745,6 @@ def load_scenario(
 
 def _toml(text: str, source: str) -> dict[str, Any]:
     try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
+        return parse_toml(text)
+    except ValueError as exc:  # tomllib.TOMLDecodeError, or nested too deeply
         raise ScenarioError(f"{source}: not valid TOML ({exc})") from None

@@ -309,6 +309,7 @@ def _trace_track(scenario: Scenario, frame: LocalFrame) -> Track:
     if "slot_s" in scenario.mission.model_fields_set and trace.n_samples > 1:
         # resample the recording at the requested slot length (sample-and-hold)
         slot_s = scenario.mission.slot_s
+        _check_flight_slots(f"signal.trace = {str(path)!r}", trace.time_s, slot_s)
         times = flight_slot_times_s(trace.time_s, slot_s)
         index = np.searchsorted(trace.time_s, times + 1e-9, side="right") - 1
         positions, snr = positions[index], snr[index]
@@ -320,7 +321,22 @@ def flight_slot_times_s(time_s: np.ndarray, slot_s: float) -> np.ndarray:
 
     Slot k starts at k * slot_s; the last slot starts at or before the last sample.
     """
-    return np.arange(int(np.floor(time_s[-1] / slot_s + 1e-9)) + 1) * slot_s
+    return np.arange(flight_slot_count(time_s, slot_s)) * slot_s
+
+
+def flight_slot_count(time_s: np.ndarray, slot_s: float) -> int:
+    """How many slots :func:`flight_slot_times_s` gives, computed without building them."""
+    return int(np.floor(time_s[-1] / slot_s + 1e-9)) + 1
+
+
+def _check_flight_slots(what: str, time_s: np.ndarray, slot_s: float) -> None:
+    """Refuse a recording that spans more than MAX_SLOTS slots, before any slot is built."""
+    span = float(time_s[-1]) / slot_s
+    if not np.isfinite(span) or span + 1 > MAX_SLOTS:
+        raise ScenarioError(
+            f"{what} lasts {time_s[-1]:g} s: {span + 1:,.0f} slots of {slot_s:g} s; at most "
+            f"{MAX_SLOTS:,} are allowed"
+        )
 
 
 def resample_positions(time_s: np.ndarray, positions_m: np.ndarray, slot_s: float) -> np.ndarray:
@@ -333,7 +349,9 @@ def resample_positions(time_s: np.ndarray, positions_m: np.ndarray, slot_s: floa
     return np.column_stack([np.interp(times, time_s, positions_m[:, axis]) for axis in range(3)])
 
 
-def _flight_track(scenario: Scenario, frame: LocalFrame, source: SignalSource) -> Track:
+def _flight_track(
+    scenario: Scenario, frame: LocalFrame, source: SignalSource, fence: Polygon | None
+) -> Track:
     """The recorded flight of ``trajectory.flight``, resampled to the slots, under ``source``."""
     from skymule.io.traces import TraceError, positions_local, read_trace
 
@@ -343,13 +361,10 @@ def _flight_track(scenario: Scenario, frame: LocalFrame, source: SignalSource) -
         trace = read_trace(path)
     except TraceError as exc:
         raise ScenarioError(f"trajectory.flight: {exc}") from None
+    # counted before the slot times are built: a 1e8-s log must not allocate first
+    _check_flight_slots(f"trajectory.flight = {str(path)!r}", trace.time_s, scenario.mission.slot_s)
     recorded = positions_local(trace, frame.to_local)
-    slots = len(flight_slot_times_s(trace.time_s, scenario.mission.slot_s))
-    if slots > MAX_SLOTS:
-        raise ScenarioError(
-            f"trajectory.flight = {str(path)!r} lasts {trace.time_s[-1]:g} s: {slots:,} slots of "
-            f"{scenario.mission.slot_s:g} s; at most {MAX_SLOTS:,} are allowed"
-        )
+    _check_inside(fence, recorded, "trajectory.flight")  # like waypoints (issue 32)
     positions = resample_positions(trace.time_s, recorded, scenario.mission.slot_s)
     return Track(position_m=positions, snr_db=source.snr_db(positions), hold_at_end=False)
 
@@ -418,7 +433,7 @@ def build_mission(scenario: Scenario) -> Mission:
             )
         source = signal_source(scenario, frame, sensor_m, fence)
         if scenario.trajectory.flight is not None:
-            track = _flight_track(scenario, frame, source)
+            track = _flight_track(scenario, frame, source, fence)
             n_slots = track.n_samples if duration_s is None else _n_slots(duration_s, slot_s)
         else:
             assert duration_s is not None

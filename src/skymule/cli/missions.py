@@ -118,6 +118,9 @@ def run(
             announce_imports(fleet_policy_names(spec), scenario)
         return run_fleet_command(spec, policy, out, json_out)
     if policy is not None:
+        from skymule.scenario import plugin_default_overrides
+
+        warn(plugin_default_overrides(spec.policy.params, [policy], spec.policy.name))
         spec = spec.with_policy(policy)
     if out is not None:
         guard_run(out, spec.name, spec.policy.name, force)
@@ -175,6 +178,7 @@ def compare(
 ) -> None:
     """Run one scenario under several policies on identical signal draws."""
     from skymule.policies import check_policies
+    from skymule.scenario import plugin_default_overrides
     from skymule.tasks.compare import (
         compare_policies,
         compare_sources,
@@ -195,6 +199,7 @@ def compare(
     source_specs = parse_sources(sources) if sources is not None else None
     if out is not None:
         guard_compare(out, base.name, names, force, source_specs)
+    warn(plugin_default_overrides(base.policy.params, names, base.policy.name))
     if source_specs is None:
         comparison = compare_policies(base, names)
     else:

@@ -40,6 +40,7 @@ import pyarrow.parquet as pq
 
 from skymule.errors import SkymuleError
 from skymule.io import atomic
+from skymule.io.textfiles import parse_json
 from skymule.metrics.summary import HEADLINE_METRICS
 
 PARTS = "results"
@@ -78,7 +79,7 @@ class Holder:
 
 def _read_holder(path: Path) -> Holder:
     try:
-        data = json.loads(path.read_text())
+        data = parse_json(path.read_text())
         return Holder(int(data["pid"]), str(data["host"]), str(data["started"]))
     except (OSError, ValueError, KeyError, TypeError):
         return Holder(-1, "?", "?")  # not written yet, or foreign
@@ -124,7 +125,7 @@ def claim(out: Path, digest: str, source: str) -> None:
     meta = out / METADATA
     if meta.exists():
         try:
-            data = json.loads(meta.read_text())
+            data = parse_json(meta.read_text())
             held, scheme, held_source = data["sweep_sha256"], data["id_scheme"], data["source"]
         except (OSError, ValueError, KeyError, TypeError):
             raise SkymuleError(f"--out {out}: {meta} is damaged; use a new --out folder") from None

@@ -32,8 +32,16 @@ HEADLINE_METRICS = (
 )
 """The summary fields shown in tables and aggregated over sweeps."""
 
+
 #: The AERPAW testbed requires landing within this distance of the launch point [m] (a check
 #: beside the AADM score, which has no landing term).
+def per_sensor_column(key: str, sensor: str) -> str:
+    """The flat column of one sensor's entry of a per-sensor summary dict, the same in every
+    table skymule writes (sweep ``results.parquet``, ``comparison.csv``): the summary.json
+    path, ``per_sensor_downloaded_mbit.LW1``."""
+    return f"{key}.{sensor}"
+
+
 LANDING_TOLERANCE_M = 5.0
 
 

@@ -47,9 +47,11 @@ def load_model(path: Path) -> Any:
         ) from None
     try:
         return PPO.load(str(path), device="cpu")
-    except Exception as exc:  # a damaged or foreign zip: say which file
+    except Exception as exc:  # a damaged or foreign zip: say which file, in one line
+        lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+        reason = lines[0] if lines else type(exc).__name__
         raise SkymuleError(
-            f"policy 'rl:{path}': not a stable-baselines3 PPO model ({exc})"
+            f"policy 'rl:{path}': not a stable-baselines3 PPO model ({reason:.200})"
         ) from None
 
 

@@ -51,6 +51,7 @@ import scipy.linalg
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.geo import LocalFrame
 from skymule.io import atomic
+from skymule.io.textfiles import parse_json
 from skymule.radio.kriging import (
     MAX_KRIGING_POINTS,
     Variogram,
@@ -69,6 +70,7 @@ from skymule.radio.learned import (
     fit_ensemble,
     link_features,
 )
+from skymule.radio.mapcheck import map_problem
 from skymule.radio.pathloss import MIN_DISTANCE_M
 
 DEEP_DROP_DB = -40.0
@@ -499,10 +501,10 @@ def _map_from_dict(data: dict[str, Any]) -> RadioMap:
 def read_radiomap(path: Path) -> RadioMap:
     """Read a map written by :meth:`RadioMap.write` (one-line SkymuleError if it is not one)."""
     try:
-        data = json.loads(Path(path).read_text())
+        data = parse_json(Path(path).read_text())
     except FileNotFoundError:
         raise SkymuleError(f"{path}: radio map file not found") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (OSError, ValueError) as exc:
         raise SkymuleError(f"{path}: not a radio map JSON file ({exc})") from None
     if not isinstance(data, dict) or data.get("format") != MAP_FORMAT:
         raise SkymuleError(
@@ -516,9 +518,13 @@ def read_radiomap(path: Path) -> RadioMap:
             f"{MAP_VERSION} (refit it with 'skymule fit-radiomap')"
         )
     try:
-        return _map_from_dict(data)
-    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+        radio_map = _map_from_dict(data)
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError, RecursionError) as exc:
         raise SkymuleError(f"{path}: radio map is incomplete or malformed ({exc!r})") from None
+    problem = map_problem(radio_map)  # values checked before any is used (issue 32)
+    if problem:
+        raise SkymuleError(f"{path}: radio map {problem}")
+    return radio_map
 
 
 @dataclass(frozen=True, eq=False)

@@ -26,6 +26,7 @@ from skymule.report.inputs import (
     ReportInput,
     RunData,
     ScoreBreakdown,
+    bound_warnings,
     comparison_bound,
     load_input,
     score_breakdown,
@@ -129,6 +130,7 @@ figcaption{font-size:.85rem;color:#555}pre{background:#f6f6f6;padding:.6rem;font
 max-height:24rem;overflow:auto}.views{display:flex;flex-wrap:wrap;gap:1rem}
 .view{border:1px solid #ddd;padding:.4rem}.tip{font-size:.8rem;min-height:2.4em;max-width:560px}
 svg.traj{background:#fff;cursor:crosshair;touch-action:none}.note{color:#a33}
+.warning{color:#a00;border-left:3px solid #a00;padding-left:.5rem}
 """
 
 SUMMARY_FIELDS: tuple[tuple[str, str, str], ...] = (
@@ -223,8 +225,33 @@ def score_table(runs: tuple[RunData, ...], scores: list[ScoreBreakdown]) -> str:
     return table_html(["AADM score", *(r.label for r in runs)], rows, "score-table")
 
 
-def gap_table(runs: tuple[RunData, ...], bound_mbit: float) -> str:
-    """Each policy's download against the upper bound on any policy (``compare``'s gap)."""
+def bound_caption(bound: float | None, warnings: Sequence[str], what: str) -> str:
+    """The figure caption's words for the bound line: ``what`` when valid; when its
+    condition fails, that it is invalid here and why (``bound.json``'s warnings)."""
+    if bound is None:
+        return ""
+    if not warnings:
+        return f"; solid: {what}"
+    return (
+        f"; red dotted: a bound that is NOT valid here, it may be below what a policy can "
+        f"download ({'; '.join(warnings)})"
+    )
+
+
+def invalid_bound_note(warnings: Sequence[str]) -> str:
+    """A visible paragraph saying the bound and its gaps are not valid here (or "")."""
+    if not warnings:
+        return ""
+    text = "; ".join(warnings)
+    return (
+        f'<p class="warning"><strong>The bound is not valid for this mission:</strong> '
+        f"{html.escape(text)}. Gaps against it are not gaps to the optimum.</p>"
+    )
+
+
+def gap_table(runs: tuple[RunData, ...], bound_mbit: float, valid: bool = True) -> str:
+    """Each policy's download against the upper bound on any policy (``compare``'s gap);
+    ``valid`` False labels the bound columns as invalid."""
     rows = []
     for run in runs:
         down = float(run.summary.get("total_downloaded_mbit", 0.0))
@@ -233,6 +260,11 @@ def gap_table(runs: tuple[RunData, ...], bound_mbit: float) -> str:
         cells = [f"{down:.1f}", f"{bound_mbit:.1f}", f"{gap:.1f}", share]
         rows.append([html.escape(run.label), *cells])
     header = ["policy", "downloaded [Mbit]", "upper bound [Mbit]", "gap [Mbit]", "gap [%]"]
+    if not valid:
+        header = [
+            "policy", "downloaded [Mbit]", "bound, INVALID here [Mbit]", "gap to it [Mbit]",
+            "gap to it [%]",
+        ]  # fmt: skip
     return table_html(header, rows, "gap-table")
 
 
@@ -316,11 +348,15 @@ def render_panel(
 
 
 def render_bars(
-    runs: tuple[RunData, ...], folder: Path, pdf: bool = True, bound_mbit: float | None = None
+    runs: tuple[RunData, ...],
+    folder: Path,
+    pdf: bool = True,
+    bound_mbit: float | None = None,
+    bound_valid: bool = True,
 ) -> Path:
     with paper_style():
         fig, (ax,) = panel_figure(1, 2.9)
-        draw_policy_bars(ax, runs, bound_mbit=bound_mbit)
+        draw_policy_bars(ax, runs, bound_mbit=bound_mbit, bound_valid=bound_valid)
         finish_figure(fig, figure_title(runs))
         return save_figure(fig, folder, "policies", report_formats(pdf), REPORT_DPI)["png"]
 
@@ -399,20 +435,23 @@ def build_run_report(folder: Path, pdf: bool = True, out: Path | None = None) ->
     ]
     if report.kind == "compare":
         bound = comparison_bound(report.comparison)
+        warned = bound_warnings(report.path) if bound is not None else ()
         caption = "Data downloaded per policy, stacked by sensor; dashed: total buffer"
-        if bound is not None:
-            caption += "; solid: the upper bound on what any policy can download (skymule bound)"
+        caption += bound_caption(
+            bound, warned, "the upper bound on what any policy can download (skymule bound)"
+        )
         sections.append(
             (
                 "comparison",
                 "Policy comparison",
-                figure_html(
+                invalid_bound_note(warned)
+                + figure_html(
                     "policies",
-                    render_bars(runs, figures, pdf, bound),
+                    render_bars(runs, figures, pdf, bound, bound_valid=not warned),
                     caption + ".",
                     PANEL_WIDTH_IN,
                 )
-                + (gap_table(runs, bound) if bound is not None else ""),
+                + (gap_table(runs, bound, valid=not warned) if bound is not None else ""),
             )
         )
     for spec in PER_RUN_PANELS:

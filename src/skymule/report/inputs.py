@@ -20,7 +20,8 @@ from skymule.io.run_folder import hover_segments as hover_segments
 from skymule.io.run_folder import load_run as load_run
 from skymule.io.run_folder import read_scenario as read_scenario
 from skymule.io.run_folder import run_data as run_data
-from skymule.io.runs import is_run_dir
+from skymule.io.runs import check_complete_comparison, is_run_dir
+from skymule.io.textfiles import parse_json
 from skymule.rules.score import aadm_score_one
 
 COMPARISON_FILE = "comparison.csv"
@@ -49,6 +50,7 @@ def load_input(path: Path) -> ReportInput:
             "(no run folders inside); make one with `skymule run SCENARIO --out DIR` or "
             "`skymule compare SCENARIO --out DIR`"
         )
+    check_complete_comparison(path)
     runs = tuple(load_run(child, child.name) for child in children)
     table_path = path / COMPARISON_FILE
     return ReportInput(path, "compare", runs, read_comparison(table_path))
@@ -65,6 +67,27 @@ def read_comparison(table_path: Path) -> pd.DataFrame | None:
             f"{table_path}: cannot read ({str(exc).splitlines()[0]}); rewrite it with "
             "`skymule compare` or delete it"
         ) from None
+
+
+BOUND_FILE = "bound.json"
+"""The bound record ``compare`` writes next to ``comparison.csv`` (with its warnings)."""
+
+
+def bound_warnings(folder: Path) -> tuple[str, ...]:
+    """The conditions of the bound in ``folder/bound.json`` that fail for this mission (one
+    line each; a bound with any is not a valid upper bound and is drawn as such), or ``()``
+    without a bound file. A bound file that cannot be read is itself the warning."""
+    path = folder / BOUND_FILE
+    if not path.is_file():
+        return ()
+    try:
+        data = parse_json(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        return (f"{path} cannot be read ({exc}): the bound is unchecked",)
+    warnings = data.get("warnings", []) if isinstance(data, dict) else None
+    if not isinstance(warnings, list) or not all(isinstance(w, str) for w in warnings):
+        return (f"{path}: 'warnings' is not a list of lines: the bound is unchecked",)
+    return tuple(warnings)
 
 
 def comparison_bound(comparison: pd.DataFrame | None) -> float | None:

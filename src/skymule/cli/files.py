@@ -190,11 +190,15 @@ def fit_radiomap_command(
         print(f"skymule: warning: {warning}", file=sys.stderr)
     if json_out:
         shown = {"map": str(out), "method": method, "sensors": fit.rows}
-        print(json.dumps({**shown, "warnings": list(fit.warnings)}, indent=2))
+        print(json.dumps({**shown, "warnings": list(fit.warnings), "note": fit.note}, indent=2))
         return
-    held_out = "last segment of each trace" if method == "neural" else "held-out trace segments"
+    from skymule.radio.radiomap import CV_BUFFER_M
+
+    held_out = f"blocked: held-out segments, {CV_BUFFER_M:g} m buffer"
     title = f"radio map fit, {method} (cv: {held_out}; baseline: fspl)"
     print_table(output.console, title, fit.rows, RadioMapFit.COLUMNS)
+    if fit.note:
+        output.say(fit.note)
     output.say(f"wrote {out}")
 
 

@@ -282,8 +282,9 @@ def _fit_core(
 ) -> SensorMap:
     """The map of one sensor fitted to valid samples (``variogram`` kept when given).
 
-    ``neural``: the learned base of ``choice`` (``free space``: the line ``free_space`` (A,
-    n), the trend with its parameters fixed), then the kriged residual.
+    ``neural``: the learned base of ``choice``, then the kriged residual; ``free space`` is
+    the line ``free_space`` (A, n) alone (a zero-mean field kriged over a biased line would
+    pull predictions toward the bias near the data and drop it far away).
     """
     intercept, exponent = fit_trend(distance_m(positions, sensor_m), snr)
     ensemble = None
@@ -300,10 +301,12 @@ def _fit_core(
     else:
         base = trend_db(positions, sensor_m, intercept, exponent)
     residual = snr - base
-    if method == "log-distance":
+    if method == "log-distance" or choice == "free space":  # nothing kriged: the line alone
         no_field = Variogram(0.0, 1.0, float(np.mean(residual**2)))
         empty = np.zeros((0, 3))
-        return SensorMap(name, sensor_m, intercept, exponent, no_field, empty, np.zeros(0))
+        return SensorMap(
+            name, sensor_m, intercept, exponent, no_field, empty, np.zeros(0), {}, ensemble
+        )
     keep = thin_indices(len(snr), max_points)
     if variogram is None:
         variogram = fit_variogram(positions[keep], residual[keep])

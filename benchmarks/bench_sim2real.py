@@ -22,7 +22,7 @@ is what the commands do.
     python benchmarks/bench_sim2real.py                    # 3 worlds
     python benchmarks/bench_sim2real.py --worlds 5
     python benchmarks/bench_sim2real.py --dt DT.csv --real REAL.csv [--scenario S]
-    python benchmarks/bench_sim2real.py --libraries        # numpy vs scikit-learn's MLP
+    python benchmarks/bench_sim2real.py --libraries        # kriging vs scikit-learn's GP
 
 ``--dt/--real``: the same split on your own pair of flights (a DT export or merged log of the
 digital twin, and a real flight's merged log); sensors and positions from ``--scenario``
@@ -565,54 +565,62 @@ def real_pair(dt: Path, real: Path, scenario_ref: str | None, json_path: Path | 
 
 
 def library_comparison() -> None:
-    """The numpy ensemble against scikit-learn's MLPRegressor, same features, targets, net
-    and decay, on the time split of one world (tower LW1)."""
-    from skymule.radio.learned import HIDDEN_UNITS, L2_PENALTY, fit_ensemble, link_features
+    """skymule's kriging (variogram by weighted least squares, simple kriging in numpy, what
+    a map file holds) against scikit-learn's GaussianProcessRegressor (the same exponential
+    kernel + nugget by maximum likelihood, its own predictor): held-out RMSE and 95% coverage
+    of the residual over the log-distance trend, time split, every tower of 3 worlds."""
+    from sklearn.gaussian_process import GaussianProcessRegressor
+    from sklearn.gaussian_process.kernels import ConstantKernel, Matern, WhiteKernel
+
+    from skymule.radio.kriging import fit_variogram, krige, kriging_weights, thin_indices
+    from skymule.radio.radiomap import SensorMap, distance_m, fit_trend, trend_db
 
     scenario = load_scenario(BASE)
-    world = draw_world(0, scenario)
-    rng = np.random.default_rng(5)
-    xyz = fly(scenario, 9.0, (0.0, 0.0))
-    truth = world.truth_db(xyz) + NOISE_DB * rng.standard_normal((len(xyz), 4))
-    prior = world.twin_db(xyz)
-    cut = int(SEEN * len(xyz))
-    features = link_features(xyz, world.sensor_m[0], prior[:, 0])
-    target = truth[:, 0] - prior[:, 0]
-    start = time.process_time()
-    ensemble = fit_ensemble(features[:cut], target[:cut], tuple("abcdef"))
-    numpy_s = time.process_time() - start
-    numpy_rmse = float(np.sqrt(np.mean((ensemble.mean_db(features[cut:]) - target[cut:]) ** 2)))
-    print(f"library comparison (tower LW1, {cut} samples seen, time split, 5 networks "
-          f"{HIDDEN_UNITS}, decay {L2_PENALTY:g}):")  # fmt: skip
-    print(f"  numpy + scipy L-BFGS: RMSE {numpy_rmse:.2f} dB, fit {numpy_s:.2f} s CPU")
-    try:
-        from sklearn.neural_network import MLPRegressor
-    except ImportError:
-        print("  scikit-learn: not installed (pip install scikit-learn to compare)")
-        return
-    mean, scale = features[:cut].mean(0), features[:cut].std(0)
-    scale = np.where(scale > 1e-9, scale, 1.0)  # a constant height stays 0, as in skymule's
-    tm, ts = target[:cut].mean(), target[:cut].std()
-    n_weights = features.shape[1] * HIDDEN_UNITS[0] + HIDDEN_UNITS[0]
-    alpha = L2_PENALTY * cut / n_weights  # the same decay in sklearn's scaling
-    start = time.process_time()
-    predictions, unconverged = [], 0
-    with warnings.catch_warnings(record=True) as caught, threadpool_limits(1, user_api="blas"):
-        warnings.simplefilter("always")
-        for k in range(5):
-            model = MLPRegressor(
-                hidden_layer_sizes=HIDDEN_UNITS, activation="tanh", solver="lbfgs",
-                alpha=alpha, max_iter=300, random_state=k,
-            )  # fmt: skip
-            model.fit((features[:cut] - mean) / scale, (target[:cut] - tm) / ts)
-            predictions.append(tm + ts * model.predict((features[cut:] - mean) / scale))
-        unconverged = sum("converge" in str(w.message) for w in caught)
-    sk_s = time.process_time() - start
-    sk_rmse = float(np.sqrt(np.mean((np.mean(predictions, 0) - target[cut:]) ** 2)))
-    print(
-        f"  scikit-learn MLPRegressor (lbfgs, one BLAS thread too): RMSE {sk_rmse:.2f} dB, "
-        f"fit {sk_s:.2f} s CPU ({unconverged} of 5 stopped at 300 iterations)"
-    )
+    results: dict[str, list[tuple[float, float]]] = {"skymule kriging": [], "sklearn GPR": []}
+    cpu = dict.fromkeys(results, 0.0)
+    for seed in range(size(3, 1)):
+        world = draw_world(seed, scenario)
+        rng = np.random.default_rng(11 + seed)
+        xyz = fly(scenario, 9.0, (0.0, 0.0))
+        snr = world.truth_db(xyz) + NOISE_DB * rng.standard_normal((len(xyz), 4))
+        cut = int(SEEN * len(xyz))
+        for j, tower in enumerate(world.sensor_m):
+            seen, held = xyz[:cut], xyz[cut:]
+            a, n = fit_trend(distance_m(seen, tower), snr[:cut, j])
+            residual = snr[:cut, j] - trend_db(seen, tower, a, n)
+            target = snr[cut:, j] - trend_db(held, tower, a, n)
+            with threadpool_limits(1, user_api="blas"):
+                start = time.process_time()
+                keep = thin_indices(cut, 1000)
+                vario = fit_variogram(seen[keep], residual[keep])
+                weights = kriging_weights(seen[keep], residual[keep], vario)
+                fitted = SensorMap("x", tower, a, n, vario, seen[keep], weights)
+                ours = krige(held, seen[keep], weights, vario)
+                ours_sd = fitted.sigma_db(held)
+                cpu["skymule kriging"] += time.process_time() - start
+                start = time.process_time()
+                var = float(np.var(residual))
+                kernel = ConstantKernel(var) * Matern(50.0, (1.0, 1e5), nu=0.5) + WhiteKernel(
+                    var / 2
+                )
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    gpr = GaussianProcessRegressor(kernel, n_restarts_optimizer=2, random_state=0)
+                    gpr.fit(seen[keep], residual[keep])
+                theirs, theirs_sd = gpr.predict(held, return_std=True)
+                cpu["sklearn GPR"] += time.process_time() - start
+            for key, mean, sd in (("skymule kriging", ours, ours_sd),
+                                  ("sklearn GPR", theirs, theirs_sd)):  # fmt: skip
+                error = mean - target
+                results[key].append(
+                    (float(np.sqrt(np.mean(error**2))), float(np.mean(np.abs(error) <= 1.96 * sd)))
+                )
+    print(f"library comparison: residual over the log-distance trend, time split, "
+          f"{len(results['sklearn GPR'])} tower-worlds")  # fmt: skip
+    for key, rows in results.items():
+        rmse, cover = np.mean(rows, axis=0)
+        print(f"  {key:<16} held-out RMSE {rmse:.2f} dB, in the 95% interval "
+              f"{100 * cover:.0f}%, fit + predict {cpu[key]:.1f} s CPU")  # fmt: skip
 
 
 def main() -> None:
@@ -621,7 +629,9 @@ def main() -> None:
     parser.add_argument("--dt", type=Path, help="a digital twin's flight (DT export / log)")
     parser.add_argument("--real", type=Path, help="a real flight (merged log)")
     parser.add_argument("--scenario", help="sensors and positions (default paper-sim-fixed)")
-    parser.add_argument("--libraries", action="store_true", help="numpy vs scikit-learn MLP")
+    parser.add_argument(
+        "--libraries", action="store_true", help="skymule's kriging vs scikit-learn's GP"
+    )
     parser.add_argument("--json", type=Path, help="also write the table as JSON (README)")
     args = parser.parse_args()
     if (args.dt is None) != (args.real is None):

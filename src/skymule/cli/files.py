@@ -173,7 +173,7 @@ def fit_radiomap_command(
 ) -> None:
     """Fit a radio map per sensor to recorded flights (a signal source like any map)."""
     from skymule.cli.missions import _working
-    from skymule.tasks.radiomaps import RadioMapFit, fit_radiomap_files, parse_origin
+    from skymule.tasks.radiomaps import fit_radiomap_files, parse_origin
 
     with _working(f"fitting the radio map ({method})"):
         fit = fit_radiomap_files(
@@ -196,7 +196,7 @@ def fit_radiomap_command(
 
     held_out = f"blocked: held-out segments, {CV_BUFFER_M:g} m buffer"
     title = f"radio map fit, {method} (cv: {held_out}; baseline: fspl)"
-    print_table(output.console, title, fit.rows, RadioMapFit.COLUMNS)
+    print_table(output.console, title, fit.rows, fit.columns())
     if fit.note:
         output.say(fit.note)
     output.say(f"wrote {out}")

@@ -21,19 +21,22 @@ Per sensor i, with d the 3-D UAV-antenna distance [m] and SNR measured at UAV po
 Methods (``fit-radiomap --method``): ``kriging`` (1-3 above, the default), ``log-distance``
 (the trend alone), ``gp`` (the same model with the residual field's parameters chosen by
 maximum marginal likelihood, Rasmussen & Williams eq. 5.8, instead of the variogram) and
-``neural`` (:mod:`skymule.radio.learned`: an ensemble of small networks on link features
-learns the residual over the trend or over a prior, a digital twin; the networks' residual is
-then kriged as above). With a prior, the map holds the prior too (a fitted map, or a path-loss
-model and link budget) and predicts prior + learned residual. Every map gives a predictive
-standard deviation per point (:meth:`RadioMapSource.sigma_db`): the kriging posterior
-variance sigma^2 + tau^2 - k^T (K + tau^2 I)^{-1} k (R&W eq. 2.26; the trend's residual
-variance for ``log-distance``) plus the ensemble's spread for ``neural``.
+``neural`` (:mod:`skymule.radio.learned`: the prior, a digital twin, as an offset with a bias
+linear in log-distance, plus guarded networks on link features; or, when blocked
+cross-validation says the networks do not beat them, the simpler model alone: prior +
+correction, log-distance or free space; what is left is kriged as above). With a prior, the
+map holds the prior too (a fitted map, or a path-loss model and link budget). Every map gives
+a predictive standard deviation per point (:meth:`RadioMapSource.sigma_db`): the kriging
+posterior variance sigma^2 + tau^2 - k^T (K + tau^2 I)^{-1} k (R&W eq. 2.26; the trend's
+residual variance for ``log-distance``) plus the learned base's for ``neural``, scaled so the
+cross-validation's 95% intervals hold 95% of its held-out samples.
 
 Missing samples (NaN; -99 in digital-twin exports) and deep drops (below ``drop_below_db``,
 real but unpredictable link losses) are excluded and counted. At most ``MAX_KRIGING_POINTS``
 samples per sensor (evenly thinned in time) enter the kriging system. Fit quality: in-sample
-RMSE and K-fold cross-validated RMSE with each fold one contiguous segment of every trace
-(trend and kriging weights refitted without the held-out segment; variogram parameters kept).
+RMSE and one blocked cross-validation for every method (:func:`blocked_folds`): each fold
+holds out one contiguous segment of every trace and trains on the samples farther than
+``CV_BUFFER_M`` from it, so it scores extrapolation to a region the rest does not cover.
 """
 
 from __future__ import annotations

@@ -65,8 +65,15 @@ class RadioMapFit:
     COLUMNS = (
         "sensor", "model", "exponent", "intercept_db", "sigma_db", "range_m", "nugget_db",
         "n_used", "n_missing", "n_deep_drops", "rmse_db", "cv_rmse_map_db", "cv_rmse_trend_db",
-        "cv_rmse_baseline_db", "cv_rmse_prior_db", "cv_rmse_network_db", "cv_coverage_95",
+        "cv_rmse_baseline_db", "cv_coverage_95",
     )  # fmt: skip
+    LEARNED_COLUMNS = ("cv_rmse_prior_db", "cv_rmse_network_db")
+    """Columns of ``neural`` fits (with a prior: its raw RMSE), printed after ``COLUMNS``."""
+
+    def columns(self) -> tuple[str, ...]:
+        """The table's columns: ``COLUMNS``, then the ``LEARNED_COLUMNS`` the rows have."""
+        extra = [c for c in self.LEARNED_COLUMNS if any(c in row for row in self.rows)]
+        return (*self.COLUMNS, *extra)
 
 
 def is_map_file(spec: str) -> bool:

@@ -123,13 +123,22 @@ def link_features(
 
 @dataclass(frozen=True, eq=False)
 class Correction:
-    """c0 + c1 log10(d) [dB] with its posterior: mean ``coef`` (2,), ``covariance`` (2, 2)."""
+    """c0 + c1 log10(d) [dB] with its posterior: mean ``coef`` (2,), ``covariance`` (2, 2).
+
+    ``low``, ``high``: the seen range of log10 d. A correction over an offset (a prior or a
+    line) is held at its edge value beyond it (``clip``): outside the distances it was fitted
+    on it does not extrapolate its slope, the offset's shape carries on, and its variance
+    (evaluated where asked) grows with the slope's uncertainty.
+    """
 
     coef: np.ndarray
     covariance: np.ndarray
+    low: float = -np.inf
+    high: float = np.inf
 
     def mean_db(self, log10_distance: np.ndarray) -> np.ndarray:
-        return self.coef[0] + self.coef[1] * np.asarray(log10_distance, float)
+        x = np.clip(np.asarray(log10_distance, float), self.low, self.high)
+        return self.coef[0] + self.coef[1] * x
 
     def variance_db2(self, log10_distance: np.ndarray) -> np.ndarray:
         """(P,) posterior variance of the correction (phi^T S phi, phi = (1, log10 d))."""
@@ -138,7 +147,12 @@ class Correction:
         return np.maximum(s[0, 0] + 2.0 * s[0, 1] * x + s[1, 1] * x * x, 0.0)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"coef": self.coef.tolist(), "covariance": self.covariance.tolist()}
+        bounds = [None if not np.isfinite(v) else v for v in (self.low, self.high)]
+        return {
+            "coef": self.coef.tolist(),
+            "covariance": self.covariance.tolist(),
+            "range_log10_m": bounds,
+        }
 
     @staticmethod
     def from_dict(data: dict[str, Any]) -> Correction:
@@ -146,11 +160,17 @@ class Correction:
         covariance = np.asarray(data["covariance"], float)
         if coef.shape != (2,) or covariance.shape != (2, 2):
             raise ValueError("a correction has 2 coefficients and a 2 x 2 covariance")
-        return Correction(coef, covariance)
+        low, high = data.get("range_log10_m") or (None, None)
+        return Correction(
+            coef,
+            covariance,
+            -np.inf if low is None else float(low),
+            np.inf if high is None else float(high),
+        )
 
 
 def fit_correction(
-    log10_distance: np.ndarray, residual_db: np.ndarray, slope_prior_db: float
+    log10_distance: np.ndarray, residual_db: np.ndarray, slope_prior_db: float, clip: bool
 ) -> Correction:
     """Bayesian linear regression of residuals [dB] (P,) on (1, log10 d) (Bishop eq. 3.53-3.54).
 
@@ -169,7 +189,8 @@ def fit_correction(
     mean = covariance @ design.T @ y / noise
     # back from the centred (1, x - centre) to (1, x)
     to_raw = np.array([[1.0, -centre], [0.0, 1.0]])
-    return Correction(to_raw @ mean, to_raw @ covariance @ to_raw.T)
+    bounds = (float(x.min()), float(x.max())) if clip else (-np.inf, np.inf)
+    return Correction(to_raw @ mean, to_raw @ covariance @ to_raw.T, *bounds)
 
 
 # ---------------------------------------------------------------------------
@@ -390,13 +411,16 @@ correction, the log-distance trend, or free space (the link budget's line, nothi
 class LearnedModel:
     """One sensor's learned base: (prior, if ``uses_prior``) + correction (+ networks).
 
-    ``choice`` is one of :data:`CHOICES` (what blocked cross-validation kept).
+    ``choice`` is one of :data:`CHOICES` (what blocked cross-validation kept); ``line``
+    (A, n) a log-distance line A - 10 n log10 d [dB] added too (free space when the fit had
+    it as its baseline: what ``log-distance`` and the networks without a prior correct).
     """
 
     choice: str
     uses_prior: bool
     correction: Correction
     ensemble: Ensemble | None = None
+    line: tuple[float, float] | None = None
 
     @property
     def features(self) -> tuple[str, ...]:
@@ -417,6 +441,8 @@ class LearnedModel:
         """(P,) the learned base [dB] at positions (P, 3)."""
         features = self._inputs(positions_m, sensor_m, prior_db)
         out = self.correction.mean_db(features[:, 0])
+        if self.line is not None:
+            out = out + self.line[0] - 10.0 * self.line[1] * features[:, 0]
         if self.uses_prior:
             assert prior_db is not None
             out = out + np.asarray(prior_db, float)
@@ -440,6 +466,7 @@ class LearnedModel:
             "uses_prior": self.uses_prior,
             "correction": self.correction.to_dict(),
             "networks": None if self.ensemble is None else self.ensemble.to_dict(),
+            "line": None if self.line is None else list(self.line),
         }
 
     @staticmethod
@@ -454,11 +481,13 @@ class LearnedModel:
         if choice not in CHOICES:
             raise ValueError(f"choice {choice!r} is not one of {', '.join(CHOICES)}")
         networks = data.get("networks")
+        line = data.get("line")
         return LearnedModel(
             choice,
             bool(data["uses_prior"]),
             Correction.from_dict(data["correction"]),
             Ensemble.from_dict(networks) if networks else None,
+            None if line is None else (float(line[0]), float(line[1])),
         )
 
 
@@ -479,19 +508,36 @@ def fit_learned(
     *,
     seed: int = 0,
     members: int = ENSEMBLE_SIZE,
+    line: tuple[float, float] | None = None,
 ) -> LearnedModel:
-    """The learned base of ``choice`` (:data:`CHOICES`) fitted to samples (P, 3), (P,)."""
-    uses_prior = prior_db is not None and choice != "log-distance"
+    """The learned base of ``choice`` (:data:`CHOICES`) fitted to samples (P, 3), (P,).
+
+    The offset is the prior (``prior + correction``, and ``network`` with a prior), else
+    ``line`` (A, n) when given (free space: ``free space`` is the line alone; ``log-distance``
+    is the line plus a free linear correction, the same fit as the trend where the samples
+    are, free space's slope beyond), else nothing (``log-distance``: the trend by least
+    squares). A correction over an offset is held constant beyond the seen distances.
+    """
+    uses_prior = prior_db is not None and choice in ("network", "prior + correction")
     features = link_features(positions_m, sensor_m)
+    x = features[:, 0]
+    kept_line = None if uses_prior else line
+    if choice == "free space":
+        if line is None:
+            raise ValueError("the free-space fallback needs the free-space line")
+        return LearnedModel(choice, False, Correction(np.zeros(2), np.zeros((2, 2))), None, line)
     offset = np.asarray(prior_db, float) if uses_prior and prior_db is not None else 0.0
+    if kept_line is not None:
+        offset = kept_line[0] - 10.0 * kept_line[1] * x
     slope_prior = SLOPE_PRIOR_DB if uses_prior else TREND_PRIOR_DB
-    correction = fit_correction(features[:, 0], snr_db - offset, slope_prior)
+    clip = uses_prior or kept_line is not None
+    correction = fit_correction(x, snr_db - offset, slope_prior, clip)
     if choice != "network":
-        return LearnedModel(choice, uses_prior, correction)
-    residual = snr_db - offset - correction.mean_db(features[:, 0])
+        return LearnedModel(choice, uses_prior, correction, None, kept_line)
+    residual = snr_db - offset - correction.mean_db(x)
     names: tuple[str, ...] = FEATURES
-    if prior_db is not None and not prior_is_redundant(prior_db, features[:, 0]):
+    if prior_db is not None and not prior_is_redundant(prior_db, x):
         features = np.column_stack([features, prior_db])
         names = (*FEATURES, PRIOR_FEATURE)
     ensemble = fit_ensemble(features, residual, names, seed=seed, members=members)
-    return LearnedModel(choice, uses_prior, correction, ensemble)
+    return LearnedModel(choice, uses_prior, correction, ensemble, kept_line)

@@ -68,7 +68,6 @@ from skymule.radio.kriging import (
 from skymule.radio.learned import (
     CV_MEMBERS,
     ENSEMBLE_SIZE,
-    Correction,
     LearnedModel,
     fit_learned,
 )
@@ -89,8 +88,9 @@ CV_BUFFER_M = 50.0
 out of its training set too, so each fold predicts a region the rest does not cover."""
 
 SELECTION_MARGIN_DB = 0.1
-"""``neural`` keeps its networks only when their cross-validated RMSE beats the best simpler
-model (prior + correction, log-distance, free space) by more than this [dB]."""
+"""``neural`` keeps a more flexible model (networks > log-distance > prior + correction > free
+space) only when its cross-validated RMSE beats the simpler one's by more than this [dB] (and
+by more than one standard error: :func:`_choose`)."""
 
 CV_KRIGING_POINTS = 400
 """Samples per fold in the kriging system of cross-validation (thinned evenly): a held-out
@@ -261,10 +261,11 @@ def _free_space_line(
 
 def _candidates(method: str, prior_db: np.ndarray | None, free_space: bool) -> tuple[str, ...]:
     """What blocked cross-validation compares for ``method`` (``neural``: the networks and
-    their fallbacks, :data:`skymule.radio.learned.CHOICES`)."""
+    their fallbacks, :data:`skymule.radio.learned.CHOICES`), from the most flexible to the
+    simplest (free space fits nothing; the prior + correction fits a shrunk bias)."""
     if method != "neural":
         return (method,)
-    simpler = ("prior + correction", "log-distance") if prior_db is not None else ("log-distance",)
+    simpler = ("log-distance", "prior + correction") if prior_db is not None else ("log-distance",)
     return ("network", *simpler, *(("free space",) if free_space else ()))
 
 
@@ -291,15 +292,11 @@ def _fit_core(
     """
     intercept, exponent = fit_trend(distance_m(positions, sensor_m), snr)
     ensemble = None
-    if method == "neural" and choice == "free space":
-        assert free_space is not None
-        line = Correction(np.array([free_space[0], -10.0 * free_space[1]]), np.zeros((2, 2)))
-        ensemble = LearnedModel(choice, False, line)
-        base = ensemble.mean_db(positions, sensor_m, prior_db)
-    elif method == "neural":
+    if method == "neural":
         ensemble = fit_learned(
-            positions, snr, sensor_m, prior_db, choice, seed=seed, members=members
-        )
+            positions, snr, sensor_m, prior_db, choice, seed=seed, members=members,
+            line=free_space,
+        )  # fmt: skip
         base = ensemble.mean_db(positions, sensor_m, prior_db)
     else:
         base = trend_db(positions, sensor_m, intercept, exponent)
@@ -346,20 +343,25 @@ def blocked_folds(
     return folds
 
 
-def _choose(candidates: tuple[str, ...], cv_rmse: dict[str, float]) -> str:
-    """The candidate kept: the networks only when they beat every simpler one by
-    SELECTION_MARGIN_DB, else the simpler one with the lowest cross-validated RMSE."""
-    scored = [c for c in candidates if np.isfinite(cv_rmse.get(c, np.nan))]
+def _choose(candidates: tuple[str, ...], fold_errors: dict[str, list[np.ndarray]]) -> str:
+    """The candidate kept, from the simplest up (``candidates`` run from the most flexible to
+    the simplest): a more flexible one replaces the current choice only if its blocked
+    cross-validated RMSE is lower by more than SELECTION_MARGIN_DB *and* its mean squared
+    error per fold is lower by more than one standard error of the paired fold differences
+    (the one-standard-error rule, Hastie, Tibshirani & Friedman, *The Elements of
+    Statistical Learning*, 2nd ed., sec. 7.10)."""
+    scored = [c for c in reversed(candidates) if fold_errors.get(c)]
     if not scored:
-        return candidates[-1] if len(candidates) > 1 else candidates[0]
-    simpler = [c for c in scored if c != "network"]
-    best_simple = min(simpler, key=lambda c: cv_rmse[c]) if simpler else None
-    if "network" in scored and (
-        best_simple is None or cv_rmse["network"] < cv_rmse[best_simple] - SELECTION_MARGIN_DB
-    ):
-        return "network"
-    assert best_simple is not None
-    return best_simple
+        return candidates[-1]
+    chosen = scored[0]
+    for challenger in scored[1:]:
+        ours, theirs = fold_errors[chosen], fold_errors[challenger]
+        gain = np.array([np.mean(a**2) - np.mean(b**2) for a, b in zip(ours, theirs, strict=True)])
+        se = float(gain.std(ddof=1) / np.sqrt(gain.size)) if gain.size > 1 else 0.0
+        margin = _rmse(np.concatenate(ours)) - _rmse(np.concatenate(theirs))
+        if margin > SELECTION_MARGIN_DB and gain.mean() > se:
+            chosen = challenger
+    return chosen
 
 
 def sigma_scale(z: np.ndarray) -> float:
@@ -440,7 +442,7 @@ def fit_sensor_map(
             if prior is not None:
                 errors["prior"].append(prior[test] - snr[test])
     cv = {k: _rmse(np.concatenate(v)) if v else float("nan") for k, v in errors.items()}
-    chosen = _choose(candidates, cv)
+    chosen = _choose(candidates, errors)
     fitted = _fit_core(
         name, positions, snr, sensor, kept, method, prior,
         choice=chosen, seed=options.seed, free_space=line,

@@ -1,4 +1,4 @@
-"""Sim-to-real, measured: twins and learned twins against a "real" flight, by time split.
+"""Sim-to-real, measured: twins and learned twins against a "real" flight, split by region.
 
 Synthetic worlds (default): the "truth" is free space at the Lake Wheeler towers (the
 paper-sim-fixed link budget) minus an excess loss growing with distance, a sector antenna
@@ -10,23 +10,34 @@ canopy, soft at the edge), and terrain-like spatially correlated shadowing (Gudm
 and the blockage halved) and optimistic by ``TWIN_BIAS_DB`` (drawn per tower).
 
 Flights: the DT flight flies the paper-sim-fixed lawnmower path at 10 m/s; two "real"
-flights fly the same route on other days (other speeds, a few metres off, new noise). The
-split is the issue's, in time, never random samples: every map sees the DT flight and the
-first ``SEEN`` of real flight B, and is scored on the rest of it (policies start the held-out
-part with full buffers); a second split by flight: flight A seen whole, flight B held out.
+flights fly the same route on other days (other speeds, a few metres off, new noise). Splits,
+never random samples: every map sees the DT flight and the seen part of real flight B and is
+scored on the rest. **region**: the seen part is its west ``SEEN`` (by x), the held-out part
+the east, a region the seen part never flew over (SNR columns only: the held-out part is not
+one stretch of flight); **time**: the first ``SEEN`` (policies start the held-out part with
+full buffers); **flight**: flight A seen whole, flight B held out.
 
-Each map is fitted with ``skymule.tasks.radiomaps.fit_radiomap_files`` and scored with
-``skymule.tasks.sim2real.sim2real`` (the ``skymule sim2real`` command), so what is measured
-is what the commands do.
+Reference rows (``ref:``): free space (nothing fitted) and log-distance refitted on the
+held-out part itself (an oracle, a yardstick); the noise floor is the "- floor" column, and
+synthetic worlds add ``oracle: twin - bias``. After the table, one line per split: the
+learned twin (neural + DT prior) against the best baseline row (twin, log-distance fitted on
+the seen part, free space; target: at most 0.3 dB worse), against the oracle refit (target:
+within 1.5 dB) and its 95% coverage (target 85-99%), each "met" or "MISSED".
+
+Each map is fitted with ``skymule.tasks.radiomaps.fit_radiomap_files`` and scored at the
+held-out samples (policies: ``skymule.tasks.sim2real.sim2real``), so what is measured is
+what the commands do.
 
     python benchmarks/bench_sim2real.py                    # 3 worlds
-    python benchmarks/bench_sim2real.py --worlds 5
+    python benchmarks/bench_sim2real.py --worlds 5 --json benchmarks/results/sim2real.json
     python benchmarks/bench_sim2real.py --dt DT.csv --real REAL.csv [--scenario S]
     python benchmarks/bench_sim2real.py --libraries        # kriging vs scikit-learn's GP
 
-``--dt/--real``: the same split on your own pair of flights (a DT export or merged log of the
-digital twin, and a real flight's merged log); sensors and positions from ``--scenario``
-(default: the trace columns at the Lake Wheeler towers via paper-sim-fixed).
+``--dt/--real``: the region and time splits on your own pair of flights (a DT export or
+merged log of the digital twin, and a real flight's merged log); sensors and positions from
+``--scenario`` (default: the trace columns at the Lake Wheeler towers via paper-sim-fixed);
+the noise floor is estimated as SNR minus its 5-sample running median. ``--json PATH``
+writes ``{"tables": {"sim2real": {"columns", "rows", "note"}}}`` (the README's table).
 SKYMULE_BENCH_TINY=1: one small world (not a measurement).
 """
 

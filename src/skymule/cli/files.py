@@ -158,7 +158,8 @@ def fit_radiomap_command(
         typer.Option(
             "--method",
             help="kriging (log-distance + kriged residual), log-distance, gp (kriging with "
-            "maximum-likelihood parameters) or neural (a learned twin).",
+            "maximum-likelihood parameters) or neural (a learned twin: falls back to a simpler "
+            "model when blocked cross-validation says the networks do not beat it).",
         ),
     ] = "kriging",
     prior: Annotated[

@@ -44,7 +44,6 @@ SKYMULE_BENCH_TINY=1: one small world (not a measurement).
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import tempfile
 import time
@@ -54,9 +53,9 @@ from pathlib import Path
 
 import numpy as np
 import scipy.ndimage
-from _sizes import size, tiny
 from threadpoolctl import threadpool_limits
 
+from _sizes import size, tiny
 from skymule.flight.paths import sample_path
 from skymule.geo import LocalFrame, sensor_positions_m
 from skymule.io.traces import (
@@ -453,11 +452,10 @@ def verdicts(rows: list[Row]) -> list[str]:
 
 def write_json(path: Path, rows: list[Row], floor_db: float | None, note: str) -> None:
     """``{"tables": {"sim2real": {"columns", "rows", "note"}}}`` for the README renderer."""
-    from skymule.io import atomic
+    from _results import table, write
 
-    table = {"columns": COLUMNS, "rows": [cells(r, floor_db) for r in rows], "note": note}
-    atomic.write_text(path, json.dumps({"tables": {"sim2real": table}}, indent=2) + "\n")
-    print(f"wrote {path}")
+    cells_ = [cells(r, floor_db) for r in rows]
+    write(path, {"sim2real": table(COLUMNS, cells_, note, align="llrrrrrrr")})
 
 
 def synthetic(worlds: int, json_path: Path | None) -> None:

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import run_cli
+from conftest import preset_mission, run_cli
 from skymule.aadm import files
 from skymule.aadm.agent import AadmAgent
 from skymule.aadm.comm import run_comm
@@ -80,7 +80,7 @@ def test_loopback_flight_of_hgad_matches_skymule_run(preset: str) -> None:
 
 
 def test_plain_step_entry_point() -> None:
-    mission = build_mission(load_scenario("paper-sim-autonomous"))
+    mission = preset_mission("paper-sim-autonomous")
     agent = AadmAgent(mission, Greedy())
     here = np.array([0.0, 0.0, 25.0])
     step = agent.step(np.array([20.0, -99.0, 5.0, np.nan]), np.zeros(4), here)

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import preset_mission
 from skymule.aadm import files, net, protocol
 from skymule.aadm.controller import (
     ControllerCore,
@@ -28,8 +29,7 @@ from skymule.aadm.controller import (
 from skymule.aadm.protocol import Reply
 from skymule.aadm.score import poll_download_bit
 from skymule.flight.paths import Track
-from skymule.scenario import load_scenario
-from skymule.world import Mission, build_mission, mission_from_track
+from skymule.world import Mission, mission_from_track
 
 UP = np.array([0.0, 0.0, 30.0])  # above the launch point, above 24 m
 GROUND = np.array([0.0, 0.0, 5.0])
@@ -41,7 +41,7 @@ REPORT = re.compile(
 
 @pytest.fixture(scope="module")
 def mission() -> Mission:
-    return build_mission(load_scenario("paper-sim-autonomous"))  # 500/800/700/1000 Mbit
+    return preset_mission("paper-sim-autonomous")  # 500/800/700/1000 Mbit
 
 
 @pytest.fixture

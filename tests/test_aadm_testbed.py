@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import preset_mission
 from skymule.aadm.controller import ControllerCore, serve_controller
 from skymule.aadm.score import aadm_score_one
 from skymule.aadm.towers import (
@@ -103,7 +104,7 @@ def test_testbed_uav_over_a_recorded_flight_scores_like_skymule_run(tmp_path: Pa
 
 
 def test_testbed_uav_with_telemetry_gets_data_from_a_model(tmp_path: Path) -> None:
-    mission = build_mission(load_scenario("paper-sim-autonomous"))
+    mission = preset_mission("paper-sim-autonomous")
     lat, lon = mission.frame.to_latlon(100.0, -100.0)
     core = ControllerCore(mission)
     with serve_controller(core) as server:
@@ -120,7 +121,7 @@ def test_testbed_uav_with_telemetry_gets_data_from_a_model(tmp_path: Path) -> No
 
 @pytest.fixture
 def towers_and_controller() -> Iterator[tuple[TowerRadio, tuple[int, ...], int, ControllerCore]]:
-    mission = build_mission(load_scenario("paper-sim-autonomous"))
+    mission = preset_mission("paper-sim-autonomous")
     core = ControllerCore(mission)
     radio = TowerRadio(mission)
     with serve_controller(core) as controller:

@@ -16,6 +16,7 @@ import pytest
 
 import skymule
 from conftest import run_cli
+from skymule.errors import Terminated, interrupt_exit_status
 from skymule.io import atomic
 
 PACKAGE = Path(skymule.__file__).parent
@@ -100,6 +101,21 @@ def test_ctrl_c_is_held_back_until_related_renames_are_done(tmp_path: Path) -> N
     assert done == ["renamed"]
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # put back
     signal.signal(signal.SIGINT, before)
+
+
+def test_sigterm_is_held_back_too_and_ends_as_terminated(tmp_path: Path) -> None:
+    done = []
+    before = signal.signal(signal.SIGTERM, signal.SIG_DFL)  # would kill pytest if not held
+    try:
+        with pytest.raises(Terminated), atomic.ctrl_c_deferred():
+            os.kill(os.getpid(), signal.SIGTERM)
+            done.append("renamed")
+        assert done == ["renamed"]
+        assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # put back
+    finally:
+        signal.signal(signal.SIGTERM, before)
+    assert interrupt_exit_status(Terminated()) == 143
+    assert interrupt_exit_status(KeyboardInterrupt()) == 130
 
 
 @pytest.fixture(scope="module")

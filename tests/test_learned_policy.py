@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import preset_mission
 from skymule.errors import SkymuleError
 from skymule.policies import batch_policy, make_policy
 from skymule.policies.learned import (
@@ -37,7 +38,7 @@ def short(duration_s: float = 150.0) -> Scenario:
 
 @pytest.fixture(scope="module")
 def random_missions() -> list[Mission]:
-    from skymule.learning.missions import HELD_OUT, draw_missions
+    from learning.missions import HELD_OUT, draw_missions
 
     return draw_missions(5, 4, 6, HELD_OUT)
 
@@ -249,7 +250,7 @@ def test_the_cli_runs_learned_and_refuses_bad_weights(tmp_path: Path) -> None:
 
 
 def test_fixed_paths_are_one_clear_error() -> None:
-    mission = build_mission(load_scenario("paper-sim-fixed"))
+    mission = preset_mission("paper-sim-fixed")
     with pytest.raises(SkymuleError, match=r"trajectory\.mode = 'autonomous'"):
         run_mission(mission, make_policy(PolicySpec(name="learned")))
 
@@ -257,14 +258,14 @@ def test_fixed_paths_are_one_clear_error() -> None:
 def test_the_runner_refuses_fixed_contexts() -> None:
     from skymule.sim.run import mission_context
 
-    context = mission_context(build_mission(load_scenario("paper-sim-fixed")))
+    context = mission_context(preset_mission("paper-sim-fixed"))
     with pytest.raises(ValueError, match="autonomous"):
         OptionRunner([context], lambda d: np.zeros(len(d.rows), np.int64))
 
 
 def test_the_torch_mirror_scores_as_numpy() -> None:
     torch = pytest.importorskip("torch", reason="the PPO comparison needs the rl extra")
-    from skymule.learning.ppo import TorchScorer
+    from learning.ppo import TorchScorer
     from skymule.policies.options import option_features
 
     net = load_net(shipped_weights())
@@ -299,11 +300,9 @@ def test_a_fleet_flies_learned_uavs_on_shared_buffers() -> None:
 
 @pytest.mark.parametrize("n", [3, 4, 8])
 def test_the_compiled_twin_scores_as_numpy(n: int, monkeypatch: pytest.MonkeyPatch) -> None:
-    from skymule.policies import learned_kernel, options
+    from skymule.policies import learned_kernel
     from skymule.policies.learned import compiled_scores
 
-    assert tuple(learned_kernel.FRACTIONS) == options.FRACTIONS
-    assert learned_kernel.HGAD_HOVER_S == options.HGAD_HOVER_S
     net = load_net(shipped_weights())
     decision = _decision(np.random.default_rng(n), n)
     expected = scores(net, None, decision)
@@ -320,4 +319,3 @@ def test_numpy_and_compiled_scorers_fly_the_same_missions(random_missions: list[
     a = run_missions(random_missions, policy, detail=False).downloaded_bit
     b = run_missions(random_missions, numpy_form, detail=False).downloaded_bit
     np.testing.assert_array_equal(a, b)
-

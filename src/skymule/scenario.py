@@ -1,6 +1,6 @@
 """Scenario files: a validated, serialisable description of one mission.
 
-A scenario is TOML (see the README for the schema). It is validated by pydantic models that
+A scenario is TOML (schema: docs/cli.md). It is validated by pydantic models that
 forbid unknown keys, so a misspelt field is an error, never silently ignored. Mbit and lat/lon
 appear here, at the edge; :mod:`skymule.world` turns a scenario into SI arrays.
 
@@ -566,6 +566,7 @@ class Scenario(_Spec):
         return self
 
     def resolve_path(self, value: str) -> Path:
+        """``value`` as a path: absolute as given, else relative to the scenario's folder."""
         path = Path(value)
         return path if path.is_absolute() else Path(self.base_dir) / path
 
@@ -589,6 +590,7 @@ class Scenario(_Spec):
         return scenarios
 
     def to_toml_dict(self) -> dict[str, Any]:
+        """The scenario as plain TOML/JSON values (unset fields left out), as a file holds it."""
         return self.model_dump(mode="json", exclude_none=True)
 
 

@@ -14,7 +14,6 @@ from pathlib import Path
 import numpy as np
 from shapely.geometry import Point, Polygon, box
 
-from skymule.aadm.rules import AADM_WINDOW_S
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.faults.draws import FaultDraws, draw_faults, fault_rng
 from skymule.flight.navigation import Navigator, hover_point
@@ -25,8 +24,9 @@ from skymule.limits import waypoint_problem
 from skymule.radio.channel import mission_fading_db, signal_source
 from skymule.radio.rates import RateTable, rate_bps, resolve_rate_table
 from skymule.radio.sources import SignalSource
+from skymule.rules import contract
+from skymule.rules.defaults import AADM_WINDOW_S, HOVER_THRESHOLD, MAX_HOVER_S
 from skymule.scenario import Scenario
-from skymule.sim import contract
 from skymule.units import BITS_PER_MBIT
 
 #: Half-width [m] of the square that stands in for a geofence when a scenario gives none.
@@ -128,6 +128,7 @@ class Mission:
 
     @property
     def n_sensors(self) -> int:
+        """How many sensors the mission has (N)."""
         return len(self.sensor_names)
 
     def rate_bps(self, snr_db: np.ndarray) -> np.ndarray:
@@ -474,8 +475,8 @@ def mission_from_track(
     bandwidth_hz: float = 1.4e6,
     rate_table: str = "aadm-lte-cqi",
     policy: str = "hgad",
-    hover_threshold: float = 1.0,
-    max_hover_s: float = 60.0,
+    hover_threshold: float = HOVER_THRESHOLD,
+    max_hover_s: float = MAX_HOVER_S,
 ) -> Mission:
     """A fixed-trajectory mission straight from a track (no scenario file, no geodesy).
 

@@ -83,6 +83,7 @@ class AadmAgent:
 
     @property
     def n_towers(self) -> int:
+        """How many towers (the mission's sensors) the agent chooses among."""
         return self.mission.n_sensors
 
     @property
@@ -91,6 +92,7 @@ class AadmAgent:
         return self.slot >= self.context.n_slots
 
     def home_xy(self) -> tuple[float, float]:
+        """(x, y) of home [m]: the mission's home when autonomous, else the origin."""
         home = self.mission.home_m if self.autonomous else None
         home = np.zeros(2) if home is None else home
         return float(home[0]), float(home[1])

@@ -56,6 +56,8 @@ from skymule.aadm.score import (
 )
 from skymule.errors import SkymuleError
 from skymule.geo import LocalFrame
+from skymule.rules.contract import window_slots
+from skymule.rules.score import COMPLETE_RTOL
 from skymule.units import BITS_PER_MBIT
 from skymule.world import Mission
 
@@ -253,7 +255,7 @@ class ControllerCore:
             left = self.volumes_bit[index] - self.received_bit[index]
             serving = snapshot.serving and self._serving()
             when = self._poll_time(self.served_polls if serving else self.served_polls - 1)
-            full = left <= self.volumes_bit[index] * 1e-9
+            full = left <= self.volumes_bit[index] * COMPLETE_RTOL
             bits = 0.0
             if serving:  # the SNR this poll reported, as the controller does
                 bits = float(poll_download_bit(snapshot.snr_db[index], left, self.poll_s))
@@ -263,7 +265,7 @@ class ControllerCore:
                 self._write_row()
                 if self._complete():
                     self.stopped = "all data downloaded"
-                elif self.served_polls * self.poll_s >= self.window_s - 1e-9:
+                elif self.served_polls >= window_slots(self.window_s, self.poll_s):
                     self.stopped = f"window of {self.window_s:g} s closed"
             if full:
                 return protocol.format_no_data_left(when, tower)

@@ -12,11 +12,16 @@ Heavy modules (numpy, pandas, the engines) are imported inside the commands, so 
 
 from __future__ import annotations
 
+import contextlib
+import signal
 import sys
+import threading
+from collections.abc import Iterator
+from types import FrameType
 
 from skymule.cli import files, missions, resilience
 from skymule.cli.app import app
-from skymule.errors import SkymuleError
+from skymule.errors import SkymuleError, Terminated, interrupt_exit_status
 
 # the commands, in the order `skymule --help` lists them
 app.command()(missions.run)
@@ -39,6 +44,25 @@ INTERRUPTED = "skymule: interrupted; every file is left whole (the previous one,
 """The one line a Ctrl-C prints (outputs are written atomically: :mod:`skymule.io.atomic`)."""
 
 
+def _raise_terminated(number: int, frame: FrameType | None) -> None:
+    raise Terminated
+
+
+@contextlib.contextmanager
+def _sigterm_interrupts() -> Iterator[None]:
+    """SIGTERM ends a command as Ctrl-C does (temporary files removed, one line, resume hint),
+    with status 143, instead of killing it mid-write. The caller's handler is put back (a
+    test calling :func:`main` in-process keeps its own)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point: run the app, turning user mistakes into one line and exit status 2.
 
@@ -52,7 +76,7 @@ def main(argv: list[str] | None = None) -> None:
     try:
         # standalone_mode=False: Ctrl-C reaches the handler below instead of click's;
         # trusting(): a --trust-model holds for this one command
-        with trusting():
+        with _sigterm_interrupts(), trusting():
             code = app(args=argv, standalone_mode=False)
     except Abort:
         print(INTERRUPTED, file=sys.stderr)
@@ -72,9 +96,9 @@ def main(argv: list[str] | None = None) -> None:
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"skymule: error: {where}{exc.strerror or exc}", file=sys.stderr)
         sys.exit(2)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as interrupt:
         print(INTERRUPTED, file=sys.stderr)
-        sys.exit(130)
+        sys.exit(interrupt_exit_status(interrupt))
     if code == 130:  # typer turns a Ctrl-C inside a command into this exit code, silently
         print(INTERRUPTED, file=sys.stderr)
     if isinstance(code, int) and code != 0:

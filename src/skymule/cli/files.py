@@ -238,6 +238,29 @@ def sim2real_command(
     policies: Annotated[
         str, typer.Option("--policies", help="Comma-separated fixed-path policies.")
     ] = "greedy,hgad",
+    calibration: Annotated[
+        list[Path] | None,
+        typer.Option(
+            "--calibration",
+            help="A flight (.csv) the twins were calibrated on: the log-distance reference is "
+            "fitted on these. Repeat for several.",
+        ),
+    ] = None,
+    download_log: Annotated[
+        Path | None,
+        typer.Option(
+            "--download-log",
+            help="The real flight's download log: its serving decisions are the same "
+            "decisions of the same-decisions error.",
+        ),
+    ] = None,
+    block: Annotated[
+        int | None,
+        typer.Option(
+            "--block", min=1, help="Consecutive samples per bootstrap block [default: 10]."
+        ),
+    ] = None,
+    seed: Annotated[int, typer.Option("--seed", help="Seed of the bootstrap.")] = 0,
     json_out: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
     out: Annotated[
         Path | None, typer.Option("--out", help="Folder for the figures and report.html.")
@@ -247,31 +270,50 @@ def sim2real_command(
         bool, typer.Option("--force", help="Write into --out even if it holds something else.")
     ] = False,
 ) -> None:
-    """How wrong each twin is on a real flight: SNR per sensor and each policy's Mbit."""
+    """Which twin to trust on a real flight: SNR per tower and reference rows, each policy's
+    same-decisions error, decision regret and own error (90% CIs), and a ranking."""
     from skymule.cli.folders import guard_sim2real
     from skymule.cli.missions import _working
-    from skymule.tasks.sim2real import policy_rows, sim2real, snr_rows, write_sim2real
+    from skymule.metrics.sim2real import Bootstrap
+    from skymule.tasks.sim2real import (
+        finite,
+        policy_table,
+        ranking_table,
+        sim2real,
+        snr_table,
+        write_sim2real,
+    )
 
     if out is not None:
         guard_sim2real(out, force)
     names = [p.strip() for p in policies.split(",") if p.strip()]
+    boot = Bootstrap(seed=seed) if block is None else Bootstrap(block=block, seed=seed)
     with _working("flying the real path under each twin"):
-        result = sim2real(scenario, real_trace, twin, names)
+        result = sim2real(
+            scenario, real_trace, twin, names, calibration=calibration or (),
+            download_log=download_log, boot=boot,
+        )  # fmt: skip
     if out is not None:
         write_sim2real(result, out)
         report_path = _report(out, pdf)
+    document = finite(result.to_json())
     if json_out:
-        output.print_json(result.to_json())
-    else:
-        title = f"{real_trace.name}: SNR, predicted - measured (coverage_95: inside +-1.96 sigma)"
-        rows = snr_rows(result)
-        columns = ("twin", "sensor", "rmse_db", "bias_db", "mae_db", "rate_rmse_mbps")
-        print_table(output.console, title, rows, (*columns, "coverage_95"))
-        print_table(
-            output.console,
-            f"{real_trace.name}: Mbit replaying the real flight vs the twin along its path",
-            policy_rows(result),
-            ("twin", "policy", "real_mbit", "twin_mbit", "error"),
-        )
-    if out is not None and not json_out:
+        output.print_json(document)
+        return
+    level = f"{100 * boot.level:.0f}% CI: block bootstrap, {boot.block} samples a block"
+    columns, rows = snr_table(document)
+    title = f"{real_trace.name}: SNR, predicted - measured, value [{level}]; ref: references"
+    print_table(output.console, title, rows, columns)
+    columns, rows = policy_table(document)
+    title = (
+        f"{real_trace.name}: policy Mbit, [%] of the real side [{level}]; regret: the twin's "
+        "decisions executed on the real trace"
+    )
+    print_table(output.console, title, rows, columns)
+    columns, rows = ranking_table(document)
+    print_table(output.console, "twins by decision regret (mean over the policies)", rows, columns)
+    for note in result.notes:
+        output.say(f"note: {note}")
+    output.say(result.trust)
+    if out is not None:
         output.say(f"wrote {out}/sim2real.json, {out}/sim2real_snr.csv, {report_path}")

@@ -20,7 +20,7 @@ from typing import Any
 
 from skymule.errors import SkymuleError
 
-SWEEP_FILES = ("sweep.json", "results", "results.parquet", "summary.csv", ".lock")
+SWEEP_FILES = ("sweep.json", "results", "results.parquet", "summary.csv", ".lock", ".lock.holder")
 """What a sweep folder holds (``skymule.experiments.store``)."""
 
 SIM2REAL_FILE = "sim2real.json"

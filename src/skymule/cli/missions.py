@@ -13,7 +13,7 @@ import skymule.cli.output as output
 from skymule.cli.folders import guard_bound, guard_compare, guard_run, guard_sweep
 from skymule.cli.output import print_json
 from skymule.cli.tables import fmt_mean_ci, print_table
-from skymule.errors import SkymuleError
+from skymule.errors import SkymuleError, interrupt_exit_status
 from skymule.trust import TRUST_HELP, trust_option
 
 if TYPE_CHECKING:
@@ -369,7 +369,7 @@ def sweep(
             chunk_size=chunk_size,
             progress=not quiet and sys.stderr.isatty(),
         )
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as interrupt:
         again = ["skymule", "sweep", str(sweep_file), "--out", str(out)]
         again += ["--executor", executor] if executor != "auto" else []
         again += ["--workers", str(workers)] if workers is not None else []
@@ -377,7 +377,7 @@ def sweep(
         again += ["--chunk-size", str(chunk_size)] if chunk_size != 500 else []
         again += [f"--set={o}" for o in overrides or []]
         again += [f"--trust-model={p}" for p in trust_model or []]
-        _sweep_interrupted(out, spec, again)
+        _sweep_interrupted(out, spec, again, interrupt_exit_status(interrupt))
     levels = [c for c in spec.level_columns if c in outcome.summary.columns]
     rows = [
         {
@@ -434,8 +434,9 @@ def _sweep_with_overrides(spec: Any, overrides: list[str]) -> Any:
     return replace(spec, base=base, digest=digest)
 
 
-def _sweep_interrupted(out: Path, spec: Any, again: list[str]) -> None:
-    """Ctrl-C: say what was kept and the command that resumes; exit 130."""
+def _sweep_interrupted(out: Path, spec: Any, again: list[str], status: int) -> None:
+    """Ctrl-C or SIGTERM: say what was kept and the command that resumes; exit with
+    ``status`` (130 or 143)."""
     import shlex
 
     from skymule.experiments import store
@@ -447,4 +448,4 @@ def _sweep_interrupted(out: Path, spec: Any, again: list[str]) -> None:
         what = f"finished chunks are kept in {out}"
     command = " ".join(shlex.quote(a) for a in again)
     print(f"skymule: interrupted; {what}. Resume with: {command}", file=sys.stderr)
-    raise SystemExit(130)
+    raise SystemExit(status)

@@ -251,9 +251,10 @@ def _start_local_cluster(distributed: Any, workers: int) -> Any:
         "dashboard_address": "127.0.0.1:0",
         "scheduler_kwargs": {"dashboard": False},
         "memory_limit": 0,  # no memory monitor: a chunk stays within CHUNK_MEMORY_BYTES
-        # its workers' warnings (a task cancelled by Ctrl-C...) are noise in a command line;
-        # errors still show
-        "silence_logs": logging.ERROR,
+        # the workers' logs are noise in a command line: a task's error reaches the sweep
+        # through its future, and on Ctrl-C the workers log the closed scheduler's
+        # connection (failed heartbeats, CommClosedError) as errors
+        "silence_logs": logging.CRITICAL,
     }
     timeout = f"{DASK_START_TIMEOUT_S}s"
     settings = {"distributed.comm.timeouts.connect": timeout, **QUIET_DASK}
@@ -282,14 +283,37 @@ def _workers_deaf_to_ctrl_c() -> Iterator[None]:
 
 
 @contextmanager
+def _closing_quietly() -> Iterator[None]:
+    """Wrap a Dask client and cluster so that Ctrl-C or SIGTERM closes them in silence.
+
+    Closing an interrupted cluster makes Dask, tornado and asyncio log connection errors
+    (``CommClosedError``, ``Exception in callback``) with tracebacks, and a second Ctrl-C
+    during the close breaks it off half-way, so the workers then log failed heartbeats: the
+    command must print one line and the resume command instead. On the interrupt, logging is
+    disabled and further SIGINT/SIGTERM are ignored until the close is done (the interrupt
+    itself is already on its way up); both are put back when this block ends.
+    """
+    main = threading.current_thread() is threading.main_thread()
+    handlers = {n: signal.getsignal(n) for n in (signal.SIGINT, signal.SIGTERM)} if main else {}
+    disabled = logging.root.manager.disable
+    try:
+        yield
+    finally:
+        logging.disable(disabled)
+        for number, handler in handlers.items():
+            signal.signal(number, handler)
+
+
+@contextmanager
 def _quiet_when_interrupted() -> Iterator[None]:
-    """On Ctrl-C, silence Dask's loggers before the cluster or client is closed: closing an
-    interrupted one logs connection errors (CommClosedError, CancelledError) with tracebacks,
-    where the command prints one line and the resume command."""
+    """The inner half of :func:`_closing_quietly`: on an interrupt, silence and ignore."""
     try:
         yield
     except KeyboardInterrupt:
-        logging.getLogger("distributed").setLevel(logging.CRITICAL + 1)
+        logging.disable(logging.CRITICAL)
+        if threading.current_thread() is threading.main_thread():
+            for number in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(number, signal.SIG_IGN)
         raise
 
 
@@ -298,13 +322,14 @@ def _dask_local(
     workers: int | None, scheduler: str | None, warm: tuple[str, ...] = ()
 ) -> Iterator[Executor]:
     distributed = _distributed()
-    cluster = _start_local_cluster(distributed, workers or default_workers())
-    with (
-        cluster,
-        distributed.Client(cluster, timeout=f"{DASK_START_TIMEOUT_S}s") as client,
-        _quiet_when_interrupted(),
-    ):
-        yield DaskExecutor(client, local=True)
+    with _closing_quietly():
+        cluster = _start_local_cluster(distributed, workers or default_workers())
+        with (
+            cluster,
+            distributed.Client(cluster, timeout=f"{DASK_START_TIMEOUT_S}s") as client,
+            _quiet_when_interrupted(),
+        ):
+            yield DaskExecutor(client, local=True)
 
 
 @contextmanager
@@ -318,7 +343,7 @@ def _dask(
         client = distributed.Client(scheduler, timeout="20s")
     except (OSError, TimeoutError) as exc:
         raise SkymuleError(f"--scheduler {scheduler!r}: cannot connect ({exc})") from None
-    with client, _quiet_when_interrupted():
+    with _closing_quietly(), client, _quiet_when_interrupted():
         yield DaskExecutor(client, local=False)
 
 

@@ -21,6 +21,8 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+from skymule.errors import Terminated
+
 
 def temporary_path(path: Path) -> Path:
     """A hidden name next to ``path`` that no other writer (process or host) uses."""
@@ -83,17 +85,25 @@ def write_with(path: Path, writer: Callable[[Path], Any]) -> Path:
 
 @contextlib.contextmanager
 def ctrl_c_deferred() -> Iterator[None]:
-    """Hold a Ctrl-C (SIGINT) back until the block is done, then raise it: renames that belong
-    together all happen. Outside the main thread (where signals cannot be handled) a no-op."""
+    """Hold a Ctrl-C (SIGINT) or SIGTERM back until the block is done, then raise it as
+    :class:`KeyboardInterrupt` (:class:`~skymule.errors.Terminated` for SIGTERM): renames that
+    belong together all happen. Outside the main thread (where signals cannot be handled) a
+    no-op."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     caught: list[int] = []
-    previous = signal.signal(signal.SIGINT, lambda number, frame: caught.append(number))
+    previous = {
+        number: signal.signal(number, lambda number, frame: caught.append(number))
+        for number in (signal.SIGINT, signal.SIGTERM)
+    }
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+    if signal.SIGTERM in caught:
+        raise Terminated
     if caught:
         raise KeyboardInterrupt
 

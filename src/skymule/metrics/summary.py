@@ -15,10 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from skymule.aadm.score import AADM_WINDOW_S, AadmScore, aadm_scores
 from skymule.energy import propulsion_power_w
 from skymule.metrics.flights import NO_SENSOR, Flights, MissionLog, unique_rows
 from skymule.metrics.visits import first_visit_slots, order_from_first
+from skymule.rules.score import AadmScore, aadm_scores
 from skymule.units import BITS_PER_MBIT
 
 HEADLINE_METRICS = (
@@ -201,7 +201,7 @@ def summaries(flights: Flights) -> Summaries:
             flights.buffers_bit.sum(axis=1),
             n_run,
             slot_s,
-            AADM_WINDOW_S if flights.aadm_window_s is None else flights.aadm_window_s,
+            flights.score_windows_s(),
         ),
     )
 

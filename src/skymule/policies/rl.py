@@ -22,6 +22,7 @@ import numpy as np
 import skymule.envs.observation as enc
 from skymule.errors import SkymuleError
 from skymule.policies.base import Action, MissionContext, Observation
+from skymule.rules.home import time_left_s
 from skymule.scenario import PolicySpec
 from skymule.trust import check_trusted
 
@@ -83,7 +84,7 @@ class RLPolicy:
         context = self._context
         if context is None:
             raise SkymuleError(f"policy {self.name!r}: act() before reset()")
-        time_left = (context.n_slots - observation.slot) * context.slot_s
+        time_left = time_left_s(context.n_slots, observation.slot, context.slot_s)
         vector = enc.encode(
             np.asarray(observation.position_m[:2], float)[None],
             np.array([time_left]),

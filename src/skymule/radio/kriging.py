@@ -361,7 +361,7 @@ def fit_variogram_ml(
     MAX_LIKELIHOOD_POINTS samples thinned evenly in time; the start is kept if it is as
     likely. (It replaced a hand-written Nelder-Mead search: on 12 tower-worlds of
     benchmarks/bench_sim2real.py it reached a higher likelihood and a lower held-out RMSE,
-    docs/radiomaps.md.)
+    docs/channels.md.)
     """
     import warnings
 

@@ -20,7 +20,6 @@ from typing import Any, Generic, TypeVar
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from skymule.aadm.rules import AADM_WINDOW_S
 from skymule.io import atomic
 from skymule.report.figures import draw_cumulative_download, draw_snr_cdf
 from skymule.report.inputs import (
@@ -50,6 +49,7 @@ from skymule.report.style import (
     save_figure,
     scenario_description,
 )
+from skymule.rules.defaults import AADM_WINDOW_S
 
 REPORT_FILE = "report.html"
 FIGURES_DIR = "figures"
@@ -199,13 +199,14 @@ def sensor_table(runs: tuple[RunData, ...]) -> str:
 
 
 def score_table(runs: tuple[RunData, ...], scores: list[ScoreBreakdown]) -> str:
+    window = run_window_s(runs)
     rows = [
         ["S2 = 100 x downloaded / total", *(f"{s.download_points:.1f}" for s in scores)],
         [
             "all data by [s]",
             *("-" if s.completed_at_s is None else f"{s.completed_at_s:.0f}" for s in scores),
         ],
-        ["S1 = 500 - t1 if all downloaded", *(f"{s.time_bonus:.1f}" for s in scores)],
+        [f"S1 = {window:g} - t1 if all downloaded", *(f"{s.time_bonus:.1f}" for s in scores)],
         [
             "end distance to home [m] (testbed: land within 5 m)",
             *(f"{s.end_distance_m:.1f}" for s in scores),
@@ -324,13 +325,17 @@ def render_bars(
         return save_figure(fig, folder, "policies", report_formats(pdf), REPORT_DPI)["png"]
 
 
+def run_window_s(runs: tuple[RunData, ...]) -> float:
+    """The AADM download window of the first run [s] (its scenario's, else the default)."""
+    return float(runs[0].scenario.get("mission", {}).get("aadm_window_s") or AADM_WINDOW_S)
+
+
 def render_score(
     runs: tuple[RunData, ...], scores: list[ScoreBreakdown], folder: Path, pdf: bool = True
 ) -> Path:
     with paper_style():
         fig, (ax,) = panel_figure(1, 2.9)
-        window = runs[0].scenario.get("mission", {}).get("aadm_window_s") or AADM_WINDOW_S
-        draw_score(ax, [r.label for r in runs], scores, float(window))
+        draw_score(ax, [r.label for r in runs], scores, run_window_s(runs))
         finish_figure(fig, "AADM score breakdown", columns=1)
         return save_figure(fig, folder, "score", report_formats(pdf), REPORT_DPI)["png"]
 

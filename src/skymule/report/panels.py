@@ -15,7 +15,6 @@ from matplotlib.axes import Axes
 from matplotlib.collections import LineCollection
 from matplotlib.patches import Polygon as PolygonPatch
 
-from skymule.aadm.rules import AADM_WINDOW_S
 from skymule.report.inputs import RunData, ScoreBreakdown, hover_segments
 from skymule.report.style import (
     FENCE_STYLE,
@@ -27,6 +26,7 @@ from skymule.report.style import (
     label_height,
     sensor_colours,
 )
+from skymule.rules.defaults import AADM_WINDOW_S
 
 
 def served_colours(run: RunData) -> list[str]:

@@ -29,8 +29,8 @@ from skymule.policies import batch_policy
 from skymule.policies.base import BatchPolicy, Policy
 from skymule.policies.batched import PerFleet, PerMission, policy_names
 from skymule.policies.fleet import COORDINATED, Coordinated
+from skymule.rules.contract import NO_SENSOR
 from skymule.scenario import Scenario
-from skymule.sim.contract import NO_SENSOR
 from skymule.sim.fleet import Fleet, build_fleet
 from skymule.sim.run import run_missions
 from skymule.tasks.compare import COMPARISON_CSV, with_gap, write_bound

@@ -164,7 +164,8 @@ def fit_radiomap_command(
         typer.Option(
             "--method",
             help="kriging (log-distance + kriged residual), log-distance, gp (kriging with "
-            "maximum-likelihood parameters) or neural (a learned twin).",
+            "maximum-likelihood parameters) or neural (a learned twin: falls back to a simpler "
+            "model when blocked cross-validation says the networks do not beat it).",
         ),
     ] = "kriging",
     prior: Annotated[
@@ -179,7 +180,7 @@ def fit_radiomap_command(
 ) -> None:
     """Fit a radio map per sensor to recorded flights (a signal source like any map)."""
     from skymule.cli.missions import _working
-    from skymule.tasks.radiomaps import RadioMapFit, fit_radiomap_files, parse_origin
+    from skymule.tasks.radiomaps import fit_radiomap_files, parse_origin
 
     if seed < 0:  # numpy's generators take non-negative seeds only
         raise SkymuleError(f"--seed {seed}: allowed: a whole number 0 or above")
@@ -198,11 +199,15 @@ def fit_radiomap_command(
         print(f"skymule: warning: {warning}", file=sys.stderr)
     if json_out:
         shown = {"map": str(out), "method": method, "sensors": fit.rows}
-        print(json.dumps({**shown, "warnings": list(fit.warnings)}, indent=2))
+        print(json.dumps({**shown, "warnings": list(fit.warnings), "note": fit.note}, indent=2))
         return
-    held_out = "last segment of each trace" if method == "neural" else "held-out trace segments"
+    from skymule.radio.radiomap import CV_BUFFER_M
+
+    held_out = f"blocked: held-out segments, {CV_BUFFER_M:g} m buffer"
     title = f"radio map fit, {method} (cv: {held_out}; baseline: fspl)"
-    print_table(output.console, title, fit.rows, RadioMapFit.COLUMNS)
+    print_table(output.console, title, fit.rows, fit.columns())
+    if fit.note:
+        output.say(fit.note)
     output.say(f"wrote {out}")
 
 

@@ -65,7 +65,16 @@ WAIT_REPORT = f"{PREFIX} Please wait for the UAV to reach the desired altitude."
 INVALID_TOWER = "Invalid BS Number"
 NOT_STARTED = "Start time not initialized."
 NOTHING_NEW = "None"
-KINDS = ("wait", "vol", "download", "download_complete", "error")
+#: The testbed's answer to every poll once the score is out (its controller is "off").
+OFF_REPLY = f"{PREFIX} The system is currently off;"
+KINDS = ("wait", "vol", "download", "download_complete", "off", "error")
+
+#: Telemetry values the controllers here take [m, deg]: a UAV of the challenge flies below
+#: 120 m; the altitude may read a little below 0 on the ground (barometer drift).
+ALTITUDE_RANGE_M = (-5.0, 200.0)
+LATITUDE_RANGE_DEG = (-90.0, 90.0)
+LONGITUDE_RANGE_DEG = (-180.0, 180.0)
+_RANGES = {"alt": ALTITUDE_RANGE_M, "lat": LATITUDE_RANGE_DEG, "lon": LONGITUDE_RANGE_DEG}
 
 _REPORT_RE = re.compile(r"bs>(\d+), snr>(\S+) db, rate>(\S+) mbps, RECV>(\S+) mbits")
 _NO_DATA_RE = re.compile(r"No data left for download from BS(\d+)")
@@ -155,6 +164,8 @@ def parse_reply(text: str) -> Reply:
     body = text.strip()
     if body.startswith(PREFIX) and "Cannot share now" in body:
         return Reply("wait", None, None, body)
+    if body == OFF_REPLY:
+        return Reply("off", None, None, body)
     kind, values, snr = "", None, None
     for part in body.split(";"):
         part = part.strip()
@@ -226,7 +237,8 @@ def format_telemetry(alt_m: float, armed: bool, lat_deg: float, lon_deg: float) 
 
 def parse_telemetry(text: str) -> Telemetry:
     """Parse ``alt:..,arm:..,rtl:..,land:..,lat:..,lon:..`` (any order; unknown keys are
-    ignored as the controller does); one-line SkymuleError for a value that is not a number."""
+    ignored as the controller does); one-line SkymuleError for a value that is not a number
+    or out of range (:data:`ALTITUDE_RANGE_M`, valid latitude and longitude)."""
     fields: dict[str, float | bool | None] = {}
     for part in text.strip().split(","):
         key, _, value = part.strip().partition(":")
@@ -241,6 +253,11 @@ def parse_telemetry(text: str) -> Telemetry:
                 number = math.nan
             if not math.isfinite(number):
                 raise SkymuleError(f"telemetry field {key}:{value[:20]!r} is not a number")
+            low, high = _RANGES[key]
+            if not low <= number <= high:
+                raise SkymuleError(
+                    f"telemetry field {key}:{value.strip()[:20]}: allowed {low:g} to {high:g}"
+                )
             fields[key] = number
     return Telemetry(
         alt_m=_float(fields.get("alt")),
@@ -250,6 +267,22 @@ def parse_telemetry(text: str) -> Telemetry:
         lat_deg=_float(fields.get("lat")),
         lon_deg=_float(fields.get("lon")),
     )
+
+
+def testbed_telemetry_problems(text: str) -> list[str]:
+    """What the testbed's controller would misread in a telemetry line it accepts: it splits
+    on ``,`` and compares ``arm:`` to the bare ``1`` / ``0`` (``arm:1\n`` or ``arm: 1`` is
+    neither, so it never sees the UAV arm or disarm, and never ends the session)."""
+    problems = []
+    for part in text.split(","):
+        if part.startswith("arm:") and part[4:] not in ("0", "1"):
+            problems.append(
+                f"{part[:20]!r}: the testbed compares arm to the bare '0' / '1' and would "
+                "not see the UAV arm or disarm"
+            )
+        elif part.strip().startswith("arm:") and not part.startswith("arm:"):
+            problems.append(f"{part[:20]!r}: the testbed would not see this arm field")
+    return problems
 
 
 def _float(value: float | bool | None) -> float | None:

@@ -195,6 +195,7 @@ def test_controller_and_agent_as_separate_processes(small: Path, tmp_path: Path)
             "controller",
             str(small),
             *("--port", "0", "--telemetry-port", "0", "--exit-on-disarm", "--log", "dl.csv"),
+            *("--clock", "poll"),
         ],
         cwd=tmp_path,
         env=env,
@@ -292,10 +293,10 @@ def _lost_after(core: ControllerCore, polls: int) -> None:
     """The controller stops answering (its connection closes) after ``polls`` polls."""
     answer = core.request
 
-    def request(text: str, peer: str = "") -> tuple[str, object]:
+    def request(text: str, peer: str = "", round_start: float | None = None) -> tuple[str, object]:
         if core.served_polls >= polls:
             raise OSError("controller gone")
-        return answer(text, peer)
+        return answer(text, peer, round_start)
 
     core.request = request  # type: ignore[method-assign,assignment]
 

@@ -180,9 +180,11 @@ class AadmAgent:
 # ---------------------------------------------------------------------------
 
 #: Failed polls in a row the agent tries again before it returns to launch.
-POLL_RETRIES = 5
-#: Wall seconds between those tries.
-RETRY_WAIT_S = 0.5
+POLL_RETRIES = 12
+#: Wall seconds between those tries: 12 x 1 s outlasts the controller's 10-s message deadline
+#: (and its 2-s first-byte deadline), so a crowd of idle connections, closed at that deadline,
+#: cannot make the UAV give up.
+RETRY_WAIT_S = 1.0
 #: Slots the vehicle may take to fly home and land once the controller is lost.
 LANDING_SLOTS = 2000
 
@@ -387,9 +389,14 @@ def fly_tcp(
     def one_poll() -> tuple[Reply, str]:
         if telemetry_port is not None:
             answer = send_telemetry(host, telemetry_port, telemetry_message(agent, vehicle))
-            if answer.startswith("T1:"):
+            if answer.startswith("T1:"):  # the score is out: the mission is over
                 pilot.record.score_line = answer
+                pilot.done = True
         reply, report = poll_once(host, port, choose, n_towers)
+        if reply.kind == "off":  # the testbed's controller after the score: fly home, land
+            pilot.done = True
+            pilot.decide(reply.kind, None, None, np.zeros(n_towers))
+            return reply, report
         if reply.kind == "error":
             raise SkymuleError(f"controller {host}:{port} refused the poll: {reply.text}")
         if book and reply.snr_db is not None:

@@ -31,7 +31,7 @@ from skymule.trust import TRUST_HELP, trust_option
 #: Seconds a running session may go without a poll before the controller calls it lost.
 AGENT_TIMEOUT_S = 30.0
 #: Failed polls the agent tries again (:data:`skymule.aadm.agent.POLL_RETRIES`).
-POLL_RETRIES = 5
+POLL_RETRIES = 12
 
 if TYPE_CHECKING:
     from skymule.aadm.agent import AadmAgent
@@ -84,6 +84,26 @@ def controller(
         float,
         typer.Option("--agent-timeout", help="Seconds without a poll before the flight is lost."),
     ] = AGENT_TIMEOUT_S,
+    clock: Annotated[
+        str,
+        typer.Option(
+            "--clock",
+            help="wall: t1 and the window on the wall clock, as the testbed (polls at most "
+            "once a second); poll: one poll = --poll-s seconds (accelerated runs).",
+        ),
+    ] = "wall",
+    dialect: Annotated[
+        str,
+        typer.Option(
+            "--dialect",
+            help="testbed: answer as the real controller, warn about what fails there; "
+            "lenient: strip whitespace, refuse requests other than snr_dd.",
+        ),
+    ] = "testbed",
+    speed: Annotated[
+        float,
+        typer.Option("--speed", help="Run the wall clock this many times faster (tests)."),
+    ] = 1.0,
 ) -> None:
     """Serve the AADM controller's bytes with SNR from the scenario's signal source."""
     from skymule.aadm.controller import ControllerCore, serve_controller
@@ -91,19 +111,29 @@ def controller(
     from skymule.scenario import load_scenario
     from skymule.world import build_mission
 
-    if poll_s <= 0 or window_s <= 0 or agent_timeout <= 0:
+    if poll_s <= 0 or window_s <= 0 or agent_timeout <= 0 or speed <= 0:
         raise SkymuleError(
             f"--poll-s {poll_s:g} / --window-s {window_s:g} / --agent-timeout "
-            f"{agent_timeout:g}: each must be > 0"
+            f"{agent_timeout:g} / --speed {speed:g}: each must be > 0"
         )
     logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s", stream=sys.stderr)
     mission = build_mission(load_scenario(scenario))
     shared = None if volumes is None else read_volume_file(volumes, mission.n_sensors)
-    core = ControllerCore(mission, shared, poll_s=poll_s, window_s=window_s, log_path=log)
+    core = ControllerCore(
+        mission,
+        shared,
+        poll_s=poll_s,
+        window_s=window_s,
+        log_path=log,
+        clock=clock,
+        dialect=dialect,
+        speed=speed,
+    )
     lost: float | None = None
     with _until_stopped() as stopped, serve_controller(core, host, port, telemetry_port) as server:
         _say(f"listening on {server.host}:{server.port} (UAV polls)")
         _say(f"listening on {server.host}:{server.telemetry_port} (telemetry)")
+        _say(f"clock: {clock}, dialect: {dialect}")
         while not stopped.wait(0.1):
             if exit_on_disarm and core.disarmed:
                 break

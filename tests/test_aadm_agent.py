@@ -389,6 +389,12 @@ def test_cli_fly_prints_the_comparison(small: Path) -> None:
     assert done.returncode == 0, done.stderr
     assert re.search(r"total \[Mbit\]\s+100\.0\s+100\.0\s+0\.0", done.stdout), done.stdout
     assert "AADM score" in done.stdout
+    # the prediction at the testbed's cadence, saying which cadence it assumes
+    assert "on the testbed's clock (1.031 s a poll, [aadm] poll_interval_s):" in done.stdout
+    nominal = re.search(r"^t1 \[s\]\s+(\S+)", done.stdout, re.M)
+    stretched = re.search(r"^  t1 \[s\]\s+(\S+)", done.stdout, re.M)
+    assert nominal and stretched
+    assert float(stretched.group(1)) == pytest.approx(1.031 * float(nominal.group(1)), abs=0.06)
 
 
 @pytest.mark.parametrize(

@@ -342,6 +342,7 @@ def fly(
 ) -> None:
     """Offline AADM flight on loopback (controller + agent + kinematic vehicle) vs skymule run."""
     from skymule.aadm.loopback import fly_loopback
+    from skymule.aadm.score import describe_cadence
     from skymule.scenario import load_scenario
 
     if poll_s < 0:
@@ -361,6 +362,14 @@ def fly(
     _say(f"{'total [Mbit]':14}{total_f:12.1f}{total_e:14.1f}{total_f - total_e:12.1f}")
     for key, label in (("aadm_t1_s", "t1 [s]"), ("aadm_score", "AADM score")):
         flight_v, engine_v = float(result.flight_score[key]), float(result.engine_score[key])
+        _say(f"{label:14}{flight_v:12.1f}{engine_v:14.1f}{flight_v - engine_v:12.1f}")
+    flight_p, engine_p = result.flight_prediction, result.engine_prediction
+    cadence = describe_cadence(
+        float(flight_p["aadm_poll_interval_s"]), float(flight_p["aadm_poll_jitter_s"])
+    )
+    _say(f"on the testbed's clock ({cadence}, [aadm] poll_interval_s):")
+    for key, label in (("aadm_t1_s", "  t1 [s]"), ("aadm_score", "  AADM score")):
+        flight_v, engine_v = float(flight_p[key]), float(engine_p[key])
         _say(f"{label:14}{flight_v:12.1f}{engine_v:14.1f}{flight_v - engine_v:12.1f}")
     if abs(result.engine_mission_mbit - total_e) > 1e-6:
         _say(

@@ -113,7 +113,7 @@ DIALECTS = ("testbed", "lenient")
 ACCEPT_GAP_S = 1.0
 
 
-class TestbedClock:
+class WallClock:
     """Seconds on the testbed's wall clock, run ``speed`` times faster than real time (1: real
     time; more only to keep a test short)."""
 
@@ -136,7 +136,7 @@ class Pacer:
     """The testbed's poll loop: round k starts, accepts the next connection, and sleeps until
     :data:`ACCEPT_GAP_S` after its start; so polls are answered at most once a second."""
 
-    def __init__(self, clock: TestbedClock) -> None:
+    def __init__(self, clock: WallClock) -> None:
         self.clock = clock
         self._round_start = clock.now()
         self._lock = threading.Lock()
@@ -197,7 +197,7 @@ class ControllerCore:
         self.window_s = window_s
         self.clock = clock
         self.dialect = dialect
-        self.testbed_clock = TestbedClock(speed)
+        self.testbed_clock = WallClock(speed)
         self.pacer = Pacer(self.testbed_clock) if clock == "wall" else None
         self.feed = SignalFeed(mission)
         self.position_source = position_source

@@ -23,7 +23,7 @@ import numpy as np
 
 from skymule.aadm.agent import AadmAgent, fly_tcp
 from skymule.aadm.controller import ControllerCore, serve_controller
-from skymule.aadm.score import aadm_score_one
+from skymule.aadm.score import aadm_score_one, scenario_prediction
 from skymule.aadm.vehicle import TAKEOFF_ALTITUDE_M, KinematicVehicle
 from skymule.flight.navigation import Navigator
 from skymule.policies import make_policy
@@ -47,6 +47,8 @@ class LoopbackResult:
     engine_mbit: np.ndarray
     engine_mission_mbit: float
     engine_score: dict[str, Any]
+    flight_prediction: dict[str, Any]
+    engine_prediction: dict[str, Any]
     polls: int
     share_poll: int
     landed_distance_m: float
@@ -112,6 +114,8 @@ def fly_loopback(
         engine_mbit=(mission.buffers_bit - left) / BITS_PER_MBIT,
         engine_mission_mbit=float(engine.log.downloaded_bit.sum()) / BITS_PER_MBIT,
         engine_score=aadm_score_one(engine.log.downloaded_bit, total, mission.slot_s),
+        flight_prediction=scenario_prediction(scenario, np.array(core.per_poll_bit), total),
+        engine_prediction=scenario_prediction(scenario, engine.log.downloaded_bit, total),
         polls=record.polls,
         share_poll=record.share_poll if record.share_poll is not None else -1,
         landed_distance_m=record.end_distance_to(agent.home_xy()),

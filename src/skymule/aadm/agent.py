@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from skymule.aadm import files, protocol
+from skymule.aadm import files, net, protocol
 from skymule.aadm.controller import poll_once, send_telemetry
 from skymule.aadm.protocol import NOT_HEARD_DB, Reply
 from skymule.aadm.score import UNREADABLE_SNR_DB, poll_download_bit
@@ -454,21 +454,35 @@ def run_file_agent(
     altitude_m: float = 25.0,
     max_polls: int = 100_000,
     should_stop: Callable[[], bool] = lambda: False,
+    telemetry: tuple[str, int] | None = None,
 ) -> FlightRecord:
     """Beside the challenge's comm process: read ss/dv/dd/tn.txt, write bc.txt, each poll.
 
     Each poll is one slot of ``poll_s`` for the vehicle; the loop waits ``pace_s`` of wall
-    time between polls (default ``poll_s``; 0 = as fast as possible).
+    time between polls (default ``poll_s``; 0 = as fast as possible). ``telemetry``: the
+    controller's telemetry (host, port), sent the vehicle's state each poll as the UAV's own
+    telemetry process does on the testbed (None: something else sends it); the score line
+    it gets back ends the mission (``record.score_line``).
     """
     if poll_s <= 0:
         raise SkymuleError(f"poll_s = {poll_s:g}: each poll must stand for > 0 s")
     pilot = _Pilot(agent, vehicle, altitude_m)
     vehicle.takeoff(altitude_m)
     n_towers = agent.n_towers
+    quiet = net.RateLimitedLog(log, every_s=10.0)
     for _ in range(max_polls):
         if should_stop():
             break
         started = time.monotonic()
+        if telemetry is not None:
+            try:
+                answer = send_telemetry(*telemetry, telemetry_message(agent, vehicle))
+            except OSError as exc:
+                quiet.warning(f"telemetry to {telemetry[0]}:{telemetry[1]} failed: {exc}")
+            else:
+                if answer.startswith("T1:"):
+                    pilot.record.score_line = pilot.record.score_line or answer
+                    pilot.done = True
         try:
             snr = files.read_tower_file(folder / files.SNR_FILE, n_towers)
         except SkymuleError as exc:
@@ -488,6 +502,13 @@ def run_file_agent(
             tower = pilot.decide(kind, snr, volumes, remaining)
             files.write_choice_file(folder / files.CHOICE_FILE, tower)
         if pilot.advance(poll_s):
+            if telemetry is not None:  # the controller sees the disarm: session over
+                try:
+                    answer = send_telemetry(*telemetry, telemetry_message(agent, vehicle))
+                    if answer.startswith("T1:"):
+                        pilot.record.score_line = pilot.record.score_line or answer
+                except OSError:
+                    log.info("controller gone before the final telemetry")
             break
         wait_s = poll_s if pace_s is None else pace_s
         time.sleep(max(0.0, wait_s - (time.monotonic() - started)))

@@ -199,9 +199,17 @@ def agent(
         float | None,
         typer.Option(
             "--poll-s",
-            help="Wall seconds between polls (default: 0 kinematic, 1 mavsdk; each is a 1-s slot).",
+            help="Wall seconds between polls (default: 1 with --files or mavsdk, as the comm "
+            "process; else 0: as fast as the controller answers; each is a 1-s slot).",
         ),
     ] = None,
+    send_telemetry: Annotated[
+        bool,
+        typer.Option(
+            "--telemetry/--no-telemetry",
+            help="With --files: send the vehicle's telemetry to --telemetry-port each poll.",
+        ),
+    ] = True,
     altitude: Annotated[
         float | None,
         typer.Option("--altitude", help="Take-off altitude [m] (default: the scenario's)."),
@@ -226,13 +234,25 @@ def agent(
     mission = build_mission(spec)
     the_agent = AadmAgent(mission, make_policy(spec.policy))
     craft = _make_vehicle(vehicle, the_agent, mavsdk_address)
-    pace = poll_s if poll_s is not None else (0.0 if vehicle == "kinematic" else 1.0)
+    # the file protocol: the comm process polls once a second; a faster agent would fly its
+    # mission on stale files (the controller then cut it off)
+    fast = vehicle == "kinematic" and files_dir is None
+    pace = poll_s if poll_s is not None else (0.0 if fast else 1.0)
     climb = takeoff_altitude_m(spec, mission) if altitude is None else altitude
     try:
         if files_dir is not None:
             if not files_dir.is_dir():
                 raise SkymuleError(f"--files {files_dir}: no such folder")
-            record = run_file_agent(the_agent, craft, files_dir, pace_s=pace, altitude_m=climb)
+            record = run_file_agent(
+                the_agent,
+                craft,
+                files_dir,
+                pace_s=pace,
+                altitude_m=climb,
+                telemetry=(host, telemetry_port) if send_telemetry else None,
+            )
+            if record.score_line:
+                _say(f"controller: {record.score_line}")
         else:
             record = fly_tcp(
                 the_agent,

@@ -341,6 +341,52 @@ def towers(
         stopped.wait()
 
 
+@aadm_app.command()
+def vehicle(
+    mavlink: Annotated[
+        str,
+        typer.Option(
+            "--mavlink",
+            help="Where the MAVSDK script listens: udp://[HOST]:PORT (as PX4 SITL's 14540).",
+        ),
+    ] = "udp://:14540",
+    scenario: Annotated[
+        str | None,
+        typer.Option("--scenario", help="Scenario whose origin is home (default: AADM launch)."),
+    ] = None,
+    speed_mps: Annotated[float, typer.Option("--speed-mps", help="Cruise speed [m/s].")] = 10.0,
+    time_scale: Annotated[
+        float, typer.Option("--time-scale", help="Run the vehicle's clock this much faster.")
+    ] = 1.0,
+) -> None:
+    """A kinematic MAVLink test vehicle (NOT PX4 or ArduPilot) for MAVSDK scripts and tests."""
+    from skymule.aadm.mavlink_vehicle import MavlinkTestVehicle, parse_mavlink_address
+    from skymule.geo import LocalFrame
+
+    host, port = parse_mavlink_address(mavlink)
+    if speed_mps <= 0 or time_scale <= 0:
+        raise SkymuleError(
+            f"--speed-mps {speed_mps:g} / --time-scale {time_scale:g}: each must be > 0"
+        )
+    if scenario is None:
+        frame = LocalFrame(35.7274824, -78.6962749)  # the AADM launch point
+    else:
+        from skymule.scenario import load_scenario
+        from skymule.world import build_mission
+
+        frame = build_mission(load_scenario(scenario)).frame
+    craft = MavlinkTestVehicle(frame, port, host=host, speed_mps=speed_mps, time_scale=time_scale)
+    try:
+        with _until_stopped() as stopped:
+            _say(
+                f"MAVLink test vehicle (kinematic, not PX4 or ArduPilot) sending to {host}:{port}"
+                f" from {frame.origin_lat_deg:.7f}, {frame.origin_lon_deg:.7f}; Ctrl-C to stop"
+            )
+            stopped.wait()
+    finally:
+        craft.close()
+
+
 def _host_port(text: str) -> tuple[str, int]:
     host, sep, port = text.rpartition(":")
     if not sep or not host or not port.isdigit():

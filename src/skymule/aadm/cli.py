@@ -316,6 +316,9 @@ def towers(
         Path | None,
         typer.Option("--write-env", help="Write an experiment-environment file here."),
     ] = None,
+    force: Annotated[
+        bool, typer.Option("--force", help="Let --write-env replace an existing file.")
+    ] = False,
 ) -> None:
     """Answer as the AADM towers (00,<snr>,<rate>) so the challenge's own controller runs."""
     from skymule.aadm.towers import TowerRadio, experiment_env, serve_towers
@@ -325,6 +328,17 @@ def towers(
 
     target = None if not forward else _host_port(forward)
     mission = build_mission(load_scenario(scenario))
+    env_text = None if write_env is None else experiment_env(mission.n_sensors, host)
+    if write_env is not None and write_env.exists() and not force:
+        try:
+            same = write_env.read_text(encoding="utf-8") == env_text
+        except (OSError, UnicodeDecodeError):
+            same = False
+        if not same:
+            raise SkymuleError(
+                f"--write-env {write_env}: the file exists (on the testbed it names the real "
+                "nodes); pass --force to replace it, or give another path"
+            )
     n_towers = mission.n_sensors
     ports = [0 if first_port == 0 else first_port + k for k in range(n_towers)]
     logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s", stream=sys.stderr)
@@ -335,8 +349,8 @@ def towers(
         for name, port in zip(mission.sensor_names, served.ports, strict=True):
             _say(f"listening on {host}:{port} (tower {name})")
         _say(f"listening on {host}:{served.telemetry_port} (telemetry)")
-        if write_env is not None:
-            atomic.write_text(write_env, experiment_env(n_towers, host))
+        if write_env is not None and env_text is not None:
+            atomic.write_text(write_env, env_text)
             _say(f"wrote {write_env}")
         stopped.wait()
 

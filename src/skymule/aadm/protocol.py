@@ -32,8 +32,9 @@ Telemetry (port 8006), one message a connection::
                            None                             (otherwise)
 
 Towers (fixed nodes, ports 8001-8004 on their own addresses): the controller sends the bare
-tower id and reads ``00,<snr dB>,<previous rate>``; it uses the second field only (a value
-that is not a number counts as 0 dB).
+tower id and reads ``00,<snr dB>,<previous rate>`` (the SNR a float32, the Shannon rate of
+the previous answer in bit/s); it uses the second field only (a value that is not a number
+counts as 0 dB).
 
 Every receiver here also accepts a message ending in a newline (skymule's own senders add one
 where the testbed's parser strips it: telemetry values go through ``float``).
@@ -296,11 +297,20 @@ def _flag(value: float | bool | None) -> bool | None:
 # --- towers -----------------------------------------------------------------------------------
 
 
-def format_tower_reply(snr_db: float, previous_rate_mbit: float) -> str:
-    """``00,<snr>,<previous rate>``: an unreadable SNR is sent as an empty field (the
-    controller then counts 0 dB), a tower not heard as -99."""
-    snr = "" if math.isnan(snr_db) else repr(max(float(snr_db), NOT_HEARD_DB))
-    return f"00,{snr},{previous_rate_mbit:.2f}"
+def format_tower_reply(snr_db: float, previous_rate_bps: float) -> str:
+    """``00,<snr>,<previous rate>`` as the fixed nodes send it: the SNR as a float32 printed
+    by Python (``12.345678``), the Shannon rate of the previous answer in bit/s as
+    ``str(float)``. An unreadable SNR is an empty field (the controller then counts 0 dB), a
+    tower not heard -99."""
+    snr = "" if math.isnan(snr_db) else str(np.float32(max(float(snr_db), NOT_HEARD_DB)))
+    return f"00,{snr},{float(previous_rate_bps)!r}"
+
+
+def shannon_rate_bps(snr_db: float, bandwidth_hz: float = 1.4e6) -> float:
+    """B log2(1 + SNR) [bit/s], the rate the fixed nodes report (0 for an unreadable SNR)."""
+    if math.isnan(snr_db):
+        return 0.0
+    return float(bandwidth_hz * math.log2(1.0 + 10.0 ** (max(snr_db, NOT_HEARD_DB) / 10.0)))
 
 
 def parse_tower_reply(text: str) -> float:

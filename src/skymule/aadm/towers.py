@@ -32,7 +32,6 @@ import numpy as np
 from skymule.aadm import net, protocol
 from skymule.aadm.controller import PositionSource, SignalFeed, telemetry_position
 from skymule.errors import SkymuleError
-from skymule.units import BITS_PER_MBIT
 from skymule.world import Mission
 
 log = logging.getLogger("skymule.aadm.towers")
@@ -52,7 +51,7 @@ class TowerRadio:
         self.position_source = position_source
         self._position: np.ndarray | None = None
         self._requests = np.zeros(mission.n_sensors, np.int64)
-        self._last_rate_mbit = np.zeros(mission.n_sensors)
+        self._last_rate_bps = np.zeros(mission.n_sensors)
         self._lock = threading.Lock()
         self.owner: str | None = None  # the address whose valid telemetry came first
 
@@ -76,9 +75,8 @@ class TowerRadio:
             snr, _ = self.feed.snr_db(position, int(self._requests[index]))
             self._requests[index] += 1
             value = float(snr[index])
-            reply = protocol.format_tower_reply(value, float(self._last_rate_mbit[index]))
-            shown = np.array([0.0 if np.isnan(value) else value])
-            self._last_rate_mbit[index] = float(self.mission.rate_bps(shown)[0]) / BITS_PER_MBIT
+            reply = protocol.format_tower_reply(value, float(self._last_rate_bps[index]))
+            self._last_rate_bps[index] = protocol.shannon_rate_bps(value)
             return reply
 
 

@@ -70,13 +70,67 @@ def _no_server_left_behind() -> Iterator[None]:
 @pytest.mark.parametrize("preset", ["paper-sim-autonomous", "aadm-default"])
 def test_loopback_flight_of_hgad_matches_skymule_run(preset: str) -> None:
     # autonomous (HGAD steers) and fixed path (aadm-default: 600 s, cut by the 500-s window)
-    result = fly_loopback(load_scenario(preset), "hgad", poll_s=0.0)
-    # the volumes are shared at the first poll above 24 m: 10 polls of climbing at 2.5 m/s
-    assert result.share_poll == 10
+    scenario = load_scenario(preset)
+    result = fly_loopback(scenario, "hgad", poll_s=0.0)
+    # the agent climbs to the mission altitude at 2.5 m/s before its first poll, which gets
+    # the volumes: slot 0 is at home at altitude, as the engine's
+    altitude = scenario.trajectory.altitude_m if preset == "paper-sim-autonomous" else 25.0
+    assert result.climb_slots == int(np.ceil(altitude / 2.5)) and result.share_poll == 0
     # one poll = one slot, in lock step: the controller credits what the engine downloads
     np.testing.assert_allclose(result.flight_mbit, result.engine_mbit, atol=1e-6)
     assert result.flight_score == pytest.approx(result.engine_score)
     assert result.landed_distance_m <= 5.0  # the testbed's landing rule
+
+
+README_PLUGIN = """
+import numpy as np
+from skymule import Action
+
+
+class LargestBufferFirst:
+    name = "largest-buffer-first"
+
+    def __init__(self, params=None):
+        self.margin_bit = 50e6
+
+    def reset(self, context):
+        self.current = None
+        self.hover_points_m = context.hover_points_m
+
+    def act(self, observation):
+        left = observation.remaining_bit
+        goto = None
+        if self.hover_points_m is not None and left.any():
+            goto = tuple(self.hover_points_m[int(np.argmax(left))])
+        usable = (left > 0) & (observation.rate_bps > 0) & (observation.snr_db >= 0.0)
+        if not usable.any():
+            return Action(serve=None, goto_m=goto)
+        best = int(np.argmax(np.where(usable, left, -1.0)))
+        keep = self.current is not None and usable[self.current]
+        if keep and left[best] - left[self.current] < self.margin_bit:
+            best = self.current
+        self.current = best
+        return Action(serve=best, goto_m=goto)
+"""
+
+
+def test_a_plugin_that_flies_off_at_once_matches_skymule_run(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # the README's LargestBufferFirst heads for a tower from slot 0: shared while still
+    # climbing, it flew 2 slots behind the engine (+55.1 Mbit on LW3, -42.3 on LW4)
+    from skymule.aadm.loopback import first_difference
+
+    (tmp_path / "largest_buffer_t.py").write_text(README_PLUGIN)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    name = "largest_buffer_t:LargestBufferFirst"
+    result = fly_loopback(load_scenario("paper-sim-autonomous", policies=[name]), name)
+    assert first_difference(result) is None
+    n = len(result.flight_per_poll_bit)
+    assert n == 500  # the window: a poll a second
+    np.testing.assert_allclose(result.flight_per_poll_bit, result.engine_per_slot_bit[:n], atol=1e-6)
+    np.testing.assert_allclose(result.flight_mbit, result.engine_mbit, atol=1e-6)
+    assert result.flight_score == pytest.approx(result.engine_score)
 
 
 def test_plain_step_entry_point() -> None:

@@ -187,6 +187,10 @@ POLL_RETRIES = 12
 RETRY_WAIT_S = 1.0
 #: Slots the vehicle may take to fly home and land once the controller is lost.
 LANDING_SLOTS = 2000
+#: The agent polls once the vehicle is this close to its take-off altitude [m] ...
+CLIMB_TOLERANCE_M = 0.5
+#: ... or after this many slots of climbing, whichever comes first.
+CLIMB_SLOTS = 600
 
 
 @dataclass
@@ -197,6 +201,7 @@ class FlightRecord:
     towers: list[int] = field(default_factory=list)
     reports: list[str] = field(default_factory=list)
     polls: int = 0
+    climb_slots: int = 0  # slots spent climbing before the first poll
     share_poll: int | None = None
     rejoined: bool = False
     score_line: str | None = None  # the controller's "T1: ..., Score:..." telemetry reply
@@ -403,6 +408,7 @@ def fly_tcp(
             book[0].credit(protocol.parse_report(report), reply.snr_db, agent.mission.slot_s)
         return reply, report
 
+    _climb(agent, vehicle, host, telemetry_port, altitude_m, poll_s, wait_s, pilot.record)
     failures = 0
     for _ in range(max_polls):
         started = time.monotonic()
@@ -442,6 +448,40 @@ def fly_tcp(
             break
         time.sleep(max(0.0, wait_s - (time.monotonic() - started)))
     return pilot.record
+
+
+def _climb(
+    agent: AadmAgent,
+    vehicle: Vehicle,
+    host: str,
+    telemetry_port: int | None,
+    altitude_m: float,
+    poll_s: float,
+    wait_s: float,
+    record: FlightRecord,
+) -> None:
+    """Climb to the take-off altitude before the first poll, sending telemetry meanwhile.
+
+    The controller shares the volumes (slot 0, t1 = 0) at the first poll above 24 m; polled
+    during the climb, the UAV would get them at 25 m with a few slots of climbing ahead, in
+    which it cannot fly off: a policy that heads away at once (the README's
+    LargestBufferFirst) then flew 2 slots behind ``skymule run``, whose slot 0 is at the
+    mission altitude. Polling once at altitude makes slot 0 the same in both; on the testbed
+    it only starts t1 at the mission altitude instead of 24 m.
+    """
+    quiet = net.RateLimitedLog(log, every_s=10.0)
+    for _ in range(CLIMB_SLOTS):
+        if vehicle.position_m()[2] >= altitude_m - CLIMB_TOLERANCE_M:
+            return
+        started = time.monotonic()
+        if telemetry_port is not None:
+            try:
+                send_telemetry(host, telemetry_port, telemetry_message(agent, vehicle))
+            except OSError as exc:
+                quiet.warning(f"telemetry to {host}:{telemetry_port} failed while climbing: {exc}")
+        vehicle.tick(poll_s)
+        record.climb_slots += 1
+        time.sleep(max(0.0, wait_s - (time.monotonic() - started)))
 
 
 def run_file_agent(

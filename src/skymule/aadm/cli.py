@@ -421,7 +421,7 @@ def fly(
     trust_model: TrustOption = None,
 ) -> None:
     """Offline AADM flight on loopback (controller + agent + kinematic vehicle) vs skymule run."""
-    from skymule.aadm.loopback import fly_loopback
+    from skymule.aadm.loopback import first_difference, fly_loopback
     from skymule.aadm.score import describe_cadence
     from skymule.scenario import load_scenario
 
@@ -433,7 +433,10 @@ def fly(
 
         announce_imports([spec.policy.name], scenario)
     result = fly_loopback(spec, policy, poll_s=poll_s, log_path=log)
-    _say(f"{result.policy}: {result.polls} polls, volumes shared at poll {result.share_poll}")
+    _say(
+        f"{result.policy}: {result.climb_slots} s of climbing, then {result.polls} polls; "
+        f"volumes shared at poll {result.share_poll}"
+    )
     _say(f"{'':14}{'flight':>12}{'skymule run':>14}{'difference':>12}")
     for index, name in enumerate(result.sensor_names):
         flight, engine = result.flight_mbit[index], result.engine_mbit[index]
@@ -456,6 +459,9 @@ def fly(
             f"(skymule run downloads {result.engine_mission_mbit:.1f} Mbit over its whole "
             "mission; the columns count the controller's window)"
         )
+    parted = first_difference(result)
+    if parted is not None:
+        _say(parted)
     _say(f"landed {result.landed_distance_m:.1f} m from the launch point")
     if log is not None:
         _say(f"wrote {log}")

@@ -128,7 +128,9 @@ def test_a_plugin_that_flies_off_at_once_matches_skymule_run(
     assert first_difference(result) is None
     n = len(result.flight_per_poll_bit)
     assert n == 500  # the window: a poll a second
-    np.testing.assert_allclose(result.flight_per_poll_bit, result.engine_per_slot_bit[:n], atol=1e-6)
+    np.testing.assert_allclose(
+        result.flight_per_poll_bit, result.engine_per_slot_bit[:n], atol=1e-6
+    )
     np.testing.assert_allclose(result.flight_mbit, result.engine_mbit, atol=1e-6)
     assert result.flight_score == pytest.approx(result.engine_score)
 

@@ -143,7 +143,9 @@ def test_comm_writes_the_files_byte_for_byte_as_the_comm_script(tmp_path: Path) 
     assert (tmp_path / "dv.txt").read_text() == "1: 0.0, 2: 0.0, 3: 0.0, 4: 0.0"
     assert (tmp_path / "tn.txt").read_text() == "0" and (tmp_path / "bc.txt").read_text() == ""
     snr = "1:38.992650,2:16.200000,3:15.200000,4:-99.000000"
-    write_reply_files(tmp_path, f"vol:{{'1': 500.0, '2': 800.0, '3': 700.0, '4': 1000.0}};snr:{snr}")
+    write_reply_files(
+        tmp_path, f"vol:{{'1': 500.0, '2': 800.0, '3': 700.0, '4': 1000.0}};snr:{snr}"
+    )
     assert (tmp_path / "ss.txt").read_text() == snr
     assert (tmp_path / "dv.txt").read_text() == "1:500.0, 2:800.0, 3:700.0, 4:1000.0"
     write_reply_files(tmp_path, f"download:1:7.77,2:0.00,3:0.00,4:0.00;snr:{snr}")

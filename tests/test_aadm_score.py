@@ -14,8 +14,8 @@ from skymule.aadm.score import (
     aadm_scores,
     poll_download_bit,
     poll_times_s,
-    scenario_prediction,
     predicted_testbed_score,
+    scenario_prediction,
 )
 
 MBIT = 1e6

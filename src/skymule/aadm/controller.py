@@ -376,9 +376,8 @@ class ControllerCore:
                     f"poll from {peer}: this session's UAV is at {owner}",
                     f"{protocol.PREFIX} ",
                 ), None
-            if self.clock == "wall" and self._off_at is not None:
-                if round_start is None or self._off_at <= round_start:
-                    return protocol.OFF_REPLY, None
+            if self._off(round_start):
+                return protocol.OFF_REPLY, None
             position, armed = self._position, self._armed
             if self.position_source is not None:
                 position, armed = self.position_source()
@@ -418,6 +417,13 @@ class ControllerCore:
             serving = True if self.clock == "wall" else self._serving()
             return f"{head};{protocol.format_snr(snr)}", PollSnapshot(snr, serving)
 
+    def _off(self, round_start: float | None) -> bool:
+        """Whether the testbed's poll loop is "off": its round began after the score line."""
+        off = self._off_at
+        if self.clock != "wall" or off is None:
+            return False
+        return round_start is None or round_start >= off
+
     def _completion_known(self) -> bool:
         # the testbed learns of completion from a telemetry message; the poll clock at once
         return self._complete_learned if self.clock == "wall" else self._complete()
@@ -439,7 +445,9 @@ class ControllerCore:
                 f"downloads nothing (it compares the bare bytes); send {cell!r}"
             )
         else:
-            self._warn(f"tower id {text[:20]!r} is not 1..{self.n_towers}: {protocol.INVALID_TOWER}")
+            self._warn(
+                f"tower id {text[:20]!r} is not 1..{self.n_towers}: {protocol.INVALID_TOWER}"
+            )
         return None
 
     def choose(self, text: str, snapshot: PollSnapshot) -> str:
@@ -450,10 +458,10 @@ class ControllerCore:
             tower = self._tower(text)
             if tower is None:
                 self.errors += 1
-                if self.dialect == "testbed" and self.clock == "poll":
-                    # the testbed's wall clock runs on: the poll counts toward t1
-                    if snapshot.serving and self._serving():
-                        self._count_poll(0.0)
+                # the testbed's wall clock runs on: the poll counts toward t1
+                testbed_poll = self.dialect == "testbed" and self.clock == "poll"
+                if testbed_poll and snapshot.serving and self._serving():
+                    self._count_poll(0.0)
                 return protocol.INVALID_TOWER
             index = tower - 1
             left = self.volumes_bit[index] - self.received_bit[index]

@@ -138,7 +138,8 @@ def first_difference(result: LoopbackResult, tolerance_bit: float = 1.0) -> str 
         return None
     k = int(apart[0])
     return (
-        f"the flight and skymule run part at poll {k} after sharing: {flight[k] / BITS_PER_MBIT:.3f}"
-        f" Mbit credited in the flight, {engine[k] / BITS_PER_MBIT:.3f} in skymule run (the UAV "
-        "was elsewhere, or the policy chose another tower)"
+        f"the flight and skymule run part at poll {k} after sharing: "
+        f"{flight[k] / BITS_PER_MBIT:.3f} Mbit credited in the flight, "
+        f"{engine[k] / BITS_PER_MBIT:.3f} in skymule run (the UAV was elsewhere, or the policy "
+        "chose another tower)"
     )

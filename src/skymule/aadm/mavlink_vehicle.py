@@ -53,9 +53,7 @@ def parse_mavlink_address(text: str) -> tuple[str, int]:
     scheme, sep, rest = text.partition("://")
     host, colon, port = rest.rpartition(":")
     if not sep or scheme not in ("udp", "udpin") or not colon or not port.isdigit():
-        raise SkymuleError(
-            f"--mavlink {text!r}: expected udp://[HOST]:PORT, like udp://:14540"
-        )
+        raise SkymuleError(f"--mavlink {text!r}: expected udp://[HOST]:PORT, like udp://:14540")
     number = int(port)
     if not 0 < number < 65536:
         raise SkymuleError(f"--mavlink {text!r}: port {number} is not 1..65535")
@@ -189,7 +187,9 @@ class MavlinkTestVehicle:
             | mav.MAV_SYS_STATUS_PREARM_CHECK
         )
         # present, enabled, healthy; no load, 16.8 V, current unknown, 100 %, no errors
-        self.link.mav.sys_status_send(sensors, sensors, sensors, 0, 16800, -1, 100, 0, 0, 0, 0, 0, 0)
+        self.link.mav.sys_status_send(
+            sensors, sensors, sensors, 0, 16800, -1, 100, 0, 0, 0, 0, 0, 0
+        )
         with self._lock:
             lat, lon = self._latlon_e7(self.xy)
             z_mm = round(self.z * 1000)

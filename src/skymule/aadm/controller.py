@@ -604,9 +604,18 @@ def tower_verdict(n_towers: int) -> Callable[[bytes], net.Verdict]:
     return verdict
 
 
+def one_recv(data: bytes) -> net.Verdict:
+    """The testbed's reading: whatever one ``recv(1024)`` returns is the message."""
+    return "whole"
+
+
 def _serve_poll(core: ControllerCore) -> Callable[[socket.socket, str], None]:
+    testbed = core.dialect == "testbed"
+    request = one_recv if testbed else request_verdict
+    tower = one_recv if testbed else tower_verdict(core.n_towers)
+
     def handle(sock: socket.socket, peer: str) -> None:
-        data = net.receive(sock, request_verdict, first_byte_s=net.FIRST_BYTE_S)
+        data = net.receive(sock, request, first_byte_s=net.FIRST_BYTE_S)
         if data is None:
             return
         round_start = core.pacer.admit() if core.pacer is not None else None
@@ -614,7 +623,7 @@ def _serve_poll(core: ControllerCore) -> Callable[[socket.socket, str], None]:
         sock.sendall(reply.encode())
         if snapshot is None:
             return
-        choice = net.receive(sock, tower_verdict(core.n_towers))
+        choice = net.receive(sock, tower)
         if choice is None:
             log.info("UAV disconnected before naming a tower; poll not counted")
             return
@@ -624,8 +633,10 @@ def _serve_poll(core: ControllerCore) -> Callable[[socket.socket, str], None]:
 
 
 def _serve_telemetry(core: ControllerCore) -> Callable[[socket.socket, str], None]:
+    line = one_recv if core.dialect == "testbed" else net.text_line
+
     def handle(sock: socket.socket, peer: str) -> None:
-        data = net.receive(sock, net.text_line, first_byte_s=net.FIRST_BYTE_S)
+        data = net.receive(sock, line, first_byte_s=net.FIRST_BYTE_S)
         if data is not None:
             sock.sendall(core.telemetry(data.decode("utf-8", "replace"), peer).encode())
 

@@ -472,6 +472,9 @@ def test_cli_fly_prints_the_comparison(small: Path) -> None:
             "kinematic, mavsdk",
         ),
         (["aadm", "agent", "{small}", "--policy", "hgad", "--files", "nowhere"], "no such folder"),
+        (["aadm", "controller", "{small}", "--clock", "sundial"], "allowed: wall, poll"),
+        (["aadm", "controller", "{small}", "--dialect", "loose"], "allowed: testbed, lenient"),
+        (["aadm", "controller", "{small}", "--speed", "0"], "--speed 0"),
     ],
 )
 def test_cli_bad_input_is_one_line_and_exit_2(

@@ -12,23 +12,37 @@ Accounting (:mod:`skymule.aadm.score`), per poll:
 * the volumes are shared at the first poll with the UAV above 24 m; t1 starts there;
 * when the UAV names a tower, the tower's SNR *of this poll* goes through the AADM CQI table
   x 1.4 MHz x ``poll_s`` (the nominal 1 s) and is added to the tower's total, clipped to its
-  volume (:func:`~skymule.aadm.score.poll_download_bit`);
-* the clock is the poll count: poll k after sharing stands for [k, k+1) x ``poll_s`` of t1,
-  however fast the UAV polls (a 10-Hz test run is the same mission as a 1-Hz flight; the
-  testbed's controller uses the wall clock); t1 at completion is (k+1) x ``poll_s``;
-* serving stops when poll k starts at or after the window (k x poll_s >= 500 s), once
-  everything is downloaded, or when the telemetry says the UAV disarmed after sharing (a
-  disarmed or landed UAV is not served; the testbed then answers "Cannot share now").
+  volume (:func:`~skymule.aadm.score.poll_download_bit`).
+
+Two clocks (``clock``):
+
+* ``wall``, the testbed's: t1 is the wall time from sharing to the first telemetry message
+  after the download completed, the window closed or the UAV disarmed (the controller learns
+  of each only from telemetry, and answers that message with the score line); at most one
+  poll is answered a second (:class:`Pacer`); polls are served and credited after 500 s until
+  that message; after it, a poll in a new round gets "The system is currently off".
+  :class:`WallClock` may run faster than real time for tests;
+* ``poll``, for accelerated runs: poll k after sharing stands for [k, k+1) x ``poll_s`` of t1
+  however fast the UAV polls (a 10-Hz test run is the same mission as a 1-Hz flight, and the
+  flight equals ``skymule run``); t1 at completion is (k+1) x ``poll_s``; serving stops when
+  poll k starts at or after the window, once everything is downloaded, or when the telemetry
+  says the UAV disarmed after sharing.
+
+Two dialects (``dialect``): ``testbed`` reads each message as one ``recv`` returns it, serves
+any request as a poll, takes only a bare digit as a tower id (``1\n`` is ``Invalid BS
+Number``: nothing downloaded, the poll still counting) and warns in one line for what would
+fail on the testbed; ``lenient`` strips whitespace and refuses requests other than ``snr_dd``.
 
 Where this emulator differs from the testbed's controller, on purpose: its SNR is the one at
 the UAV's position at this poll (the testbed's controller asks its towers after each poll, so
-its SNR is one poll old), a request that is not ``snr_dd`` gets an error instead of a poll,
-and a session is bound to its UAV: the address whose poll got the volumes owns the polls, the
-first telemetry sender owns the telemetry (others are refused with one line).
+its SNR is one poll old); a session is bound to its UAV (the first valid telemetry sender owns
+the telemetry and the polls; without telemetry, the address whose poll got the volumes), and
+telemetry values are range-checked; after the score it keeps answering (the testbed closes
+its telemetry port).
 
 One row a served poll goes to the download log (:class:`~skymule.aadm.files.DownloadLogWriter`)
-with the emulated time (sharing time + k x poll_s). A client that disconnects mid-poll costs
-nothing (the poll is not counted).
+with the emulated time (sharing time + k x poll_s; on the wall clock the report's time). A
+client that disconnects mid-poll costs nothing (the poll is not counted).
 """
 
 from __future__ import annotations

@@ -57,11 +57,18 @@ def policy_context(mission: Mission) -> MissionContext:
 
 @dataclass(frozen=True)
 class AgentStep:
-    """One decision: the tower to name (1..N), where to fly, and the policy's own choice."""
+    """One decision: the tower to name (1..N), where to fly, and the policy's own choice.
+
+    ``goto_m`` is where the engine's UAV is at the end of this slot; ``lead_m`` where it is
+    at the end of the next one, along the same path: the goal for a vehicle that flies in real
+    time (a MAVLink autopilot), which then never stops at the slot's end point to wait for the
+    next poll (it lagged the engine by the poll's own time every slot, and ended up elsewhere).
+    """
 
     tower_id: int
     goto_m: tuple[float, float] | None
     serve: int | None
+    lead_m: tuple[float, float] | None = None
 
 
 class AadmAgent:
@@ -146,10 +153,10 @@ class AadmAgent:
         serve = int(check_actions(action, 1, self.n_towers, self.policy.name)[0])
         hover = action.hover is not None and bool(np.asarray(action.hover)[0])
         goto_m = None if action.goto_m is None else np.asarray(action.goto_m, float)[0]
-        goto = self._goal(goto_m, hover, position)
+        goto, lead = self._goal(goto_m, hover, position)
         self.slot += 1
         tower = serve if serve >= 0 else self._idle_tower(remaining, seen)
-        return AgentStep(tower + 1, goto, None if serve < 0 else serve)
+        return AgentStep(tower + 1, goto, None if serve < 0 else serve, lead)
 
     def _idle_tower(self, remaining: np.ndarray, snr: np.ndarray) -> int:
         # the protocol needs a tower every poll: name an empty one, so that nothing is
@@ -159,20 +166,25 @@ class AadmAgent:
 
     def _goal(
         self, goto_m: np.ndarray | None, hover: bool, position: np.ndarray
-    ) -> tuple[float, float] | None:
+    ) -> tuple[tuple[float, float] | None, tuple[float, float] | None]:
+        """(end of this slot, end of the next one if the goal stays) by the engine's rules."""
         if not self.autonomous:
             track = self.mission.track
             if track is None:
-                return None
+                return None, None
             if not hover:
                 self._track_sample = min(self._track_sample + 1, track.n_samples - 1)
             target = track.position_m[self._track_sample]
-            return float(target[0]), float(target[1])
+            ahead = track.position_m[
+                min(self._track_sample + (0 if hover else 1), track.n_samples - 1)
+            ]
+            return (float(target[0]), float(target[1])), (float(ahead[0]), float(ahead[1]))
         # the engine's own motion rule (fence, speed cap, return home): one step ahead
         assert self._engine is not None
         goal = np.full((1, 2), np.nan) if goto_m is None else goto_m.reshape(1, 2)
         moved = self._engine.moves_from(position[None, :2], goal, np.array([self.slot]))[0]
-        return float(moved[0]), float(moved[1])
+        ahead = self._engine.moves_from(moved[None], goal, np.array([self.slot + 1]))[0]
+        return (float(moved[0]), float(moved[1])), (float(ahead[0]), float(ahead[1]))
 
 
 # ---------------------------------------------------------------------------
@@ -280,6 +292,8 @@ class _Pilot:
                 self.agent.start(volumes_mbit)
             step = self.agent.step(snr, np.zeros(len(snr)), position, remaining_bit=remaining_bit)
             tower, goto = step.tower_id, step.goto_m
+            if getattr(self.vehicle, "real_time", False) and step.lead_m is not None:
+                goto = step.lead_m  # it flies on while the next poll is made
             if kind == "download_complete" or self.agent.finished:
                 self.done = True
         if self.done:

@@ -123,9 +123,9 @@ class MavlinkTestVehicle:
             with self._lock:
                 self._fly((now - last) * self.time_scale)
             last = now
-            if now >= next_fast:
+            if now >= next_fast:  # 10 Hz of the vehicle's own clock (at most 100 Hz)
                 self._send_position()
-                next_fast = now + 0.1
+                next_fast = now + max(0.01, 0.1 / self.time_scale)
             if now >= next_slow:
                 self._send_status()
                 next_slow = now + 1.0

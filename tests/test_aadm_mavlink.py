@@ -138,7 +138,7 @@ async def main(address, grpc_port):
     await drone.action.goto_location(lat, lon, home.absolute_altitude_m + 30.0, 0.0)
     async for where in drone.telemetry.position():
         north = (where.latitude_deg - home.latitude_deg) * 111_320.0
-        if abs(north - 100.0) < 2.0:
+        if abs(north - 100.0) < 1.0:
             break
     await drone.action.land()
     async for armed in drone.telemetry.armed():

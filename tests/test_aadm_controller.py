@@ -286,9 +286,7 @@ def test_trace_source_replays_one_sample_a_poll() -> None:
     assert got[1] == pytest.approx(5.55 * 1.4 + 1.91 * 1.4)  # 25 dB then 10 dB (CQI 8.1)
 
 
-def test_a_slow_message_is_dropped_whole(
-    mission: Mission, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def test_a_slow_message_is_dropped_whole(mission: Mission, monkeypatch: pytest.MonkeyPatch) -> None:
     # lenient: a message is whole at its end (the testbed takes whatever one recv returns);
     # the deadline is on the whole message, not per byte: one byte every 0.2 s cannot hold
     # the connection past it

@@ -271,3 +271,30 @@ def test_write_env_does_not_replace_a_file_silently(tmp_path: Path) -> None:
     )
     assert done.returncode == 2 and "pass --force to replace it" in done.stderr
     assert "10.0.0.9" in env.read_text()  # untouched
+
+
+def test_towers_stop_forwarding_to_a_dead_controller_port_quietly(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    # the testbed's controller stops listening on its telemetry port after the score line
+    with socket.socket() as probe:  # a port nobody listens on
+        probe.bind(("127.0.0.1", 0))
+        dead = probe.getsockname()[1]
+    mission = build_mission(load_scenario("paper-sim-autonomous"))
+    radio = TowerRadio(mission)
+    lat, lon = mission.frame.to_latlon(0.0, 0.0)
+    line = f"alt:30.0,arm:1,rtl:0,land:0,lat:{float(lat)!r},lon:{float(lon)!r}".encode()
+    replies = []
+    with (
+        caplog.at_level("INFO", logger="skymule.aadm.towers"),
+        serve_towers(radio, telemetry_port=0, forward=("127.0.0.1", dead)) as towers,
+    ):
+        assert towers.telemetry_port is not None
+        for _ in range(5):
+            with socket.create_connection(("127.0.0.1", towers.telemetry_port), 10) as sock:
+                sock.sendall(line)
+                replies.append(sock.recv(1024).decode())
+        assert ask_tower("127.0.0.1", towers.ports[0], 1) > -99  # the position still counts
+    assert replies == ["None"] * 5
+    said = [r for r in caplog.records if "does not answer" in r.getMessage()]
+    assert len(said) == 1, [r.getMessage() for r in caplog.records]

@@ -510,7 +510,8 @@ class Scenario(_Spec):
     table, shadowing, fading), ``[signal]`` (model, radio map or recorded trace),
     ``[trajectory]`` (fixed waypoints or autonomous flight: home, speed, altitude, return
     home), ``[policy]`` (name and ``[policy.params]``), ``[[faults]]`` and ``[[uavs]]``
-    (several UAVs). Load one with :func:`load_scenario`; ``to_toml_dict`` writes it back.
+    (several UAVs), ``[aadm]`` (the AADM testbed's poll cadence). Load one with
+    :func:`load_scenario`; ``to_toml_dict`` writes it back.
     """
 
     name: str = "scenario"

@@ -168,3 +168,36 @@ def test_a_disarm_ends_the_session_with_the_score(mission: Mission) -> None:
     assert core.disarmed and core.score()["aadm_score"] == pytest.approx(
         float(match.group(4)), abs=0.005
     )
+
+
+def test_strangers_polling_flat_out_do_not_take_the_uavs_turns(mission: Mission) -> None:
+    core = ControllerCore(mission, clock="wall", speed=10.0)  # 1 testbed s = 0.1 wall s
+    stop = threading.Event()
+    refused: list[str] = []
+    with serve_controller(core) as server:
+        _tell(server, _telemetry_line(mission))  # 127.0.0.1 owns the session
+
+        def flood(source: str) -> None:
+            while not stop.is_set():
+                address = (server.host, server.port)
+                with socket.create_connection(address, 10, (source, 0)) as sock:
+                    sock.sendall(b"snr_dd")
+                    refused.append(net.receive_all(sock).decode())
+
+        strangers = [threading.Thread(target=flood, args=(f"127.0.0.{k}",)) for k in range(2, 6)]
+        for stranger in strangers:
+            stranger.start()
+        try:
+            answered = []
+            for _ in range(6):
+                _poll(server.port, lambda reply: 1, pause_s=0.0)
+                answered.append(time.monotonic())
+        finally:
+            stop.set()
+            for stranger in strangers:
+                stranger.join(timeout=10)
+    # a round each (0.1 s wall): refused before they wait for a turn, the strangers take none
+    gaps = np.diff(answered)[1:]
+    assert gaps.max() < 0.18, gaps
+    assert refused and all("this session's UAV is at 127.0.0.1" in r for r in refused)
+    assert core.served_polls == 6

@@ -231,6 +231,7 @@ class ControllerCore:
         self.telemetry_host: str | None = None
         self.last_poll_at: float | None = None  # monotonic time of the last poll since sharing
         self.warnings = net.RateLimitedLog(log)
+        self.refusals = net.RateLimitedLog(log)
         self._complete_told = False
         self._start_told = False
         self._score_told = False
@@ -384,12 +385,9 @@ class ControllerCore:
                     f"request {text[:40]!r} from {peer} is not {protocol.REQUEST!r}: served "
                     "as a poll, as the testbed does"
                 )
-            owner = self.uav_host or self.telemetry_host
-            if owner is not None and peer != owner:
-                return self._refuse(
-                    f"poll from {peer}: this session's UAV is at {owner}",
-                    f"{protocol.PREFIX} ",
-                ), None
+            refusal = self._stranger_locked(peer)
+            if refusal is not None:
+                return refusal, None
             if self._off(round_start):
                 return protocol.OFF_REPLY, None
             position, armed = self._position, self._armed
@@ -430,6 +428,20 @@ class ControllerCore:
                 head = protocol.format_downloads(self.received_bit / BITS_PER_MBIT)
             serving = True if self.clock == "wall" else self._serving()
             return f"{head};{protocol.format_snr(snr)}", PollSnapshot(snr, serving)
+
+    def stranger(self, peer: str) -> str | None:
+        """The refusal for a poll from an address that is not the session's UAV, else None
+        (checked before a poll waits for its turn, so strangers cannot take the UAV's)."""
+        with self._lock:
+            return self._stranger_locked(peer)
+
+    def _stranger_locked(self, peer: str) -> str | None:
+        owner = self.uav_host or self.telemetry_host
+        if owner is None or peer == owner:
+            return None
+        return self._refuse(
+            f"poll from {peer}: this session's UAV is at {owner}", f"{protocol.PREFIX} "
+        )
 
     def _off(self, round_start: float | None) -> bool:
         """Whether the testbed's poll loop is "off": its round began after the score line."""
@@ -558,7 +570,7 @@ class ControllerCore:
 
     def _refuse(self, message: str, prefix: str) -> str:
         self.errors += 1
-        log.warning("refused: %s", message)
+        self.refusals.warning(f"refused: {message}")
         return f"{prefix}{message}"
 
     def _warn(self, message: str) -> None:
@@ -631,6 +643,10 @@ def _serve_poll(core: ControllerCore) -> Callable[[socket.socket, str], None]:
     def handle(sock: socket.socket, peer: str) -> None:
         data = net.receive(sock, request, first_byte_s=net.FIRST_BYTE_S)
         if data is None:
+            return
+        refusal = core.stranger(peer)
+        if refusal is not None:  # before waiting for a turn: strangers cannot take the UAV's
+            sock.sendall(refusal.encode())
             return
         round_start = core.pacer.admit() if core.pacer is not None else None
         reply, snapshot = core.request(data.decode("utf-8", "replace"), peer, round_start)

@@ -515,14 +515,19 @@ def run_file_agent(
     Each poll is one slot of ``poll_s`` for the vehicle; the loop waits ``pace_s`` of wall
     time between polls (default ``poll_s``; 0 = as fast as possible). ``telemetry``: the
     controller's telemetry (host, port), sent the vehicle's state each poll as the UAV's own
-    telemetry process does on the testbed (None: something else sends it); the score line
-    it gets back ends the mission (``record.score_line``).
+    telemetry process does on the testbed (None: something else sends it), from the mission
+    altitude on (the vehicle climbs first); the score line it gets back ends the mission
+    (``record.score_line``).
     """
     if poll_s <= 0:
         raise SkymuleError(f"poll_s = {poll_s:g}: each poll must stand for > 0 s")
     pilot = _Pilot(agent, vehicle, altitude_m)
     vehicle.takeoff(altitude_m)
     n_towers = agent.n_towers
+    # climb first, telling nobody: the controller shares the volumes (slot 0) at the first
+    # poll after the telemetry put the UAV above 24 m, here at the mission altitude
+    pace = poll_s if pace_s is None else pace_s
+    _climb(agent, vehicle, "", None, altitude_m, poll_s, pace, pilot.record)
     quiet = net.RateLimitedLog(log, every_s=10.0)
     for _ in range(max_polls):
         if should_stop():

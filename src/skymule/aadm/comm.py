@@ -18,7 +18,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from skymule.aadm import files
+from skymule.aadm import files, net
 from skymule.aadm.controller import poll_once
 from skymule.aadm.protocol import Reply
 from skymule.errors import SkymuleError
@@ -91,12 +91,20 @@ def run_comm(
         return _choice(folder, n_towers)
 
     polls = 0
+    reached = False
+    quiet = net.RateLimitedLog(log, every_s=5.0)
     while polls < max_polls and not should_stop():
         started = time.monotonic()
         try:
             reply, _ = poll_once(host, port, choose, n_towers)
-        except (TimeoutError, SkymuleError) as exc:  # as the challenge's script: poll again
-            log.warning("poll failed: %s", exc)
+            reached = True
+        except ConnectionRefusedError:
+            if not reached:  # no controller at all: say so (the CLI's one line)
+                raise
+            quiet.warning(f"poll failed: no controller listening on {host}:{port}")
+            reply = None
+        except (OSError, SkymuleError) as exc:  # as the challenge's script: poll again
+            quiet.warning(f"poll failed: {exc}")
             reply = None
         if reply is not None and reply.kind == "error":
             raise SkymuleError(f"controller {host}:{port} refused the poll: {reply.text}")

@@ -29,6 +29,7 @@ from pydantic import (
 )
 from pydantic_core import ErrorDetails, PydanticCustomError
 
+from skymule.aadm.rules import TESTBED_POLL_INTERVAL_S
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.faults.specs import SINGLE_KINDS, fault_params
 from skymule.io.textfiles import parse_toml, read_text
@@ -116,6 +117,16 @@ class MissionSpec(_Spec):
     aadm_window_s: PositiveFloat | None = None
     """Close the download window this long after the start [s], as the AADM controller does
     at 500 s: later slots serve nothing. None: downloads count until the mission ends."""
+
+
+class AadmSpec(_Spec):
+    """How the AADM testbed runs a mission (``skymule.aadm.score.predicted_testbed_score``)."""
+
+    poll_interval_s: Annotated[float, Field(ge=1.0, le=10.0)] = TESTBED_POLL_INTERVAL_S
+    """Mean wall time between the UAV's polls on the testbed [s] (1.031: 330 polls in 339.2 s
+    of the recorded flight log; its controller answers at most one poll a second)."""
+    poll_jitter_s: Annotated[float, Field(ge=0.0, le=5.0)] = 0.0
+    """Standard deviation of that time [s], drawn from the scenario's seed (0: steady)."""
 
 
 class SiteSpec(_Spec):
@@ -523,7 +534,8 @@ class Scenario(_Spec):
     table, shadowing, fading), ``[signal]`` (model, radio map or recorded trace),
     ``[trajectory]`` (fixed waypoints or autonomous flight: home, speed, altitude, return
     home), ``[policy]`` (name and ``[policy.params]``), ``[[faults]]`` and ``[[uavs]]``
-    (several UAVs). Load one with :func:`load_scenario`; ``to_toml_dict`` writes it back.
+    (several UAVs), ``[aadm]`` (the AADM testbed's poll cadence). Load one with
+    :func:`load_scenario`; ``to_toml_dict`` writes it back.
     """
 
     name: str = "scenario"
@@ -540,6 +552,8 @@ class Scenario(_Spec):
     """Faults injected into the mission (none by default); see docs/faults.md."""
     uavs: list[UavSpec] | None = None
     """Several UAVs sharing the sensors' buffers (``docs/fleet.md``); None: one UAV."""
+    aadm: AadmSpec | None = None
+    """The AADM testbed's poll cadence (docs/aadm.md); None: its recorded 1.031 s a poll."""
     base_dir: str = Field(default=".", exclude=True)
     """Folder that relative paths in the scenario are resolved against (not serialised)."""
 

@@ -322,7 +322,8 @@ def evaluate(
     split: str, policies: bool = True,
 ) -> list[Row]:  # fmt: skip
     """Fit every map of METHODS on ``seen`` (+ the DT), score it on ``held``, with the
-    reference rows; policy errors from sim2real when ``policies`` (a held-out part that is
+    reference rows; each policy's decision regret (its decisions on the map, executed on the
+    held-out trace, against its decisions there) from sim2real when ``policies`` (a held-out part that is
     one stretch of flight)."""
     maps, fit_s = {}, {}
     for label, method, prior in METHODS:
@@ -348,7 +349,7 @@ def evaluate(
     if policies:
         result = sim2real(scenario, held, list(maps.values()), list(POLICIES))
         for label, twin in zip(maps, result.twins, strict=True):
-            errors[label] = {p: twin.policies[p]["error"] for p in POLICIES}  # type: ignore[misc]
+            errors[label] = {p: twin.policies[p]["regret"] for p in POLICIES}  # type: ignore[misc]
     return [
         Row(label, split, rmse, bias, cover, errors[label], fit_s.get(label, 0.0))
         for label, (rmse, bias, cover) in zip(labels, scores, strict=True)
@@ -373,7 +374,7 @@ def oracle_row(world: World, scenario: Scenario, held: Path, split: str) -> Row:
 
 COLUMNS = [
     "map", "held out", "SNR RMSE [dB]", "over the noise floor [dB]", "bias [dB]",
-    "in the 95% interval", "Greedy Mbit error", "HGAD Mbit error", "fit CPU [s]",
+    "in the 95% interval", "Greedy regret", "HGAD regret", "fit CPU [s]",
 ]  # fmt: skip
 
 
@@ -394,7 +395,7 @@ def cells(r: Row, floor_db: float | None) -> list[str]:
 def print_rows(title: str, rows: list[Row], floor_db: float | None) -> None:
     print(title)
     head = f"  {'map':<20} {'split':<16} {'SNR RMSE':>9} {'- floor':>8} {'bias':>6}"
-    print(head + f" {'in 95%':>7} {'greedy err':>11} {'hgad err':>9} {'fit CPU s':>10}")
+    print(head + f" {'in 95%':>7} {'greedy reg':>11} {'hgad reg':>9} {'fit CPU s':>10}")
     for r in rows:
         c = cells(r, floor_db)
         print(
@@ -404,7 +405,7 @@ def print_rows(title: str, rows: list[Row], floor_db: float | None) -> None:
 
 
 def mean_rows(rows: list[Row]) -> list[Row]:
-    """Per (map, split), the mean over worlds (policy errors: mean of |error|)."""
+    """Per (map, split), the mean over worlds (decision regret too)."""
     out = []
     for split in dict.fromkeys(r.split for r in rows):
         for label in dict.fromkeys(r.label for r in rows):
@@ -412,7 +413,7 @@ def mean_rows(rows: list[Row]) -> list[Row]:
             if not group:
                 continue
             errors: dict[str, float | None] = {
-                p: float(np.mean([abs(e) for e in seen])) if seen else None
+                p: float(np.mean(seen)) if seen else None
                 for p in POLICIES
                 for seen in [[r.errors[p] for r in group if r.errors[p] is not None]]
             }
@@ -495,7 +496,7 @@ def synthetic(worlds: int, json_path: Path | None) -> None:
         print_rows(f"world {seed}", rows, NOISE_DB)
         everything += rows
     means = mean_rows(everything)
-    print_rows(f"mean over {worlds} worlds (policy errors: mean |error|)", means, NOISE_DB)
+    print_rows(f"mean over {worlds} worlds (decision regret: mean)", means, NOISE_DB)
     best = next(r for r in means if r.label == LEARNED and r.split.startswith("time"))
     print(
         f"learned twin ({LEARNED}), time split: RMSE {best.rmse_db:.2f} dB, "

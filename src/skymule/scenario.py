@@ -461,7 +461,7 @@ def route_policy_params(
 def plugin_default_overrides(params: dict[str, Any], names: Sequence[str], owner: str) -> list[str]:
     """One line for each ``[policy.params]`` key written for the scenario's own policy
     ``owner`` that replaces the default a *plug-in* among ``names`` declares for it (a
-    preset's HGAD ``max_hover_s = 60`` given to a plug-in whose own default is 40): the value
+    preset's HGAD longest hover given to a plug-in whose own default is shorter): the value
     is applied, as :func:`route_policy_params` shares it out, and the user is told."""
     lines = []
     shares = route_policy_params(params, names, owner)

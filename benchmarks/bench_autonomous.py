@@ -12,6 +12,8 @@ of revision REV, e.g. 4ddfba8, the last with it) runs the same single missions f
 ``git archive`` of REV, and the batched engine's ratio to it is printed too.
 Each speed is the best of ``repeats`` runs (CPU time; the machine is shared).
 Run: python benchmarks/bench_autonomous.py [n_random [n_batched [repeats]]] [--reference-rev REV]
+[--json PATH] (``benchmarks/results/autonomous.json``: the speed table's autonomous rows,
+docs/speed.md)
 """
 
 from __future__ import annotations
@@ -26,8 +28,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from _sizes import size
 
+from _results import json_option, table, write
+from _sizes import size
 from skymule.experiments.layouts import random_autonomous_scenario
 from skymule.metrics.summary import summarize
 from skymule.policies import HGAD, Greedy
@@ -100,10 +103,10 @@ def previous_reference(revision: str, n_random: int, repeats: int) -> dict[str, 
     return {name: float(rate) for name, rate in (line.split() for line in out.splitlines())}
 
 
-def speed(n_random: int, n_batched: int, repeats: int, revision: str | None) -> None:
+def speed(n_random: int, n_batched: int, repeats: int, revision: str | None) -> list[list[str]]:
     """Missions and mission-slots per CPU-second one mission at a time, and of the batched
     sweep path on ``n_batched`` further random layouts, with the ratio per mission; each figure
-    the best of ``repeats`` runs."""
+    the best of ``repeats`` runs. Returns the speed table's rows (docs/speed.md)."""
     base = load_scenario(PRESET)
     rng = np.random.default_rng(0)
     scenarios = [base, *(random_autonomous_scenario(rng, base) for _ in range(n_random))]
@@ -138,6 +141,7 @@ def speed(n_random: int, n_batched: int, repeats: int, revision: str | None) -> 
         f"({len({m.n_sensors for m in batch})} sensor counts), per CPU-s, ratio to one at a time:"
     )
     engines = ("numpy", "compiled") if compiled.available() else ("numpy",)
+    batched: dict[tuple[str, str], float] = {}
     for name in ("greedy", "hgad"):
         spec = PolicySpec(name=name)
         rates = {}
@@ -150,15 +154,65 @@ def speed(n_random: int, n_batched: int, repeats: int, revision: str | None) -> 
                 repeats,
             )
             rates[engine] = len(batch) / seconds
+            batched[name, engine] = rates[engine]
             versus = f", {rates[engine] / rates['numpy']:.2f}x numpy" if engine != "numpy" else ""
             old = ""
             if name in reference:
                 old = f", {rates[engine] / reference[name]:.1f}x the previous reference"
-            print(  # the engine last: README's parser reads the last line of each policy
+            print(
                 f"  {name:6s} {rates[engine]:8.1f} missions, {slots / seconds:10,.0f} "
                 f"mission-slots, {rates[engine] / single[name]:5.1f}x one at a time{old} "
                 f"({engine}{versus})"
             )
+    return speed_rows(single, reference, batched, (n_random, n_batched, repeats), revision)
+
+
+def speed_rows(
+    single: dict[str, float],
+    reference: dict[str, float],
+    batched: dict[tuple[str, str], float],
+    sizes: tuple[int, int, int],
+    revision: str | None,
+) -> list[list[str]]:
+    """The speed table's rows from missions per CPU-s: one at a time, the previous reference
+    engine's (may be empty) and the batched engine's by (policy, engine); ``sizes``: random
+    layouts one at a time, batched layouts, repeats."""
+    n_random, n_batched, repeats = sizes
+    old = (
+        f" (the previous reference engine, {revision}, in the same run: Greedy "
+        f"{reference['greedy']:.0f}, HGAD {reference['hgad']:.0f})"
+        if reference
+        else ""
+    )
+    rows = [
+        [
+            f"autonomous missions, one at a time (`run_mission`; preset + {n_random} random "
+            f"layouts; best of {repeats} runs)",
+            f"Greedy {single['greedy']:.0f}, HGAD {single['hgad']:.0f} missions per CPU-s{old}",
+            f"`python benchmarks/bench_autonomous.py --reference-rev {revision}`"
+            if revision
+            else "`python benchmarks/bench_autonomous.py`",
+        ]
+    ]
+    for engine, what in (
+        ("numpy", f"batched, numpy ({n_batched:,} random layouts, `summarize_missions`: a batch "
+                  f"per sensor count, ~{n_batched // 4:,} each)"),
+        ("compiled", "batched, compiled (`fast` extra)"),
+    ):  # fmt: skip
+        if ("greedy", engine) not in batched:
+            continue
+        parts = []
+        for name, label in (("greedy", "Greedy"), ("hgad", "HGAD")):
+            rate = batched[name, engine]
+            versus = ""
+            if reference:
+                versus = f", **×{rate / reference[name]:.0f}** the previous reference"
+            parts.append(
+                f"{label} {rate:,.0f} missions per CPU-s (×{rate / single[name]:.0f} one at a "
+                f"time{versus})"
+            )
+        rows.append([f"autonomous missions, {what}", "; ".join(parts), "same"])
+    return rows
 
 
 def main(
@@ -166,6 +220,7 @@ def main(
     n_batched: int = size(1000, 8),
     repeats: int = size(5, 1),
     revision: str | None = None,
+    json_path: Path | None = None,
 ) -> None:
     scenario = load_scenario(PRESET)
     mission = build_mission(scenario)
@@ -191,12 +246,14 @@ def main(
             for p in ("initial", "remaining")
         ]
         print(f"  {buffers}  {paper}  {orders[0]} ({orders[0] == paper})  {orders[1]}")
-    speed(n_random, n_batched, repeats, revision)
+    rows = speed(n_random, n_batched, repeats, revision)
+    write(json_path, {"speed-autonomous": table(["what", "figure", "command"], rows, align="lll")})
 
 
 if __name__ == "__main__":
+    json_path = json_option()
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("sizes", nargs="*", type=int, help="n_random n_batched repeats")
     parser.add_argument("--reference-rev", help="also time this revision's reference engine")
     args = parser.parse_args()
-    main(*args.sizes, revision=args.reference_rev)
+    main(*args.sizes, revision=args.reference_rev, json_path=json_path)

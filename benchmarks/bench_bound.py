@@ -20,7 +20,8 @@ Then, for the fixed presets ``paper-sim-fixed`` and ``aadm-default``: the bound 
 without hovering), each policy's download and its gap to the bound (Mbit and fraction).
 
 Run: ``python benchmarks/bench_bound.py`` (``--quick`` skips the 36,000-slot case;
-``SKYMULE_BENCH_TINY=1``: one preset, 50-120-slot paths)
+``SKYMULE_BENCH_TINY=1``: one preset, 50-120-slot paths; ``--json PATH``, e.g.
+``benchmarks/results/bound.json``: the speed table's bound row, docs/speed.md)
 """
 
 from __future__ import annotations
@@ -29,8 +30,9 @@ import argparse
 import time
 
 import numpy as np
-from _sizes import size
 
+from _results import json_option, table, write
+from _sizes import size
 from skymule.bounds.autonomous import best_rate_bps, time_sharing_lp
 from skymule.bounds.fixed import LP_METHOD, fixed_path_bound
 from skymule.bounds.fleet import fleet_time_sharing_lp
@@ -104,9 +106,13 @@ def _solve(
     return time.process_time() - start, res.upper_bound_bit, res.status
 
 
-def scale_case(label: str, rate: np.ndarray, buffers: np.ndarray, target_s: float) -> None:
+def scale_case(
+    label: str, rate: np.ndarray, buffers: np.ndarray, target_s: float
+) -> tuple[float, float, float]:
     """Print, with and without hover, the new method's time (vs target for the hover bound),
-    the previous method's time, the ratio and the bounds' relative difference."""
+    the previous method's time, the ratio and the bounds' relative difference; return the
+    hover bound's (new CPU s, previous CPU s, relative difference)."""
+    found = []
     for hover in (True, False):
         new_s, new_bit, status = _solve(rate, buffers, "columns", hover)
         old_s, old_bit, _ = _solve(rate, buffers, "full", hover)
@@ -119,6 +125,8 @@ def scale_case(label: str, rate: np.ndarray, buffers: np.ndarray, target_s: floa
             f"{abs(new_bit - old_bit) / old_bit:.1e} (relative)",
             flush=True,
         )
+        found.append((new_s, old_s, abs(new_bit - old_bit) / old_bit))
+    return found[0]
 
 
 def other_bounds(n_slots: int) -> None:
@@ -151,19 +159,23 @@ def other_bounds(n_slots: int) -> None:
 
 
 def main() -> None:
+    json_path = json_option()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="skip the 36,000-slot case")
     args = parser.parse_args()
     short, long = size((3600, 36000), (60, 120))  # slots (tiny mode: a smoke run)
-    scale_case(
+    cases = {}
+    cases[short, 16] = scale_case(
         f"bound {short} slots x 16 sensors",
         rates_bps(lawnmower_xy(short), grid_sensors(4)),
         np.resize(BUFFERS_BIT, 16) / 4,
         5.0,
     )
-    scale_case(f"bound {short} slots x 4 sensors", rates_bps(lawnmower_xy(short)), BUFFERS_BIT, 5.0)
+    cases[short, 4] = scale_case(
+        f"bound {short} slots x 4 sensors", rates_bps(lawnmower_xy(short)), BUFFERS_BIT, 5.0
+    )
     if not args.quick:
-        scale_case(
+        cases[long, 4] = scale_case(
             f"bound {long} slots x 4 sensors",
             rates_bps(lawnmower_xy(long)),
             BUFFERS_BIT * 20,  # ten hours: buffers large enough that the bound is not their sum
@@ -183,6 +195,22 @@ def main() -> None:
                 f"{time.process_time() - start:.2f} s CPU, {res.upper_bound_bit / 1e6:.1f} Mbit "
                 f"[last sample {res.last_sample}, {res.status}]"
             )
+    write(json_path, {"speed-bound": speed_row(cases)})
+
+
+def speed_row(cases: dict[tuple[int, int], tuple[float, float, float]]) -> dict[str, object]:
+    """The speed table's bound row: (slots, sensors) -> (new s, previous s, difference)."""
+    what = " / ".join(f"{slots:,} × {sensors}" for slots, sensors in cases)
+    new = " / ".join(f"{new_s:.2f} s" for new_s, _, _ in cases.values())
+    old = " / ".join(f"{old_s:.2f} s" for _, old_s, _ in cases.values())
+    worst = max(diff for *_, diff in cases.values())
+    row = [
+        "fixed-path bound (column generation on HiGHS interior point), slots × sensors",
+        f"{what}: {new} CPU (every-column LPs in the same run: {old}); bounds differ by at "
+        f"most {worst:.0e} (relative)",
+        "`python benchmarks/bench_bound.py`",
+    ]
+    return table(["what", "figure", "command"], [row], align="lll")
 
 
 if __name__ == "__main__":

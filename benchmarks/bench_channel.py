@@ -2,16 +2,21 @@
 shadowing, and radio-map queries (fast path and dense reference). Prints wall-clock
 seconds (best of 3).
 
-    python benchmarks/bench_channel.py     (SKYMULE_BENCH_TINY=1: 2,000 positions, 1 run)
+    python benchmarks/bench_channel.py [--json PATH]
+    (SKYMULE_BENCH_TINY=1: 2,000 positions, 1 run)
+
+``--json benchmarks/results/channel.json``: the speed table's SNR row (docs/speed.md).
 """
 
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import numpy as np
-from _sizes import size
 
+from _results import json_option, table, write
+from _sizes import size
 from skymule.geo import LocalFrame, sensor_positions_m
 from skymule.radio.channel import signal_source
 from skymule.radio.kriging import krige_dense
@@ -33,7 +38,7 @@ def best_of(fn, repeats: int = REPEATS) -> float:
     return min(times)
 
 
-def main() -> None:
+def main(json_path: Path | None = None) -> None:
     base = load_scenario("aadm-default")
     frame = LocalFrame(base.site.origin.lat, base.site.origin.lon)
     sensor_m = sensor_positions_m(base.sensors, frame)
@@ -43,10 +48,12 @@ def main() -> None:
          np.full(N_POSITIONS, 30.0)]
     )  # fmt: skip
     print(f"SNR for {len(sensor_m)} sensors x {N_POSITIONS:,} positions [s, best of {REPEATS}]")
+    seconds = {}
     for name in PATHLOSS_MODELS.names():
         scenario = base.model_copy(update={"radio": base.radio.model_copy(update={"model": name})})
         source = signal_source(scenario, frame, sensor_m)
-        print(f"  {name:<14} {best_of(lambda s=source: s.snr_db(positions)):.3f}")
+        seconds[name] = best_of(lambda s=source: s.snr_db(positions))
+        print(f"  {name:<14} {seconds[name]:.3f}")
     shadowed = base.model_copy(
         update={"radio": base.radio.model_copy(update={"shadowing_std_db": 6.0})}
     )
@@ -82,6 +89,13 @@ def main() -> None:
         f"  radio map: dense reference {n} sensors x {N_POSITIONS:,} positions {dense:.3f} "
         f"(max |fast - dense| {error:.1e} dB)"
     )
+    row = [
+        f"SNR, {len(sensor_m)} sensors × {N_POSITIONS:,} positions, fspl + shadowing",
+        f"{build + query:.2f} s (field draw {build:.2f} s + query {query:.2f} s); "
+        f"fspl alone {seconds['fspl']:.2f} s",
+        "`python benchmarks/bench_channel.py`",
+    ]
+    write(json_path, {"speed-channel": table(["what", "figure", "command"], [row], align="lll")})
 
 
 def dense_snr_db(maps, positions: np.ndarray) -> np.ndarray:
@@ -93,4 +107,4 @@ def dense_snr_db(maps, positions: np.ndarray) -> np.ndarray:
 
 
 if __name__ == "__main__":
-    main()
+    main(json_option())

@@ -16,10 +16,12 @@ import importlib.util
 import sys
 import time
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
-from _sizes import size
 
+from _results import json_option, table, write
+from _sizes import size
 from skymule.policies import Greedy
 from skymule.scenario import load_scenario
 from skymule.sim.fixed import stack_tracks
@@ -58,7 +60,7 @@ def best_cpu(run, repeats: int = 3) -> float:  # type: ignore[no-untyped-def]
     return min(times)
 
 
-def main(n_missions: int = size(2000, 10)) -> None:
+def main(n_missions: int = size(2000, 10), json_path: Path | None = None) -> None:
     base = build_mission(load_scenario("paper-sim-fixed"))
     rng = np.random.default_rng(0)
     missions = [
@@ -66,15 +68,19 @@ def main(n_missions: int = size(2000, 10)) -> None:
         for _ in range(n_missions)
     ]
     slots = n_missions * base.n_slots
+    columns = ["compiler", "mission-slots per CPU-s [M]", "same bits as numba"]
     if importlib.util.find_spec("numba") is None:
         print("  numba not installed (pip install skymule[fast]): comparison skipped")
+        write(json_path, {"compilers": table(columns, [])})
         return
     result = run_missions(missions, Greedy(), detail=False, engine="compiled")
     numba_s = best_cpu(lambda: run_missions(missions, Greedy(), detail=False, engine="compiled"))
     print(f"Greedy, {n_missions} missions x {base.n_slots} slots x {base.n_sensors} sensors")
     print(f"  numba (skymule compiled loop): {slots / numba_s / 1e6:7.1f} M mission-slots/CPU-s")
+    rows = [["numba (skymule compiled loop)", f"{slots / numba_s / 1e6:.1f}", "true"]]
     if importlib.util.find_spec("jax") is None:
         print("  JAX   not installed (pip install jax): comparison skipped")
+        write(json_path, {"compilers": table(columns, rows)})
         return
     # the track holds at its last sample: the slot-t sample is min(t, K - 1)
     tables = stack_tracks(missions)
@@ -88,7 +94,10 @@ def main(n_missions: int = size(2000, 10)) -> None:
     same = np.array_equal(np.ascontiguousarray(np.asarray(bits).T), result.downloaded_bit)
     print(f"  JAX   (lax.scan over slots):   {slots / jax_s / 1e6:7.1f} M mission-slots/CPU-s")
     print(f"  same bits in every mission-slot: {same}")
+    rows.append(["JAX (lax.scan over slots)", f"{slots / jax_s / 1e6:.1f}", str(same).lower()])
+    write(json_path, {"compilers": table(columns, rows)})
 
 
 if __name__ == "__main__":
-    main(*(int(a) for a in sys.argv[1:]))
+    json_path = json_option()
+    main(int(sys.argv[1]) if len(sys.argv) > 1 else size(2000, 10), json_path=json_path)

@@ -1,8 +1,9 @@
 """Fixed-path Greedy/HGAD on the engine: the compiled twin vs the numpy slot loop vs one mission
 at a time.
 
-Run: python benchmarks/bench_engine.py [n_missions] [n_single] [repeats]
-(SKYMULE_BENCH_TINY=1: 20 missions, 2 single, 1 repeat)
+Run: python benchmarks/bench_engine.py [n_missions] [n_single] [repeats] [--json PATH]
+(~2 min; SKYMULE_BENCH_TINY=1: 4 missions of 40 slots, 1 single, 1 repeat, a 16 MB copy;
+``--json benchmarks/results/engine.json``: the speed table's engine rows, docs/speed.md)
 
 Missions: paper-sim-fixed (4 sensors, 500 slots) with random buffers. For each policy it prints
 mission-slots per CPU-second (the machine is shared, so CPU time of this process is the fair
@@ -31,8 +32,9 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from _sizes import size
 
+from _results import json_option, table, write
+from _sizes import size
 from skymule.policies import batch_policy
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
 from skymule.sim import compiled
@@ -58,8 +60,10 @@ def memory_bandwidth_bps(repeats: int = 5, size_bytes: int = 256 * 2**20) -> flo
     return 2 * size_bytes / seconds
 
 
-def bench_policy(name: str, missions: list[Mission], n_single: int, repeats: int) -> float:
-    """Print each path's mission-slots per CPU-second; returns compiled + summaries (or 0)."""
+def bench_policy(
+    name: str, missions: list[Mission], n_single: int, repeats: int
+) -> dict[str, float]:
+    """Print each path's mission-slots per CPU-second and return them by path."""
     specs = [PolicySpec(name=name)] * len(missions)
     names = [m.scenario.name for m in missions]
 
@@ -74,7 +78,7 @@ def bench_policy(name: str, missions: list[Mission], n_single: int, repeats: int
     )
     print(f"{name:6s} {'single (' + str(n_single) + ' missions)':28s} {rate / 1e6:8.2f} M")
     engines = ["numpy", "compiled"] if compiled.available() else ["numpy"]
-    rates: dict[str, float] = {}
+    rates: dict[str, float] = {"single": rate}
     for engine in engines:
         paths: dict[str, Callable[[], object]] = {
             "loop": lambda e=engine: loop(e),
@@ -90,7 +94,7 @@ def bench_policy(name: str, missions: list[Mission], n_single: int, repeats: int
                 ratio = f"x{rates[f'{engine} {label}'] / rates[f'numpy {label}']:.1f} vs numpy"
             print(f"{name:6s} {engine + ' ' + label:28s} {rates[f'{engine} {label}'] / 1e6:8.2f} M"
                   f"  {ratio}")  # fmt: skip
-    return rates.get("compiled + summaries", 0.0)
+    return rates
 
 
 def bench_faults(base: Mission, n_missions: int, repeats: int) -> None:
@@ -130,8 +134,10 @@ def with_faults(scenario: Scenario, seed: int) -> Scenario:
     return scenario_from_dict(data, scenario.name, Path(scenario.base_dir))
 
 
-def main(n_missions: int = 2000, n_single: int = 50, repeats: int = 3) -> None:
-    base = build_mission(load_scenario("paper-sim-fixed"))
+def main(
+    n_missions: int = 2000, n_single: int = 50, repeats: int = 3, json_path: Path | None = None
+) -> None:
+    base = build_mission(load_scenario("paper-sim-fixed", size([], ["mission.duration_s=40"])))
     rng = np.random.default_rng(0)
     missions = [
         replace(base, buffers_bit=rng.uniform(200e6, 1500e6, base.n_sensors))
@@ -142,8 +148,7 @@ def main(n_missions: int = 2000, n_single: int = 50, repeats: int = 3) -> None:
         f"mission-slots per CPU-second, best of {repeats}"
         + ("" if compiled.available() else " (numba not installed: numpy only)")
     )
-    for name in ("greedy", "hgad"):
-        bench_policy(name, missions, n_single, repeats)
+    rates = {name: bench_policy(name, missions, n_single, repeats) for name in ("greedy", "hgad")}
     bench_faults(base, n_missions, repeats)
     # per mission-slot each loop writes served (int64), downloaded (float64), hovering (bool)
     # and the track sample (int64) (no (B, T, N) buffer log: summaries do not need it); the
@@ -151,7 +156,7 @@ def main(n_missions: int = 2000, n_single: int = 50, repeats: int = 3) -> None:
     # reductions (8 numbers and N first-visit slots) and ends (slots run, end, N buffers)
     written = 8 + 8 + 1 + 8
     per_mission = 8 * (8 + base.n_sensors) + 8 * (2 + base.n_sensors)
-    bandwidth = memory_bandwidth_bps()
+    bandwidth = memory_bandwidth_bps(size(5, 1), size(256, 16) * 2**20)
     print(
         f"bytes written per mission-slot: {written} by either loop ({written + 8 * base.n_sensors} "
         f"with the buffer log); compiled + summaries {per_mission / base.n_slots:.2f} "
@@ -159,9 +164,50 @@ def main(n_missions: int = 2000, n_single: int = 50, repeats: int = 3) -> None:
     )
     print(f"memory bandwidth (numpy copy, read + write): {bandwidth / 1e9:.1f} GB/s")
     print(f"memory-bound ceiling at {written} B: {bandwidth / written / 1e6:.0f} M mission-slots/s")
+    write(json_path, {"speed-engine": speed_rows(rates, n_missions, written, bandwidth)})
+
+
+def speed_rows(
+    rates: dict[str, dict[str, float]], n_missions: int, written: int, bandwidth: float
+) -> dict[str, object]:
+    """The speed table's engine rows (docs/speed.md) from the measured rates [slots/CPU-s]."""
+    g, h = rates["greedy"], rates["hgad"]
+    rows = [
+        [
+            "one mission at a time (`run_mission`, a batch of one), paper-sim-fixed",
+            f"{g['single'] / 1e6:.2f} M (Greedy) / {h['single'] / 1e6:.2f} M (HGAD) "
+            "mission-slots per CPU-s",
+            "`python benchmarks/bench_engine.py`",
+        ],
+        [
+            f"engine, numpy slot loop, {n_missions:,} × paper-sim-fixed",
+            f"Greedy {g['numpy + summaries'] / 1e6:.1f} M mission-slots/CPU-s with summaries "
+            f"({g['numpy loop'] / 1e6:.1f} M slot loop only), HGAD "
+            f"{h['numpy + summaries'] / 1e6:.1f} M ({h['numpy loop'] / 1e6:.1f} M)",
+            "same",
+        ],
+    ]
+    if "compiled loop" in g:
+        parts = [
+            f"{label} {r['compiled + summaries'] / 1e6:.1f} M with summaries "
+            f"(**×{r['compiled + summaries'] / r['numpy + summaries']:.1f}** numpy), "
+            f"{r['compiled loop'] / 1e6:.1f} M loop"
+            for label, r in (("Greedy", g), ("HGAD", h))
+        ]
+        rows.append(
+            [
+                "engine, compiled twin (`fast` extra, numba)",
+                f"{'; '.join(parts)}; {written} bytes written per mission-slot against "
+                f"{bandwidth / 1e9:.1f} GB/s measured memory bandwidth",
+                "same",
+            ]
+        )
+    return table(["what", "figure", "command"], rows, align="lll")
 
 
 if __name__ == "__main__":
-    defaults = size((1000, 100, 3), (20, 2, 1))
+    json_path = json_option()
+    defaults = size((1000, 100, 3), (4, 1, 1))
     given = [int(a) for a in sys.argv[1:]]
-    main(*given, *defaults[len(given) :])
+    n_missions, n_single, repeats = [*given, *defaults[len(given) :]][:3]
+    main(n_missions, n_single, repeats, json_path=json_path)

@@ -18,8 +18,9 @@ import argparse
 import time
 
 import numpy as np
-from _sizes import size
 
+from _results import json_option, table, write
+from _sizes import size
 from skymule.envs.datamule import DataMuleEnv
 from skymule.envs.vector import DataMuleVectorEnv
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
@@ -76,6 +77,7 @@ def single_rate(total_steps: int) -> float:
 
 
 def main() -> None:
+    json_path = json_option()
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--batch", type=int, default=1024, help="missions in the vector env")
     parser.add_argument("--steps", type=int, default=200, help="vector steps")
@@ -92,6 +94,12 @@ def main() -> None:
     print(f"vector env ({args.batch} missions): {vector:,.0f} env steps/s")
     print(f"single envs (engine core):      {single:,.0f} env steps/s")
     print(f"ratio: {vector / single:,.1f}x")
+    rows = [
+        [f"vector env ({args.batch} missions)", f"{vector:,.0f}", f"{vector / single:,.1f}"],
+        ["single envs (engine core)", f"{single:,.0f}", "1.0"],
+    ]
+    columns = ["environment", "env steps per s", "ratio to single envs"]
+    write(json_path, {"envs": table(columns, rows)})
 
 
 if __name__ == "__main__":

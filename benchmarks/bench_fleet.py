@@ -20,9 +20,11 @@ import math
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
-from _sizes import size
 from shapely.geometry import Point
 
+from _results import json_option, write
+from _results import table as results_table
+from _sizes import size
 from skymule.bounds.fleet import fleet_bound
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
 from skymule.scenario import Scenario, UavSpec, load_scenario
@@ -72,6 +74,7 @@ def mean_ci(values: np.ndarray) -> tuple[float, float]:
 
 
 def main(argv: list[str] | None = None) -> np.ndarray:
+    json_path = json_option(argv)
     parser = argparse.ArgumentParser()
     parser.add_argument("--missions", type=int, default=100)
     parser.add_argument("--uavs", type=int, default=2)
@@ -98,11 +101,14 @@ def main(argv: list[str] | None = None) -> np.ndarray:
     bound = table[:, -1]
     print(f"{missions} random missions, {args.uavs} UAVs, seed {args.seed}")
     print(f"{'policy':<14}{'mean Mbit':>11}{'95% CI':>10}{'gap to bound':>14}")
+    rows: list[list[str]] = []
     for column, policy in enumerate(POLICIES, start=1):
         mean, half = mean_ci(table[:, column])
         gap = float(np.mean(bound - table[:, column]))
         print(f"{policy:<14}{mean:>11.1f}{'±' + format(half, '.1f'):>10}{gap:>14.1f}")
+        rows.append([policy, f"{mean:.1f} ± {half:.1f}", f"{gap:.1f}"])
     print(f"{'bound':<14}{np.mean(bound):>11.1f}{'±' + format(mean_ci(bound)[1], '.1f'):>10}")
+    rows.append(["bound", f"{np.mean(bound):.1f} ± {mean_ci(bound)[1]:.1f}", ""])
     diff = table[:, 1 + POLICIES.index("coordinated")] - table[:, 1 + POLICIES.index("hgad")]
     mean, half = mean_ci(diff)
     wins = int(np.sum(diff > 1e-6))
@@ -110,6 +116,12 @@ def main(argv: list[str] | None = None) -> np.ndarray:
         f"coordinated - independent hgad: {mean:+.1f} ± {half:.1f} Mbit (95% CI); "
         f"coordinated ahead in {wins}/{missions} missions"
     )
+    note = (
+        f"{missions} random missions, {args.uavs} UAVs (seed {args.seed}); coordinated − "
+        f"independent hgad: {mean:+.1f} ± {half:.1f} Mbit, ahead in {wins} of {missions}"
+    )
+    columns = ["policy", "mean Mbit ± 95% CI", "gap to bound [Mbit]"]
+    write(json_path, {"fleet": results_table(columns, rows, note=note)})
     return table
 
 

@@ -29,8 +29,10 @@ from typing import Any
 
 import numpy as np
 import shapely
-from _sizes import size
 
+from _results import json_option, write
+from _results import table as results_table
+from _sizes import size
 from skymule.errors import SkymuleError
 from skymule.experiments.layouts import random_autonomous_scenario
 from skymule.metrics.flights import NO_SENSOR, MissionLog
@@ -115,6 +117,7 @@ def violations(mission: Mission, log: MissionLog) -> dict[str, bool]:
 
 
 def main() -> None:
+    json_path = json_option()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--missions", type=int, default=size(10_000, 8))
     parser.add_argument("--seed", type=int, default=0)
@@ -156,6 +159,14 @@ def main() -> None:
         f"infeasible from the start (wind >= the UAV's speed: home unreachable, refused): "
         f"{infeasible}"
     )
+    rows = [[name, str(broken)] for name, broken in sorted(counts.items())]
+    rows.append(["home at the end, windy autonomous missions", f"{windy_not_home} of {windy_runs}"])
+    note = (
+        f"{ran} missions with faults run ({refused} refused at build, {infeasible} infeasible "
+        f"from the start), {seconds:.1f} s CPU"
+    )
+    columns = ["invariant", "missions that violate it"]
+    write(json_path, {"invariants": results_table(columns, rows, note=note, align="lr")})
 
 
 if __name__ == "__main__":

@@ -34,8 +34,8 @@ regret = (real policy - executed) / real policy, with the 90% block-bootstrap in
 ``skymule sim2real``. The replay is checked against the engine (the policy's own decisions
 on the real map replay to its downloads exactly).
 
-``scripts/update_readme_tables.py --only learned`` writes the README table from its
-``row:`` lines.
+``--json PATH`` (``benchmarks/results/learned.json``) writes the table of docs/learning.md,
+the speed as its note.
 """
 
 from __future__ import annotations
@@ -47,18 +47,19 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from _sizes import size
 
+from _results import json_option, table, write
+from _sizes import size
+from learning.missions import HELD_OUT, HELD_OUT_FAULTS, draw_missions
 from skymule.bounds.autonomous import autonomous_bound
 from skymule.io.traces import positions_local, read_trace
-from skymule.learning.missions import HELD_OUT, HELD_OUT_FAULTS, draw_missions
 from skymule.metrics.sim2real import DEFAULT_BOOTSTRAP, Estimate, execute, regret
 from skymule.policies import HGAD, Greedy
 from skymule.policies.learned import LearnedPolicy, load_net, shipped_weights
 from skymule.policies.planner import Planner
+from skymule.rules.contract import NO_SENSOR
 from skymule.scenario import Scenario, load_scenario
 from skymule.sim import compiled
-from skymule.sim.contract import NO_SENSOR
 from skymule.sim.run import run_mission, run_missions
 from skymule.world import Mission, build_mission
 
@@ -107,8 +108,10 @@ def totals(
     return got
 
 
-def report(condition: str, n: int, got: dict[str, np.ndarray]) -> None:
-    """Print one block and its ``row:`` lines (the README table's source)."""
+def report(condition: str, n: int, got: dict[str, np.ndarray]) -> list[str]:
+    """Print one block and its ``row:`` lines; return its row of the docs' table (n/a for the
+    planner and the bound where they were not run)."""
+    cells: dict[str, str] = {}
     bound = got.get("bound")
     learned = got["learned"]
     hgad = got["hgad"]
@@ -124,6 +127,9 @@ def report(condition: str, n: int, got: dict[str, np.ndarray]) -> None:
         print(
             f"  {name:9s} {mean:8.1f} ± {half:5.1f}   {gap:6.1%}   {diff:+8.1f} ± {diff_half:5.1f}"
         )
+        cells[name] = f"{mean:.1f} ± {half:.1f}"
+        cells[f"diff {name}"] = f"{diff:+.1f} ± {diff_half:.1f}"
+        cells[f"gap {name}"] = f"{100 * gap:.1f}%"
         print(
             f"row: condition={condition} n={n} policy={name} mean={mean:.1f} ci={half:.1f} "
             f"gap={gap:.4f} diff={diff:.1f} diff_ci={diff_half:.1f}"
@@ -143,6 +149,17 @@ def report(condition: str, n: int, got: dict[str, np.ndarray]) -> None:
     )
     if "candidate" in got:
         report_candidate(condition, n, got)
+    return [
+        "faults" if condition == "faults" else "none",
+        str(n),
+        str(len(learned)),
+        *(cells.get(name, "n/a") for name in ("learned", "greedy", "hgad", "planner", "bound")),
+        cells["diff hgad"],
+        f"{100 * rel_mean:+.1f}% ± {100 * rel_half:.1f}",
+        f"{100 * relative.min():+.1f}%, {below}",
+        cells.get("diff planner", "n/a"),
+        cells["gap learned"],
+    ]
 
 
 def report_candidate(condition: str, n: int, got: dict[str, np.ndarray]) -> None:
@@ -165,8 +182,16 @@ def report_candidate(condition: str, n: int, got: dict[str, np.ndarray]) -> None
     )
 
 
-def speed(missions: list[Mission], repeat: int) -> None:
-    """Inference per decision (one mission) and the batched form in the engine."""
+COLUMNS = [
+    "faults", "N", "missions", "learned", "greedy", "hgad", "planner", "bound",
+    "learned − hgad", "vs hgad", "worst vs hgad, missions < −5%", "learned − planner",
+    "learned's gap to bound",
+]  # fmt: skip
+
+
+def speed(missions: list[Mission], repeat: int) -> str:
+    """Inference per decision (one mission) and the batched form in the engine; returns the
+    table's note."""
     net = load_net(shipped_weights())
     one = missions[0]
     policy = LearnedPolicy(net)
@@ -192,9 +217,10 @@ def speed(missions: list[Mission], repeat: int) -> None:
     policy = LearnedPolicy(net)
     start = time.process_time()
     flights = run_missions(batch, policy, detail=False)
-    cpu = time.process_time() - start
+    cpu = cpu_batch = time.process_time() - start
     assert policy.runner is not None
     slots = int(flights.n_run.sum())
+    decided = policy.runner.decisions  # the batch's (reset below starts a new runner)
     print(
         f"batched in the engine, {len(batch)} missions: {policy.runner.decisions / cpu:,.0f} "
         f"decisions per CPU-s ({slots / cpu:,.0f} mission-slots per CPU-s, engine included; "
@@ -212,6 +238,7 @@ def speed(missions: list[Mission], repeat: int) -> None:
     here = np.asarray(seen.position_m[:, :2], float)
     decision = policy.runner.decision(rows, here, seen.slot, seen.remaining_bit, seen.rate_bps)
     forms = {"numpy": lambda: scores(net, None, decision)}
+    rates = {}
     if compiled.available():  # what LearnedPolicy runs with numba installed
         forms["compiled"] = lambda: compiled_scores(net, decision)
         forms["compiled"]()  # compile (or load from the cache) outside the timing
@@ -220,14 +247,25 @@ def speed(missions: list[Mission], repeat: int) -> None:
         for _ in range(repeat):
             np.argmax(score(), axis=1)
         cpu = time.process_time() - start
+        rates[form] = repeat * len(batch) / cpu
         print(
             f"scorer on a batch of {len(batch)} decisions ({form}): "
             f"{repeat * len(batch) / cpu:,.0f} decisions per CPU-s"
         )
     start = time.process_time()
     run_missions(batch, HGAD(), detail=False)
-    print(f"  hgad in the same engine: {slots / (time.process_time() - start):,.0f} "
-          "mission-slots per CPU-s")  # fmt: skip
+    hgad_rate = slots / (time.process_time() - start)
+    print(f"  hgad in the same engine: {hgad_rate:,.0f} mission-slots per CPU-s")
+    twin = f", its compiled twin {rates['compiled']:,.0f}" if "compiled" in rates else ""
+    return (
+        f"Speed (same run): one decision of one mission (features and network) {per_us:.1f} µs "
+        f"CPU; batched in the engine {decided / cpu_batch:,.0f} option decisions "
+        f"per CPU-s, i.e. {slots / cpu_batch:,.0f} mission-slots (a serve and a goal each) per "
+        f"CPU-s, engine included (HGAD {hgad_rate:,.0f}), "
+        f"{decided / len(batch):.1f} decisions per mission; the scorer alone on "
+        f"a batch of {len(batch)} decisions {rates['numpy']:,.0f} decisions per CPU-s "
+        f"(numpy){twin} (`python benchmarks/bench_learned.py`)."
+    )
 
 
 def on_map(base: Scenario, twin: str) -> Scenario:
@@ -340,6 +378,7 @@ def report_recorded(result: RegretTable, off_path: dict[str, float]) -> None:
 
 
 def main() -> None:
+    json_path: Path | None = json_option()
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--missions", type=int, default=size(200, 3))
     parser.add_argument("--counts", default=size("3,4,6,8", "3,4"))
@@ -357,19 +396,23 @@ def main() -> None:
     counts = [int(c) for c in args.counts.split(",")]
     start = time.perf_counter()
     first: list[Mission] = []
+    rows = []
     for condition in args.conditions.split(",") if "held-out" in sections else ():
         for n in counts:
             missions = draw_missions(HELD_OUT_SEED, n, args.missions, CONDITIONS[condition])
             first = first or missions
             got = totals(missions, args.workers, args.candidate, not args.no_planner)
             got["buffered"] = np.array([m.buffers_bit.sum() for m in missions])
-            report(condition, n, got)
+            rows.append(report(condition, n, got))
     print(f"\n(evaluation {time.perf_counter() - start:.0f} s wall)")
     if "recorded" in sections:
         report_recorded(*recorded_regret())
+    note = ""
     if "speed" in sections:
         first = first or draw_missions(HELD_OUT_SEED, counts[0], args.missions, HELD_OUT)
-        speed(first, size(20, 2))
+        note = speed(first, size(20, 2))
+    if rows:  # the docs' table comes from the held-out section
+        write(json_path, {"learned": table(COLUMNS, rows, note=note)})
 
 
 if __name__ == "__main__":

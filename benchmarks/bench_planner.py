@@ -15,6 +15,10 @@ prints planner missions per CPU-second of the planner at git revision ``--before
 planner.py, loaded from git) and of this one (with the compiled look-ahead, and with the same
 look-ahead as plain Python, as without numba), on the preset plus random missions, the ratios,
 and whether every mission's log is identical to before (same plans, slot for slot).
+
+``--json PATH``: with ``--speed``, the speed table's planner row (``speed-planner``,
+``benchmarks/results/planner.json``, docs/speed.md); otherwise the random missions' figures
+(``planner-random``).
 """
 
 from __future__ import annotations
@@ -26,10 +30,12 @@ import sys
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 
 import numpy as np
-from _sizes import size
 
+from _results import json_option, table, write
+from _sizes import size
 from skymule.bounds.autonomous import autonomous_bound
 from skymule.experiments.layouts import random_autonomous_scenario
 from skymule.metrics.flights import MissionLog
@@ -88,7 +94,7 @@ def same_log(a: MissionLog, b: MissionLog) -> bool:
     )
 
 
-def speed(n_missions: int, revision: str) -> None:
+def speed(n_missions: int, revision: str, json_path: Path | None = None) -> None:
     """Planner missions per CPU-second, before (``revision``) and now; identical logs?"""
     base = load_scenario(PRESET)
     rng = np.random.default_rng(SEED)
@@ -111,16 +117,29 @@ def speed(n_missions: int, revision: str) -> None:
     before = logs.pop("before")
     rates = {label: n_missions / s for label, s in seconds.items()}
     print(f"planner on {n_missions} missions ({PRESET} + random), missions per CPU-second:")
-    print(f"  before ({revision}): {rates.pop('before'):.2f}")
+    before_rate = rates.pop("before")
+    print(f"  before ({revision}): {before_rate:.2f}")
+    identical = {}
     for label, rate in rates.items():
         same = sum(same_log(a, b) for a, b in zip(before, logs[label], strict=True))
+        identical[label] = same
         print(
             f"  {label}: {rate:.2f}  x{rate * seconds['before'] / n_missions:.1f}, "
             f"identical logs: {same} of {n_missions}"
         )
+    now, plain = rates["now"], rates["now, plain Python look-ahead (no numba)"]
+    row = [
+        "planner (autonomous), look-ahead batched and compiled",
+        f"{now:.1f} missions per CPU-s ({revision} in the same run: {before_rate:.1f}, "
+        f"×{now / before_rate:.1f}; {plain:.1f} without numba); identical plans in "
+        f"{identical['now']} of {n_missions} missions",
+        f"`python benchmarks/bench_planner.py --speed {n_missions} --before {revision}`",
+    ]
+    write(json_path, {"speed-planner": table(["what", "figure", "command"], [row], align="lll")})
 
 
 def main() -> None:
+    json_path = json_option()
     parser = argparse.ArgumentParser()
     parser.add_argument("--missions", type=int, default=size(200, 3))
     parser.add_argument("--workers", type=int, default=size(2, 1))
@@ -128,7 +147,7 @@ def main() -> None:
     parser.add_argument("--before", default="main", help="git revision to compare with")
     args = parser.parse_args()
     if args.speed:
-        speed(args.speed, args.before)
+        speed(args.speed, args.before, json_path)
         return
 
     base = load_scenario(PRESET)
@@ -206,6 +225,21 @@ def main() -> None:
         f"  bound run time (geodesic): mean {bound_took.mean() * 1e3:.0f} ms, "
         f"max {bound_took.max() * 1e3:.0f} ms per mission"
     )
+    figures = [
+        ["missions", f"{args.missions}"],
+        ["bound below the total buffer", f"{(bound < total * (1 - 1e-9)).sum()}"],
+        ["planner gain over hgad, mean", f"{gain.mean():+.1%}"],
+        ["planner gain over hgad, median", f"{np.median(gain):+.1%}"],
+        ["planner gain over hgad, best", f"{gain.max():+.1%}"],
+        ["planner gain over hgad, worst", f"{gain.min():+.1%}"],
+        ["missions with planner behind hgad", f"{(gain < -1e-9).sum()}"],
+        ["missions with planner behind hgad by > 1%", f"{(gain < -0.01).sum()}"],
+        ["mean gap to bound, hgad", f"{((bound - hgad) / bound).mean():.1%}"],
+        ["mean gap to bound, planner", f"{gap.mean():.1%}"],
+        ["missions with a policy above the bound", f"{above.sum()}"],
+        ["planner run time per mission, mean [s]", f"{took.mean():.1f}"],
+    ]
+    write(json_path, {"planner-random": table(["figure", "value"], figures, align="lr")})
 
 
 if __name__ == "__main__":

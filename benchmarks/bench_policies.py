@@ -1,6 +1,7 @@
 """Your own policy on the engine: batched and per-mission forms, fixed and autonomous.
 
-Run: python benchmarks/bench_policies.py [n_fixed [n_autonomous [n_single [repeats]]]]
+Run: python benchmarks/bench_policies.py [n_fixed [n_autonomous [n_single [repeats]]]] [--json PATH]
+(``--json benchmarks/results/policies.json``: the speed table's own-policy rows, docs/speed.md)
 (SKYMULE_BENCH_TINY=1: a few missions, 1 repeat; the figures are then no measurements)
 
 The policies are the README's "Your own policy" examples, written both ways:
@@ -30,11 +31,13 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
-from _sizes import size
 
+from _results import json_option, table, write
+from _sizes import size
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
 from skymule.policies.base import (
     Action,
@@ -156,7 +159,7 @@ def compare_forms(
     n_single: int,
     repeats: int,
     unit: str,
-) -> None:
+) -> dict[str, Any]:
     """The batched form on every mission (sweep path) against the per-mission form one
     mission at a time on the first ``n_single``; totals compared mission for mission."""
     spec = PolicySpec(name=f"{PLUGIN}:{batched}")
@@ -192,12 +195,17 @@ def compare_forms(
         f"mission; batched {per_batch * 1e6:.1f} us per mission: {per_single / per_batch:.0f}x "
         f"less (target >= 100); totals equal: {same}"
     )
+    rate = slots / batch_s if unit == "slots" else len(missions) / batch_s
+    return {"rate": rate, "single": per_single, "batch": per_batch, "same": same}
 
 
-def overhead(label: str, mission: Mission, policy: Callable[[], Any], n: int, repeats: int) -> None:
+def overhead(
+    label: str, mission: Mission, policy: Callable[[], Any], n: int, repeats: int
+) -> dict[int, float]:
     """The engine's CPU per slot beyond ``act`` for a per-mission policy, in a batch of ``n``
-    and in a batch of one."""
+    and in a batch of one [s], by batch size."""
     per_act = act_seconds(policy(), mission)
+    found = {}
     for count in (n, 1):
         missions = [mission] * count
         flights = run_missions(missions, PerMission([policy() for _ in missions]), detail=False)
@@ -210,6 +218,8 @@ def overhead(label: str, mission: Mission, policy: Callable[[], Any], n: int, re
         where = f"a batch of {count:,}" if count > 1 else "a batch of one"
         print(f"{label}: engine overhead beyond act, {where}: {beyond * 1e6:.2f} us per slot "
               f"(act itself {per_act * 1e6:.2f} us)")  # fmt: skip
+        found[count] = beyond
+    return found
 
 
 def main(
@@ -217,6 +227,7 @@ def main(
     n_autonomous: int = size(1000, 6),
     n_single: int = size(20, 2),
     repeats: int = size(3, 1),
+    json_path: Path | None = None,
 ) -> None:
     fixed = build_mission(load_scenario("paper-sim-fixed"))
     rng = np.random.default_rng(0)
@@ -224,7 +235,7 @@ def main(
         replace(fixed, buffers_bit=rng.uniform(200e6, 1500e6, fixed.n_sensors))
         for _ in range(n_fixed)
     ]
-    compare_forms(
+    fixed_forms = compare_forms(
         "fixed (paper-sim-fixed, serve sensor 0)", fixed_missions, "ServeFirstBatched",
         ServeFirst, n_single, repeats, "slots",
     )  # fmt: skip
@@ -233,14 +244,47 @@ def main(
     layouts = [
         build_mission(random_autonomous_scenario(rng, base, ranges)) for _ in range(n_autonomous)
     ]
-    compare_forms(
+    auto_forms = compare_forms(
         "autonomous (random layouts, largest first)", layouts, "LargestFirstBatched",
         LargestFirst, n_single, repeats, "missions",
     )  # fmt: skip
-    overhead("fixed, per-mission policy", fixed, ServeFirst, size(1000, 4), repeats)
+    batch = size(1000, 4)
+    fixed_cost = overhead("fixed, per-mission policy", fixed, ServeFirst, batch, repeats)
     auto = build_mission(base)
-    overhead("autonomous, per-mission policy", auto, LargestFirst, size(1000, 4), repeats)
+    auto_cost = overhead("autonomous, per-mission policy", auto, LargestFirst, batch, repeats)
+    f, a = fixed_forms, auto_forms
+    rows = [
+        [
+            f"your own batched policy, fixed: {n_fixed:,} × paper-sim-fixed in one batch "
+            "(`summarize_missions`; a sweep's chunks are ≤ 500 missions), serve sensor 0 while "
+            "it has data",
+            f"{f['rate'] / 1e6:.1f} M mission-slots per CPU-s with summaries; the per-mission "
+            f"form one mission at a time {f['single'] * 1e3:.1f} ms a mission, "
+            f"**×{f['single'] / f['batch']:.0f}** the batched form's {f['batch'] * 1e6:.0f} µs; "
+            f"totals equal: {str(f['same']).lower()}",
+            "`python benchmarks/bench_policies.py`",
+        ],
+        [
+            f"your own batched policy, autonomous: {n_autonomous:,} random layouts "
+            "of 4 sensors (`summarize_missions`), largest buffer first",
+            f"{a['rate']:,.0f} missions per CPU-s with summaries; the per-mission form one at a "
+            f"time {a['single'] * 1e3:.0f} ms a mission, **×{a['single'] / a['batch']:.0f}** the "
+            f"batched form's {a['batch'] * 1e6:.0f} µs; totals equal: {str(a['same']).lower()}",
+            "same",
+        ],
+        [
+            "your own per-mission policy: the engine's CPU per slot beyond `act`",
+            f"fixed {fixed_cost[batch] * 1e6:.1f} µs in a batch of {batch:,} "
+            f"({fixed_cost[1] * 1e6:.0f} µs alone); autonomous {auto_cost[batch] * 1e6:.1f} µs "
+            f"({auto_cost[1] * 1e6:.0f} µs alone)",
+            "same",
+        ],
+    ]
+    write(json_path, {"speed-policies": table(["what", "figure", "command"], rows, align="lll")})
 
 
 if __name__ == "__main__":
-    main(*(int(a) for a in sys.argv[1:]))
+    json_path = json_option()
+    names = ("n_fixed", "n_autonomous", "n_single", "repeats")
+    sizes = {name: int(a) for name, a in zip(names, sys.argv[1:], strict=False)}
+    main(**sizes, json_path=json_path)

@@ -23,8 +23,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from _sizes import size
 
+from _results import json_option, write
+from _results import table as results_table
+from _sizes import size
 from skymule.scenario import Scenario, load_scenario, scenario_from_dict
 from skymule.tasks.resilience import leveled, mean_ci, paired_difference, run_study, table
 
@@ -48,7 +50,8 @@ def with_faults(base: Scenario, faults: list[dict[str, Any]], label: str) -> Sce
     return scenario_from_dict(data, f"{base.name} + {label}", Path(base.base_dir))
 
 
-def compare(preset: str, missions: int) -> None:
+def compare(preset: str, missions: int) -> list[list[str]]:
+    rows: list[list[str]] = []
     base = load_scenario(preset)
     policies = POLICIES[preset]
     faulty = with_faults(base, FAULTS, "faults")
@@ -59,6 +62,8 @@ def compare(preset: str, missions: int) -> None:
         print(f"{preset}, {label}, {missions} missions ({cpu:.0f} s CPU):")
         for row in table(study).itertuples():
             print(f"  {row.policy:14s} {row.mbit_mean:9.1f} +- {row.mbit_ci95:6.1f} Mbit")
+            mbit = f"{row.mbit_mean:.1f} ± {row.mbit_ci95:.1f}"
+            rows.append([preset, label, str(row.policy), mbit, ""])
         for robust, plain in PAIRS:
             if robust not in policies:
                 continue
@@ -68,9 +73,11 @@ def compare(preset: str, missions: int) -> None:
                 f"  robust - plain ({plain}): {mean:+.1f} +- {half:.1f} Mbit "
                 f"({100 * mean / plain_mbit:+.2f} % of plain)"
             )
+            rows.append([preset, label, f"{robust} − {plain}", f"{mean:+.1f} ± {half:.1f}", ""])
+    return rows
 
 
-def homeward(label: str, faults: list[dict[str, Any]], missions: int) -> None:
+def homeward(label: str, faults: list[dict[str, Any]], missions: int) -> list[list[str]]:
     """Mbit and the share of missions ending home, under wind (and a battery limit)."""
     from skymule.tasks.simulate import simulate
     from skymule.world import build_mission
@@ -90,20 +97,28 @@ def homeward(label: str, faults: list[dict[str, Any]], missions: int) -> None:
             home[name].append(bool(summary["landed_within_5m"]))
     cpu = time.process_time() - start
     print(f"{preset}, {label}, {missions} missions ({cpu:.0f} s CPU):")
+    rows = []
     for name in policies:
         mean, half = mean_ci(np.array(mbit[name]))
         share = 100 * float(np.mean(home[name]))
         print(f"  {name:14s} {mean:9.1f} +- {half:6.1f} Mbit, ended home in {share:5.1f} %")
+        rows.append([preset, label, name, f"{mean:.1f} ± {half:.1f}", f"{share:.1f}"])
     diff, half = mean_ci(np.array(mbit["planner-robust"]) - np.array(mbit["planner"]))
     print(f"  robust - plain (planner): {diff:+.1f} +- {half:.1f} Mbit")
+    rows.append([preset, label, "planner-robust − planner", f"{diff:+.1f} ± {half:.1f}", ""])
+    return rows
 
 
 def main() -> None:
+    json_path = json_option()
     missions = int(sys.argv[1]) if len(sys.argv) > 1 else size(200, 2)
+    rows = []
     for preset in POLICIES:
-        compare(preset, missions)
+        rows += compare(preset, missions)
     for label, faults in HOMEWARD.items():
-        homeward(label, faults, missions)
+        rows += homeward(label, faults, missions)
+    columns = ["preset", "condition", "policy", "Mbit (mean ± 95% CI)", "ended home [%]"]
+    write(json_path, {"resilience": results_table(columns, rows, align="lllrr")})
 
 
 if __name__ == "__main__":

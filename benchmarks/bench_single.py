@@ -8,8 +8,8 @@ from __future__ import annotations
 import argparse
 import time
 
+from _results import json_option, table, write
 from _sizes import size
-
 from skymule.policies import make_policy
 from skymule.scenario import load_scenario
 from skymule.sim.run import run_mission
@@ -17,7 +17,9 @@ from skymule.world import build_mission
 
 
 def main() -> None:
+    json_path = json_option()
     parser = argparse.ArgumentParser(description=__doc__)
+    rows = []
     parser.add_argument("--repeat", type=int, default=size(50, 1))
     args = parser.parse_args()
     for preset in ("paper-sim-fixed", "aadm-default"):
@@ -37,6 +39,10 @@ def main() -> None:
                 f"({elapsed / args.repeat * 1e3:.1f} ms per {slots // args.repeat}-slot mission; "
                 f"build {build_s * 1e3:.1f} ms)"
             )
+            per_ms = elapsed / args.repeat * 1e3
+            rows.append([preset, policy, f"{slots / elapsed:,.0f}", f"{per_ms:.1f}"])
+    columns = ["preset", "policy", "slots per s (wall)", "ms per mission (wall)"]
+    write(json_path, {"single": table(columns, rows)})
 
 
 if __name__ == "__main__":

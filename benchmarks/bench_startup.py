@@ -10,7 +10,8 @@ with Python's bytecode cache (``PYTHONDONTWRITEBYTECODE`` is dropped for them; w
 cache every module of skymule is compiled from source at every start, ~0.3 s more).
 ``--importtime`` also prints, per command, the packages it spends most time importing.
 
-Run: python benchmarks/bench_startup.py [--repeat N] [--importtime]
+Run: python benchmarks/bench_startup.py [--repeat N] [--importtime] [--json PATH]
+(``--json benchmarks/results/startup.json``: the speed table's start-up row, docs/speed.md)
 (SKYMULE_BENCH_TINY=1: --repeat 1, ``--help`` and ``run`` only, no unmeasured first run)
 """
 
@@ -26,6 +27,7 @@ import sys
 import tempfile
 import time
 
+from _results import json_option, table, write
 from _sizes import size
 
 PRESET = "paper-sim-fixed"
@@ -81,6 +83,7 @@ def slowest_imports(args: tuple[str, ...], scratch: str, top: int = 6) -> list[t
 
 
 def main() -> None:
+    json_path = json_option()
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--repeat", type=int, default=size(10, 1))
     parser.add_argument("--importtime", action="store_true")
@@ -118,6 +121,29 @@ def main() -> None:
             for label, command in commands.items():
                 shown = ", ".join(f"{n} {s:.2f} s" for n, s in slowest_imports(command, scratch))
                 print(f"  imports of {label}: {shown}")
+    medians = {
+        label: (statistics.median(walls[label]), statistics.median(cpus[label]))
+        for label in commands
+    }
+    write(json_path, {"speed-startup": speed_row(medians, args.repeat, load_before)})
+
+
+def speed_row(medians: dict[str, tuple[float, float]], runs: int, load: float) -> dict[str, object]:
+    """The speed table's start-up row from each command's median (wall, CPU) [s]."""
+    help_wall, help_cpu = medians["--help"]
+    parts = [f"`--help` {help_wall:.2f} s ({help_cpu:.2f} s CPU)"]
+    parts += [
+        f"`{label}` {wall:.2f} s (×{wall / help_wall:.1f}; {cpu:.2f} s CPU, ×{cpu / help_cpu:.1f})"
+        for label, (wall, cpu) in medians.items()
+        if label != "--help"
+    ]
+    row = [
+        "start-up: `skymule --help`, and `run`, `bound`, `compare` of paper-sim-fixed, wall "
+        "time of a fresh process (×: against `--help`)",
+        f"{', '.join(parts)}; median of {runs}, load {load:.1f} on {os.cpu_count()} cores",
+        "`python benchmarks/bench_startup.py`",
+    ]
+    return table(["what", "figure", "command"], [row], align="lll")
 
 
 if __name__ == "__main__":

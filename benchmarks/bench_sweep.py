@@ -30,6 +30,11 @@ existing sweep folder. Targets printed at the end: peak RSS flat with N (200,000
 ``--old-rev REV`` runs the same cases on another commit (``git archive REV`` into a temporary
 folder, e.g. ``--old-rev main``) in the same run and prints the ratio; its 100k case (several
 minutes) only with ``--old-large``. ``--quick`` skips the 100k case.
+
+``--json PATH`` writes the speed table's sweep rows (``speed-sweep``,
+``benchmarks/results/sweep.json``) or, in scale mode, the rows of the sweep-scale table
+(``benchmarks/results/sweep-scale.json``: rows of other sizes and executors already in the file
+are kept, so runs of different sizes fill one table; docs/speed.md, docs/sweeps.md).
 """
 
 from __future__ import annotations
@@ -47,6 +52,7 @@ import time
 import tomllib
 from pathlib import Path
 
+from _results import json_option, table, write
 from _sizes import size
 
 SAMPLE = """
@@ -225,8 +231,27 @@ def _report_line(missions: int, result: dict[str, float]) -> str:
     )
 
 
-def run_scale(args: argparse.Namespace, src: Path) -> None:
-    """``--missions``: each size on each executor, in a fresh process each; the targets."""
+def _scale_row(n: int, executor: str, result: dict[str, float]) -> list[str]:
+    """A sweep-scale table row (``executor`` "`skymule report` of it" for a report)."""
+    load = f"{os.getloadavg()[0]:.1f}"
+    mib = f"{result['peak_b'] / 2**20:.0f}"
+    wall, cpu = f"{result['wall_s']:.1f}", f"{result['cpu_s']:.1f}"
+    if "main_cpu_s" not in result:  # the report of a sweep
+        return [f"{n:,}", executor, wall, cpu, "", "", mib, load]
+    per = f"{1e6 * result['cpu_s'] / n:.0f}"
+    return [f"{n:,}", executor, wall, cpu, f"{result['main_cpu_s']:.1f}", per, mib, load]
+
+
+SCALE_COLUMNS = [
+    "missions", "executor", "wall [s]", "CPU [s]", "of which the sweep process [s]",
+    "CPU per mission [µs]", "peak RSS [MiB]", "load",
+]  # fmt: skip
+
+
+def run_scale(args: argparse.Namespace, src: Path) -> list[list[str]]:
+    """``--missions``: each size on each executor, in a fresh process each; the targets.
+    Returns the sweep-scale table's rows."""
+    rows = []
     sizes = [int(float(n)) for n in args.missions.split(",")]
     executors = [e.strip() for e in args.executors.split(",") if e.strip()]
     results: dict[tuple[int, str], dict[str, float]] = {}
@@ -242,10 +267,13 @@ def run_scale(args: argparse.Namespace, src: Path) -> None:
                 result = _subprocess_json("--one-sweep", str(n), executor, str(out), src=src)
                 results[n, executor] = result
                 print(_scale_line(executor, result), flush=True)
+                rows.append(_scale_row(int(result["missions"]), executor, result))
         if args.report:
             largest = max(sizes)
             folder = keep / f"sweep-{largest}-{executors[0]}"
-            print(_report_line(largest, _subprocess_json("--one-report", str(folder), src=src)))
+            report = _subprocess_json("--one-report", str(folder), src=src)
+            print(_report_line(largest, report))
+            rows.append(_scale_row(largest, "`skymule report` of it", report))
     inprocess = {n: r for (n, e), r in results.items() if e == "inprocess"}
     if 20_000 in inprocess and 200_000 in inprocess:
         grown = (inprocess[200_000]["peak_b"] - inprocess[20_000]["peak_b"]) / 2**20
@@ -260,9 +288,11 @@ def run_scale(args: argparse.Namespace, src: Path) -> None:
             if n > 100_000:
                 ratio = result["cpu_s"] / result["missions"] / base
                 print(f"CPU per mission, {n:,} / 100,000 missions: {ratio:.2f} (target <= 1.1)")
+    return rows
 
 
 def main() -> None:
+    json_path = json_option()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--one", choices=sorted(CASES), help=argparse.SUPPRESS)
     parser.add_argument("--one-sweep", nargs=3, help=argparse.SUPPRESS)
@@ -295,8 +325,10 @@ def main() -> None:
         print(_report_line(_missions_in(folder), result))
         return
     if args.missions:
-        run_scale(args, repo / "src")
+        rows = run_scale(args, repo / "src")
+        write(json_path, {"sweep-scale": table(SCALE_COLUMNS, rows, align="rlrrrrrr")}, merge_on=2)
         return
+    old_results: dict[str, dict[str, float]] = {}
     with tempfile.TemporaryDirectory() as old_tree:
         if args.old_rev:
             archive = subprocess.run(
@@ -313,7 +345,7 @@ def main() -> None:
             results[case] = run_case(case, repo / "src")
             old = None
             if args.old_rev and (not large or args.old_large):
-                old = run_case(case, Path(old_tree) / "src")
+                old = old_results[case] = run_case(case, Path(old_tree) / "src")
             print(_line(case, results[case], old), flush=True)
     small, seeds = results["sample-10k"], results["seeds-10k"]
     for scale in ("10k", "100k"):
@@ -328,6 +360,8 @@ def main() -> None:
             f"{os.cpu_count()} cores), {ideal:.2f}x on two idle cores from the CPU split "
             f"(main {proc['main_cpu_s']:.1f} s, all {proc['cpu_s']:.1f} s)"
         )
+    rows = speed_rows(results, old_results, args.old_rev)
+    write(json_path, {"speed-sweep": table(["what", "figure", "command"], rows, align="lll")})
     seed_cost = seeds["cpu_s"] / small["cpu_s"]
     print(f"seed axis: {seed_cost:.2f}x the CPU of the same sweep without it (target <= 1.3)")
     if "sample-100k" in results:
@@ -338,6 +372,70 @@ def main() -> None:
             f"peak memory: {small['peak_b'] / 2**20:.0f} MiB at 10k, "
             f"{large['peak_b'] / 2**20:.0f} MiB at 100k"
         )
+
+
+def speed_rows(
+    new: dict[str, dict[str, float]], old: dict[str, dict[str, float]], revision: str | None
+) -> list[list[str]]:
+    """The speed table's sweep rows from the cases measured now (and on ``revision``)."""
+    small, seeds = new["sample-10k"], new["seeds-10k"]
+    per = 1e6 * small["cpu_s"] / small["missions"]
+    previous = ""
+    if "sample-10k" in old:
+        before = old["sample-10k"]["cpu_s"]
+        previous = (
+            f" (previous implementation ({revision}) in the same run: {before:.1f} s, "
+            f"**×{before / small['cpu_s']:.1f}**)"
+        )
+    command = "`python benchmarks/bench_sweep.py" + (f" --old-rev {revision}`" if revision else "`")
+    rows = [
+        [
+            f"sweep, {int(small['missions']):,} missions (paper-sim-fixed × {{greedy, hgad}}, "
+            "random buffers), in-process",
+            f"{small['cpu_s']:.1f} s CPU, {per:.0f} µs per mission{previous}, peak RSS "
+            f"{small['peak_b'] / 2**20:.0f} MiB",
+            command,
+        ]
+    ]
+    if "sample-100k" in new:
+        large = new["sample-100k"]
+        large_per = 1e6 * large["cpu_s"] / large["missions"]
+        rows.append(
+            [
+                f"sweep, {int(large['missions']):,} missions, in-process",
+                f"{large_per:.0f} µs CPU per mission ({large_per / per:.2f}× the "
+                f"{int(small['missions']):,}-mission cost), peak RSS "
+                f"{large['peak_b'] / 2**20:.0f} MiB",
+                "same",
+            ]
+        )
+    seed_text = f"{seeds['cpu_s']:.1f} s CPU: {seeds['cpu_s'] / small['cpu_s']:.2f}× the same "
+    seed_text += "sweep without a seed axis"
+    if "seeds-10k" in old and "sample-10k" in old:
+        ratio = old["seeds-10k"]["cpu_s"] / old["sample-10k"]["cpu_s"]
+        seed_text += f" (previous: {old['seeds-10k']['cpu_s']:.1f} s, {ratio:.1f}×)"
+    rows.append(
+        [
+            f"sweep over 5,000 seeds (policy × seed, {int(seeds['missions']):,} missions)",
+            seed_text,
+            "same",
+        ]
+    )
+    scale = "100k" if "process-100k" in new else "10k"
+    if f"process-{scale}" in new:
+        alone, proc = new[f"sample-{scale}"], new[f"process-{scale}"]
+        ideal = alone["cpu_s"] / max(proc["main_cpu_s"], proc["cpu_s"] / 2)
+        rows.append(
+            [
+                "sweep, `process` executor, 2 workers",
+                f"{int(proc['missions']):,} missions: **×{alone['wall_s'] / proc['wall_s']:.2f}** "
+                f"in-process wall time (load {os.getloadavg()[0]:.1f} on {os.cpu_count()} "
+                f"cores); the sweep process uses {proc['main_cpu_s']:.1f} s of the "
+                f"{proc['cpu_s']:.1f} s CPU, so two idle cores allow ×{ideal:.2f}",
+                "same",
+            ]
+        )
+    return rows
 
 
 if __name__ == "__main__":

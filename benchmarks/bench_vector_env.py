@@ -18,8 +18,9 @@ import argparse
 import time
 
 import numpy as np
-from _sizes import size
 
+from _results import json_option, table, write
+from _sizes import size
 from skymule.envs.datamule import DataMuleEnv
 from skymule.envs.vector import DataMuleVectorEnv
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
@@ -91,6 +92,7 @@ def single_rate(total_steps: int) -> float:
 
 
 def main() -> None:
+    json_path = json_option()
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--batches", default=size("64,256", "8"), help="vector env sizes")
     parser.add_argument("--steps", type=int, default=size(500, 4), help="vector steps")
@@ -100,6 +102,7 @@ def main() -> None:
     single = single_rate(args.single_steps)
     print(f"{N_SENSORS} sensors, random layouts on Lake Wheeler's concave fence, held headings")
     print(f"{SINGLES} single envs stepped in a loop: {single:,.0f} env steps/CPU-s")
+    rows = [[f"{SINGLES} single envs in a loop", "", f"{single:,.0f}", "1.0"]]
     for batch in (int(b) for b in args.batches.split(",")):
         for engine in engines:
             rate = vector_rate(batch, args.steps, engine)
@@ -107,6 +110,10 @@ def main() -> None:
                 f"vector env, {batch} missions, {engine} paths: {rate:,.0f} env steps/CPU-s "
                 f"(ratio to single envs: {rate / single:,.1f}x)"
             )
+            ratio = f"{rate / single:,.1f}"
+            rows.append([f"vector env, {batch} missions", engine, f"{rate:,.0f}", ratio])
+    columns = ["environment", "paths", "env steps per CPU-s", "ratio to single envs"]
+    write(json_path, {"vector-env": table(columns, rows)})
 
 
 if __name__ == "__main__":

@@ -4,21 +4,22 @@ Reproduces the shipped model (``src/skymule/data/learned_policy.npz``):
 
     nice python benchmarks/train_learned.py --minutes 28 > train.log
 
-Evolution strategies (:mod:`skymule.learning.es`, numpy only, ``--workers`` processes) on
+Evolution strategies (:mod:`learning.es`, numpy only, ``--workers`` processes) on
 random Lake Wheeler missions with 3..8 sensors, random channels and faults
-(:mod:`skymule.learning.missions`). Every ``--validate-every`` generations the current model
+(:mod:`learning.missions`). Every ``--validate-every`` generations the current model
 flies 64 four-sensor and 32 eight-sensor validation missions (their own seed, not the
 benchmark's held-out one) against HGAD; the best validated model is kept. Writes the weights,
 the learning curve as CSV (``--curve``) and its figure (``--figure``, drawn from the CSV).
 
 ``--algorithm ppo`` trains the same network on the same options with PPO instead
-(:mod:`skymule.learning.ppo`, needs torch: the ``rl`` extra) for the measured comparison:
+(:mod:`learning.ppo`, needs torch: the ``rl`` extra) for the measured comparison:
 
     nice python benchmarks/train_learned.py --algorithm ppo --minutes 10 --out /tmp/ppo.npz
     nice python benchmarks/train_learned.py --algorithm es --minutes 10 --out /tmp/es.npz
 
 Smoke test: SKYMULE_BENCH_TINY=1 python benchmarks/train_learned.py (seconds; writes to the
-temporary folder, never over the shipped model).
+temporary folder, never over the shipped model). ``--json PATH``: the kept model's validation
+figures as a table (``train-learned``).
 """
 
 from __future__ import annotations
@@ -31,11 +32,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from _sizes import size
 
+from _results import json_option, table, write
+from _sizes import size
+from learning.es import ESConfig, fitness, reference_downloads, relative_gain, train_es
+from learning.missions import HELD_OUT, draw_missions
 from skymule.io.atomic import atomic_path, write_with
-from skymule.learning.es import ESConfig, fitness, reference_downloads, relative_gain, train_es
-from skymule.learning.missions import HELD_OUT, draw_missions
 from skymule.policies.learned import LearnedPolicy, OptionNet, load_net, save_net
 from skymule.sim.run import run_missions
 
@@ -106,6 +108,7 @@ def plot_curve(csv_path: Path, figure: Path) -> None:
 
 
 def main() -> None:
+    json_path = json_option()
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--algorithm", choices=("es", "ppo"), default="es")
     parser.add_argument("--minutes", type=float, default=size(28.0, 5.0))
@@ -171,7 +174,7 @@ def main() -> None:
             f"in {result.seconds:.0f} s"
         )
     else:
-        from skymule.learning.ppo import PPOConfig, train_ppo
+        from learning.ppo import PPOConfig, train_ppo
 
         tiny_ppo: dict[str, Any] = {
             "missions_per_batch": 3, "pool_per_count": 3, "sensor_counts": (3, 4),
@@ -189,6 +192,9 @@ def main() -> None:
     final = validate(net)
     print(f"trained {args.algorithm} in {time.monotonic() - start:.0f} s -> {out}")
     print("validation of the kept model: " + "  ".join(f"{k} {v:+.4f}" for k, v in final.items()))
+    rows = [[name, f"{value:+.4f}"] for name, value in final.items()]
+    note = f"{args.algorithm}, {time.monotonic() - start:.0f} s wall, weights: {out}"
+    write(json_path, {"train-learned": table(["validation", "value"], rows, note=note)})
     if curve:
         write_curve(curve, Path(args.curve))
         plot_curve(Path(args.curve), Path(args.figure))

@@ -28,8 +28,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from _sizes import size
 
+from _results import json_option, table, write
+from _sizes import size
 from skymule.bounds.autonomous import autonomous_bound
 from skymule.envs.datamule import DataMuleEnv
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
@@ -123,6 +124,7 @@ def mean_ci(values: np.ndarray) -> tuple[float, float]:
 
 
 def main() -> None:
+    json_path = json_option()
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument(
         "--out",  # the tiny smoke run never writes over the committed model
@@ -162,6 +164,7 @@ def main() -> None:
     print(f"\nmean total buffered: {total.mean() / 1e6:.1f} Mbit")
     print("| policy | mean download [Mbit] | 95% CI | mean gap to bound |")
     print("|---|---:|---:|---:|")
+    found = []
     for name, values in (
         ("PPO (rl:)", rl), ("greedy", greedy), ("hgad", hgad), ("planner", planner),
         ("bound", bound),
@@ -169,10 +172,17 @@ def main() -> None:
         mean, half = mean_ci(values / 1e6)
         gap = float(np.mean((bound - values) / bound))
         print(f"| {name} | {mean:.1f} | ± {half:.1f} | {gap:.1%} |")
+        found.append([name, f"{mean:.1f}", f"± {half:.1f}", f"{gap:.1%}"])
     paired = (rl - hgad) / 1e6
     mean, half = mean_ci(paired)
     print(f"\nPPO - HGAD per mission: {mean:+.1f} ± {half:.1f} Mbit; PPO ahead in "
           f"{int((rl > hgad).sum())} of {len(rl)}")  # fmt: skip
+    note = (
+        f"{args.missions} held-out missions; PPO - HGAD per mission: {mean:+.1f} ± {half:.1f} "
+        f"Mbit, PPO ahead in {int((rl > hgad).sum())} of {len(rl)}"
+    )
+    columns = ["policy", "mean download [Mbit]", "95% CI", "mean gap to bound"]
+    write(json_path, {"train-ppo": table(columns, found, note=note, align="lrrr")})
 
 
 if __name__ == "__main__":

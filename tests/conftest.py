@@ -15,14 +15,43 @@ traceback; warnings follow pytest's ``filterwarnings = error``.
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import json
 import os
 import subprocess
 import sys
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+import pytest
+
+if TYPE_CHECKING:
+    from skymule.world import Mission
+
+
+@functools.cache
+def preset_mission(name: str) -> Mission:
+    """The built Mission of preset ``name``, built once per test process. A Mission is
+    immutable (read-only arrays, frozen fields), so every test may share it."""
+    from skymule.scenario import load_scenario
+    from skymule.world import build_mission
+
+    return build_mission(load_scenario(name))
+
+
+@pytest.fixture(scope="session")
+def mission() -> Callable[[str], Mission]:
+    """A factory: ``mission("paper-sim-autonomous")`` is that preset's built Mission."""
+    return preset_mission
+
+
+@pytest.fixture(scope="session")
+def base_mission() -> Mission:
+    """The paper's fixed-trajectory mission (``paper-sim-fixed``), shared."""
+    return preset_mission("paper-sim-fixed")
 
 
 @dataclass(frozen=True)

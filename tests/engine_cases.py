@@ -99,12 +99,26 @@ def assert_logs_equal(got: MissionLog, want: MissionLog) -> None:
             assert ours == theirs, name
 
 
-def assert_summaries_equal(got: dict[str, Any], want: dict[str, Any]) -> None:
-    """Field for field, exactly: same keys in the same order, same types, same values (NaN=NaN)."""
-    assert list(got) == list(want)
-    for key, value in want.items():
-        assert type(got[key]) is type(value), key
-        if isinstance(value, float) and np.isnan(value):
-            assert np.isnan(got[key]), key
-        else:
-            assert got[key] == value, (key, got[key], value)
+#: How close a compiled twin's sums come to numpy's (numba sums in order, numpy pairwise).
+TWIN_RTOL = 1e-12
+
+
+def assert_summaries_equal(got: Any, want: Any, rtol: float = 0.0, key: str = "") -> None:
+    """Field for field: same keys in the same order, same types, same values (NaN = NaN);
+    floats within ``rtol`` (0: exactly; :data:`TWIN_RTOL` between a compiled twin and numpy),
+    into nested dicts and lists."""
+    assert type(got) is type(want), key
+    if isinstance(want, dict):
+        assert list(got) == list(want), key
+        for name, value in want.items():
+            assert_summaries_equal(got[name], value, rtol, f"{key}.{name}")
+    elif isinstance(want, list):
+        assert len(got) == len(want), key
+        for index, (ours, theirs) in enumerate(zip(got, want, strict=True)):
+            assert_summaries_equal(ours, theirs, rtol, f"{key}[{index}]")
+    elif isinstance(want, float) and np.isnan(want):
+        assert np.isnan(got), key
+    elif isinstance(want, float):
+        assert abs(got - want) <= rtol * abs(want), (key, got, want)
+    else:
+        assert got == want, (key, got, want)

@@ -133,3 +133,27 @@ def test_cli_analyze_with_a_wrong_tower_count_is_exit_2(tmp_path: Path) -> None:
     assert done.returncode == 2
     assert "2 tower columns for the 4 SNR columns" in done.stderr
     assert "Traceback" not in done.stderr
+
+
+def test_comm_writes_the_files_byte_for_byte_as_the_comm_script(tmp_path: Path) -> None:
+    from skymule.aadm.comm import reset_files, write_reply_files
+
+    reset_files(tmp_path, 4)
+    assert (tmp_path / "ss.txt").read_text() == "1: -99, 2: -99, 3: -99, 4: -99"
+    assert (tmp_path / "dv.txt").read_text() == "1: 0.0, 2: 0.0, 3: 0.0, 4: 0.0"
+    assert (tmp_path / "tn.txt").read_text() == "0" and (tmp_path / "bc.txt").read_text() == ""
+    snr = "1:38.992650,2:16.200000,3:15.200000,4:-99.000000"
+    write_reply_files(
+        tmp_path, f"vol:{{'1': 500.0, '2': 800.0, '3': 700.0, '4': 1000.0}};snr:{snr}"
+    )
+    assert (tmp_path / "ss.txt").read_text() == snr
+    assert (tmp_path / "dv.txt").read_text() == "1:500.0, 2:800.0, 3:700.0, 4:1000.0"
+    write_reply_files(tmp_path, f"download:1:7.77,2:0.00,3:0.00,4:0.00;snr:{snr}")
+    assert (tmp_path / "dd.txt").read_text() == "1:7.77, 2:0.00, 3:0.00, 4:0.00"
+    write_reply_files(tmp_path, "download:None;snr:1:1.000000,2:2.000000,3:3.000000,4:4.000000")
+    assert (tmp_path / "ss.txt").read_text() == snr  # the script stops at the part it fails on
+    write_reply_files(tmp_path, f"download_complete:1;snr:{snr}")
+    assert (tmp_path / "tn.txt").read_text() == "-1"
+    # what it wrote reads back as the agent reads it
+    assert files.read_tower_file(tmp_path / "ss.txt", 4).tolist() == [38.99265, 16.2, 15.2, -99.0]
+    assert files.read_done_file(tmp_path / "tn.txt")

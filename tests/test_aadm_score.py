@@ -2,10 +2,21 @@
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from skymule.aadm.score import aadm_score_one, aadm_scores, poll_download_bit
+from conftest import run_cli
+from skymule.aadm.score import (
+    aadm_score_one,
+    aadm_scores,
+    poll_download_bit,
+    poll_times_s,
+    predicted_testbed_score,
+    scenario_prediction,
+)
 
 MBIT = 1e6
 
@@ -83,3 +94,59 @@ def test_nothing_to_download_is_complete_at_zero() -> None:
     parts = aadm_score_one(np.zeros(5), 0.0, slot_s=1.0)
     assert parts["aadm_complete"] is True
     assert parts["aadm_score"] == 600.0
+
+
+# --- the testbed's clock ------------------------------------------------------------------------
+
+
+def test_prediction_at_one_second_a_poll_is_the_nominal_rule() -> None:
+    for bits, total in ((np.full(320, MBIT), 320 * MBIT), (np.full(600, MBIT), 1000 * MBIT)):
+        nominal = aadm_score_one(bits, total, slot_s=1.0)
+        predicted = predicted_testbed_score(bits, total, interval_s=1.0)
+        assert predicted["aadm_complete"] == nominal["aadm_complete"]
+        assert predicted["aadm_t1_s"] == nominal["aadm_t1_s"]
+    # complete: the same score; incomplete: the testbed also credits the poll at exactly 500 s
+    assert predicted_testbed_score(np.full(320, MBIT), 320 * MBIT, 1.0)["aadm_score"] == 280.0
+    assert predicted_testbed_score(np.full(600, MBIT), 1000 * MBIT, 1.0)["aadm_s2"] == 50.1
+
+
+def test_prediction_at_the_recorded_cadence() -> None:
+    # completing at poll 470 (t1 = 470 s nominally) is t1 = 470 x 1.031 = 484.57 s there
+    parts = predicted_testbed_score(np.full(470, MBIT), 470 * MBIT)
+    assert parts["aadm_poll_interval_s"] == 1.031
+    assert parts["aadm_t1_s"] == pytest.approx(484.57)
+    assert parts["aadm_score"] == pytest.approx(100 + 500 - 484.57)
+    # an unfinished mission: only the polls up to 500 s count (floor(500 / 1.031) + 1 = 485)
+    short = predicted_testbed_score(np.full(600, MBIT), 1000 * MBIT)
+    assert short["aadm_complete"] is False and short["aadm_s2"] == pytest.approx(48.5)
+
+
+def test_jitter_is_seeded_and_never_under_the_controllers_second() -> None:
+    first = poll_times_s(1000, 1.031, 0.3, seed=7)
+    assert np.array_equal(first, poll_times_s(1000, 1.031, 0.3, seed=7))
+    assert not np.array_equal(first, poll_times_s(1000, 1.031, 0.3, seed=8))
+    assert np.diff(first).min() >= 1.0
+    assert first[0] == 0.0 and first.size == 1001
+
+
+def test_scenario_aadm_section_sets_the_cadence(tmp_path: Path) -> None:
+    from skymule.scenario import load_scenario
+
+    base = load_scenario("paper-sim-autonomous")
+    assert scenario_prediction(base, np.full(10, MBIT), 10 * MBIT)["aadm_poll_interval_s"] == 1.031
+    text = tmp_path / "s.toml"
+    text.write_text(
+        'name = "x"\n[mission]\nduration_s = 60\n[[sensors]]\nname = "A"\nx_m = 100.0\n'
+        "y_m = 0.0\nbuffer_mbit = 10\n[trajectory]\nmode = 'autonomous'\n"
+        "[aadm]\npoll_interval_s = 1.5\npoll_jitter_s = 0.2\n"
+    )
+    spec = load_scenario(str(text))
+    parts = scenario_prediction(spec, np.full(10, MBIT), 10 * MBIT)
+    assert parts["aadm_poll_interval_s"] == 1.5 and parts["aadm_poll_jitter_s"] == 0.2
+    assert parts["aadm_t1_s"] >= 15.0
+    done = run_cli("run", str(text))
+    assert done.returncode == 0, done.stderr
+    assert re.search(r"testbed \(1\.5±0\.2 s/poll\): t1 \d+\.\d s, AADM \d+\.\d", done.stdout)
+    text.write_text(text.read_text().replace("1.5", "0.5"))
+    bad = run_cli("run", str(text))
+    assert bad.returncode == 2 and "poll_interval_s" in bad.stderr

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import preset_mission, run_cli
 from skymule.aadm.controller import ControllerCore, serve_controller
 from skymule.aadm.score import aadm_score_one
 from skymule.aadm.towers import (
@@ -103,7 +104,7 @@ def test_testbed_uav_over_a_recorded_flight_scores_like_skymule_run(tmp_path: Pa
 
 
 def test_testbed_uav_with_telemetry_gets_data_from_a_model(tmp_path: Path) -> None:
-    mission = build_mission(load_scenario("paper-sim-autonomous"))
+    mission = preset_mission("paper-sim-autonomous")
     lat, lon = mission.frame.to_latlon(100.0, -100.0)
     core = ControllerCore(mission)
     with serve_controller(core) as server:
@@ -120,7 +121,7 @@ def test_testbed_uav_with_telemetry_gets_data_from_a_model(tmp_path: Path) -> No
 
 @pytest.fixture
 def towers_and_controller() -> Iterator[tuple[TowerRadio, tuple[int, ...], int, ControllerCore]]:
-    mission = build_mission(load_scenario("paper-sim-autonomous"))
+    mission = preset_mission("paper-sim-autonomous")
     core = ControllerCore(mission)
     radio = TowerRadio(mission)
     with serve_controller(core) as controller:
@@ -150,10 +151,16 @@ def test_towers_answer_as_the_fixed_nodes(
             reply = sock.recv(1024).decode()
         fields = reply.split(",")
         assert fields[0] == "00" and len(fields) == 3
-        assert float(fields[1]) == pytest.approx(snr[k], abs=1e-6)
-        assert fields[2] == "0.00"  # no previous answer yet
+        # the SNR as a float32 prints, the previous answer's Shannon rate in bit/s
+        assert fields[1] == str(np.float32(snr[k]))
+        assert fields[2] == "0.0"  # no previous answer yet
+    with socket.create_connection(("127.0.0.1", ports[0]), timeout=10) as sock:
+        sock.sendall(b"1")
+        fields = sock.recv(1024).decode().split(",")
+    shannon = 1.4e6 * np.log2(1 + 10 ** (snr[0] / 10))
+    assert float(fields[2]) == pytest.approx(shannon, rel=1e-9) and "." in fields[2]
     again = ask_tower("127.0.0.1", ports[0], 1)
-    assert again == pytest.approx(snr[0], abs=1e-6)
+    assert again == pytest.approx(snr[0], abs=1e-5)
 
 
 def test_experiment_env_file_points_every_node_at_loopback() -> None:
@@ -253,3 +260,41 @@ def test_towers_command_serves_and_writes_the_env_file(tmp_path: Path) -> None:
     assert process.returncode == 0
     nodes = read_experiment_env((tmp_path / "env.sh").read_text(), "env.sh")
     assert nodes["LW1"] == nodes["LW4"] == "127.0.0.1"
+
+
+def test_write_env_does_not_replace_a_file_silently(tmp_path: Path) -> None:
+    env = tmp_path / "env.sh"
+    env.write_text('export AP_EXPENV_SET_NODES="0 LW1"\nexport AP_EXPENV_EVM_1_XM=10.0.0.9\n')
+    done = run_cli(
+        *("aadm", "towers", "paper-sim-autonomous", "--first-port", "0", "--telemetry-port"),
+        *("0", "--forward", "", "--write-env", str(env)),
+    )
+    assert done.returncode == 2 and "pass --force to replace it" in done.stderr
+    assert "10.0.0.9" in env.read_text()  # untouched
+
+
+def test_towers_stop_forwarding_to_a_dead_controller_port_quietly(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    # the testbed's controller stops listening on its telemetry port after the score line
+    with socket.socket() as probe:  # a port nobody listens on
+        probe.bind(("127.0.0.1", 0))
+        dead = probe.getsockname()[1]
+    mission = build_mission(load_scenario("paper-sim-autonomous"))
+    radio = TowerRadio(mission)
+    lat, lon = mission.frame.to_latlon(0.0, 0.0)
+    line = f"alt:30.0,arm:1,rtl:0,land:0,lat:{float(lat)!r},lon:{float(lon)!r}".encode()
+    replies = []
+    with (
+        caplog.at_level("INFO", logger="skymule.aadm.towers"),
+        serve_towers(radio, telemetry_port=0, forward=("127.0.0.1", dead)) as towers,
+    ):
+        assert towers.telemetry_port is not None
+        for _ in range(5):
+            with socket.create_connection(("127.0.0.1", towers.telemetry_port), 10) as sock:
+                sock.sendall(line)
+                replies.append(sock.recv(1024).decode())
+        assert ask_tower("127.0.0.1", towers.ports[0], 1) > -99  # the position still counts
+    assert replies == ["None"] * 5
+    said = [r for r in caplog.records if "does not answer" in r.getMessage()]
+    assert len(said) == 1, [r.getMessage() for r in caplog.records]

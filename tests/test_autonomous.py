@@ -9,7 +9,7 @@ import pytest
 import shapely
 from shapely.geometry import Point
 
-from conftest import run_cli
+from conftest import preset_mission, run_cli
 from skymule.metrics.flights import NO_SENSOR
 from skymule.metrics.summary import summarize
 from skymule.policies import HGAD, make_policy
@@ -136,7 +136,7 @@ class _Runaway:
 
 
 def test_engine_brings_a_runaway_policy_home_in_time():
-    mission = build_mission(load_scenario(PRESET))
+    mission = preset_mission(PRESET)
     log = run_mission(mission, _Runaway())
     _assert_invariants(mission, log)
     # it did get far away before turning back

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from shapely.geometry import Point, Polygon
 
+from conftest import preset_mission
 from skymule.bounds.autonomous import (
     autonomous_bound,
     best_rate_bps,
@@ -114,7 +115,7 @@ def test_shadowing_uses_the_grid_method():
 
 
 def test_fixed_mission_is_refused_with_one_line():
-    mission = build_mission(load_scenario("paper-sim-fixed"))
+    mission = preset_mission("paper-sim-fixed")
     with pytest.raises(SkymuleError) as info:
         autonomous_bound(mission)
     assert "trajectory.mode" in str(info.value) and "\n" not in str(info.value)
@@ -139,7 +140,7 @@ def test_every_point_within_travel_distance_is_in_the_geodesic_reach_set():
     """Validity of the reach set itself: a fence point at in-fence travel distance d from home
     lies in G(d) (distance 0), for random homes and points on the Lake Wheeler fence."""
     rng = np.random.default_rng(11)
-    geometry = build_mission(load_scenario(PRESET))  # carries navigator, home, hover points
+    geometry = preset_mission(PRESET)  # carries navigator, home, hover points
     nav = geometry.navigator
     x0, y0, x1, y1 = nav.fence.bounds
 

@@ -8,16 +8,15 @@ compiled twin's equality in ``tests/test_compiled.py``.
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from engine_cases import (
+    TWIN_RTOL,
     assert_logs_equal,
     assert_summaries_equal,
     random_geometry,
@@ -35,11 +34,6 @@ from skymule.scenario import PolicySpec, load_scenario, scenario_from_dict
 from skymule.sim.run import run_mission, run_missions, summarize_missions
 from skymule.tasks.simulate import simulate
 from skymule.world import build_mission
-
-
-@pytest.fixture(scope="module")
-def base_mission():
-    return build_mission(load_scenario("paper-sim-fixed"))
 
 
 def alone(mission, spec, engine: str = "numpy"):
@@ -117,7 +111,7 @@ def test_summaries_of_a_batch_are_those_of_skymule_run(base_mission):
     for engine in ("numpy", "auto"):
         rows = summarize_missions(missions, specs, names, batch_size=6, engine=engine)
         for row, mission, spec, name in zip(rows, missions, specs, names, strict=True):
-            assert_summaries_equal(row, summarize(alone(mission, spec), name))
+            assert_summaries_equal(row, summarize(alone(mission, spec), name), TWIN_RTOL)
 
 
 def test_summaries_on_the_paper_preset(base_mission):
@@ -131,7 +125,7 @@ def test_summaries_on_the_paper_preset(base_mission):
         specs.append(PolicySpec(name=("greedy", "hgad")[index % 2]))
     rows = summarize_missions(missions, specs, ["x"] * 8)
     for row, mission, spec in zip(rows, missions, specs, strict=True):
-        assert_summaries_equal(row, summarize(alone(mission, spec), "x"))
+        assert_summaries_equal(row, summarize(alone(mission, spec), "x"), TWIN_RTOL)
     assert rows[7]["aadm_complete"] and rows[1]["hover_time_s"] > 0
 
 
@@ -175,10 +169,7 @@ def test_sweep_rows_equal_skymule_run(tmp_path):
     for row, mission in zip(frame.to_dict("records"), missions, strict=True):
         scenario = scenario_from_dict(mission.scenario, "t", Path("."))
         want = _flat_summary(simulate(scenario).summary)
-        for key, value in want.items():
-            got = row[key]
-            nan = isinstance(value, float) and math.isnan(value)
-            assert (isinstance(got, float) and math.isnan(got)) if nan else got == value, key
+        assert_summaries_equal({key: row[key] for key in want}, want, TWIN_RTOL)
 
 
 def handovers(served) -> int:

@@ -16,7 +16,8 @@ import pytest
 import shapely
 from shapely.geometry import Polygon
 
-from engine_cases import assert_logs_equal, assert_summaries_equal
+from conftest import preset_mission
+from engine_cases import TWIN_RTOL, assert_logs_equal, assert_summaries_equal
 from skymule.errors import SkymuleError
 from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
 from skymule.experiments.run import _flat_summary, run_chunk
@@ -225,7 +226,7 @@ def test_summaries_of_a_batch_are_those_of_skymule_run(preset, layouts):
         rows = summarize_missions(missions, specs, names, batch_size=4, engine=engine)
         for mission, spec, name, row in zip(missions, specs, names, rows, strict=True):
             want = summarize(run_mission(mission, batch_policy([spec])), name)
-            assert_summaries_equal(row, want)
+            assert_summaries_equal(row, want, TWIN_RTOL)
 
 
 def test_a_batch_needs_one_fence_and_autonomous_missions(preset):
@@ -234,7 +235,7 @@ def test_a_batch_needs_one_fence_and_autonomous_missions(preset):
     greedy = [PolicySpec(name="greedy")] * 2
     with pytest.raises(SkymuleError, match="another geofence"):
         run_missions([mission, small], batch_policy(greedy))
-    fixed = build_mission(load_scenario("paper-sim-fixed"))
+    fixed = preset_mission("paper-sim-fixed")
     with pytest.raises(SkymuleError, match="one trajectory mode"):
         run_missions([mission, fixed], batch_policy(greedy))
 
@@ -261,10 +262,4 @@ def test_sweep_rows_of_autonomous_missions_equal_skymule_run(tmp_path):
     for row, mission in zip(frame.to_dict("records"), missions, strict=True):
         scenario = scenario_from_dict(mission.scenario, "t", Path("."))
         want = _flat_summary(simulate(scenario).summary)
-        for key, value in want.items():
-            nan = isinstance(value, float) and math.isnan(value)
-            assert (
-                (isinstance(row[key], float) and math.isnan(row[key]))
-                if nan
-                else (row[key] == value)
-            ), key
+        assert_summaries_equal({key: row[key] for key in want}, want, TWIN_RTOL)

@@ -22,7 +22,7 @@ from skymule.errors import SkymuleError
 from skymule.flight.navigation import Navigator
 from skymule.policies import batch_policy
 from skymule.scenario import PolicySpec
-from skymule.sim import compiled, path_kernels
+from skymule.sim import compiled
 from skymule.sim.autonomous import AutonomousEngine
 from skymule.sim.batch_paths import CompiledPaths
 from skymule.sim.run import run_missions
@@ -34,20 +34,6 @@ layouts = test_batch_autonomous.layouts
 
 #: The twins to check: the kernels as plain Python always, compiled where numba is installed.
 TWINS = ["plain", *(["compiled"] if compiled.available() else [])]
-
-
-def test_python_hypot_equals_math_hypot():
-    """The kernels' hypot is CPython's, bit for bit (np.hypot is not, for ~1 pair in 200)."""
-    rng = np.random.default_rng(5)
-    x = rng.normal(size=4000) * rng.choice([1e-3, 1.0, 150.0, 1e4], 4000)
-    y = rng.normal(size=4000) * rng.choice([1e-3, 1.0, 150.0, 1e4], 4000)
-    x[:50], y[50:100] = 0.0, 0.0
-    x[100:200], y[100:200] = np.round(x[100:200]), np.round(y[100:200])
-    got = [path_kernels.python_hypot(a, b) for a, b in zip(x.tolist(), y.tolist(), strict=True)]
-    want = [math.hypot(a, b) for a, b in zip(x.tolist(), y.tolist(), strict=True)]
-    assert got == want
-    assert np.any(np.hypot(x, y) != np.array(want))  # the C library's differs: the port matters
-    assert path_kernels.python_hypot(0.0, 0.0) == 0.0
 
 
 @pytest.mark.parametrize("twin", TWINS)

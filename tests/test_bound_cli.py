@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from conftest import CliResult, run_cli
+from conftest import CliResult, preset_mission, run_cli
 from skymule.bounds.mission import mission_bound
 from skymule.bounds.result import BoundError
 from skymule.errors import SkymuleError
@@ -90,7 +90,7 @@ def test_bound_bad_scenario_is_one_line() -> None:
 
 
 def test_autonomous_bound_missing_is_one_line(monkeypatch: pytest.MonkeyPatch) -> None:
-    mission = build_mission(load_scenario("paper-sim-autonomous"))
+    mission = preset_mission("paper-sim-autonomous")
     monkeypatch.setitem(sys.modules, "skymule.bounds.autonomous", None)
     with pytest.raises(BoundError, match="autonomous bound is not available") as caught:
         mission_bound(mission)

@@ -7,11 +7,10 @@ import re
 import numpy as np
 import pytest
 
+from conftest import preset_mission
 from skymule.bounds.fixed import fixed_path_bound, mission_track_rates, record_samples
 from skymule.bounds.prefix_lp import dual_bounds, prefix_lp, prefix_lp_columns
 from skymule.bounds.result import BoundError
-from skymule.scenario import load_scenario
-from skymule.world import build_mission
 
 REL = 1e-6
 
@@ -95,7 +94,7 @@ def test_columns_equal_full_on_the_benchmark_path() -> None:
 @pytest.mark.parametrize("n_slots", [None, 150])
 @pytest.mark.parametrize("hover", [True, False])
 def test_columns_equal_full_on_presets(preset: str, n_slots: int | None, hover: bool) -> None:
-    mission = build_mission(load_scenario(preset))
+    mission = preset_mission(preset)
     args = (mission_track_rates(mission), mission.buffers_bit, mission.slot_s)
     slots = n_slots or mission.n_slots
     fast = fixed_path_bound(*args, slots, hover_allowed=hover)

@@ -15,16 +15,22 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from engine_cases import assert_logs_equal, random_mission, random_spec
+from engine_cases import (
+    TWIN_RTOL,
+    assert_logs_equal,
+    assert_summaries_equal,
+    random_mission,
+    random_spec,
+)
 from skymule.errors import SkymuleError
 from skymule.policies import batch_policy
 from skymule.radio.rates import BUILTIN_RATE_TABLES, StepTable, rate_bps
-from skymule.scenario import PolicySpec, load_scenario
-from skymule.sim import compiled, contract, kernels
+from skymule.rules import contract
+from skymule.scenario import PolicySpec
+from skymule.sim import compiled, kernels
 from skymule.sim.batch_faults import BatchFaults, apply_faults, kernel_faults
 from skymule.sim.fixed import FixedEngine, compiled_reason, run_compiled
 from skymule.sim.run import run_missions, summarize_missions
-from skymule.world import build_mission
 
 needs_numba = pytest.mark.skipif(not compiled.available(), reason="numba not installed")
 
@@ -131,11 +137,6 @@ def test_fault_kernels_equal_apply_faults(seed, n, uses_error):
         np.testing.assert_array_equal(ours, theirs[:, 0], strict=True)
 
 
-@pytest.fixture(scope="module")
-def base_mission():
-    return build_mission(load_scenario("paper-sim-fixed"))
-
-
 def loops() -> list[object]:
     """The loops to check against numpy: the plain-Python loop always, the compiled one
     where numba is installed."""
@@ -173,7 +174,8 @@ def test_compiled_summaries_equal_numpy_on_paper_preset(base_mission):
     specs = [PolicySpec(name="greedy"), PolicySpec(name="hgad", max_hover_s=20.0)] * 10
     names = ["paper"] * 20
     numpy_rows = summarize_missions(missions, specs, names, engine="numpy")
-    assert summarize_missions(missions, specs, names, engine="compiled") == numpy_rows
+    got = summarize_missions(missions, specs, names, engine="compiled")
+    assert_summaries_equal(got, numpy_rows, TWIN_RTOL)
     assert any(row["hover_time_s"] > 0 for row in numpy_rows)
 
 

@@ -23,6 +23,9 @@ from pathlib import Path
 
 import pytest
 
+#: Signals to child processes: in the default run, skipped by ``-m 'not slow'``.
+pytestmark = pytest.mark.slow
+
 SWEEP = """
 base = "paper-sim-autonomous"
 seed = 1
@@ -89,11 +92,15 @@ def test_ctrl_c_prints_one_line_and_the_resume_command(
     with _group([*command, "--chunk-size", "20"], tmp_path) as sweep:
         deadline = time.monotonic() + 240  # a loaded machine starts a cluster slowly
         while not list((out / "results").glob("part-*.parquet")):
-            assert sweep.poll() is None and time.monotonic() < deadline, "no part was stored"
+            if sweep.poll() is not None:
+                pytest.fail(f"the sweep ended before a part was stored: {sweep.communicate()}")
+            assert time.monotonic() < deadline, "no part was stored"
             time.sleep(0.1)
         _signal_group(sweep.pid, how)
         _, stderr = sweep.communicate(timeout=120)
     assert sweep.returncode == (143 if how == "sigterm" else 130), stderr
-    [line] = stderr.strip().splitlines()
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1, stderr
+    [line] = lines
     assert line.startswith("skymule: interrupted; kept ")
     assert f"Resume with: skymule sweep sweep.toml --out {out} --executor {executor}" in line

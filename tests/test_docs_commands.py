@@ -105,7 +105,8 @@ def test_every_document_has_commands_and_no_unknown_program() -> None:
         "dask",  # dask scheduler / dask worker: listed in NOT_RUN_PREFIXES
     }
     assert not programs, f"commands the docs test cannot run: {sorted(programs)}"
-    assert len(commands(ROOT / "README.md")) >= 15
+    assert len(commands(ROOT / "README.md")) >= 8  # set-up, quick start, own policy
+    assert sum(len(commands(doc)) for doc in DOCUMENTS) >= 60  # the rest moved to docs/
 
 
 @pytest.fixture(scope="module")

@@ -15,6 +15,9 @@ from skymule.experiments.executors import open_executor
 from skymule.experiments.run import run_sweep
 from skymule.experiments.sweep import load_sweep
 
+#: Worker processes and Dask clusters: in the default run, skipped by ``-m 'not slow'``.
+pytestmark = pytest.mark.slow
+
 SWEEP = """
 base = "paper-sim-fixed"
 seed = 3

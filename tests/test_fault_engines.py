@@ -10,16 +10,18 @@ import numpy as np
 import pytest
 from shapely.geometry import Point
 
+from conftest import preset_mission
+from engine_cases import TWIN_RTOL, assert_summaries_equal
 from skymule.errors import SkymuleError
 from skymule.faults import no_faults
 from skymule.io.runs import slots_frame
 from skymule.metrics.flights import MissionLog
 from skymule.metrics.summary import summarize
 from skymule.policies import batch_policy
+from skymule.rules.contract import NO_SENSOR
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
 from skymule.sim import compiled
 from skymule.sim.autonomous import AutonomousEngine
-from skymule.sim.contract import NO_SENSOR
 from skymule.sim.fixed import FixedEngine
 from skymule.sim.fleet import build_fleet
 from skymule.sim.run import run_mission, run_missions, summarize_missions
@@ -62,7 +64,7 @@ def _same_faults(a: MissionLog, b: MissionLog) -> None:
 
 @pytest.mark.parametrize("preset", PRESETS)
 def test_fault_free_mission_takes_the_fault_free_path(preset: str) -> None:
-    mission = build_mission(load_scenario(preset))
+    mission = preset_mission(preset)
     assert mission.faults is None
     log = _run(mission)
     assert log.affected is None and log.chosen is None
@@ -107,7 +109,7 @@ def _true_yield_holds(log: MissionLog) -> None:
 @pytest.mark.parametrize("preset", PRESETS)
 def test_snr_error_changes_choices_but_not_the_accounting(preset: str) -> None:
     noise = {"kind": "snr-error", "params": {"std_db": 6.0}}
-    clean = _run(build_mission(load_scenario(preset)), "greedy")
+    clean = _run(preset_mission(preset), "greedy")
     noisy = _run(build_mission(_with_faults(preset, [noise])), "greedy")
     assert not np.array_equal(noisy.served, clean.served)  # choices change
     _true_yield_holds(noisy)  # yields follow the true rate
@@ -128,7 +130,7 @@ def test_missed_polls_serve_nothing_and_the_position_error_is_only_seen() -> Non
     assert missed.any()
     assert np.all(log.served[missed] == NO_SENSOR) and np.all(log.downloaded_bit[missed] == 0)
     _true_yield_holds(log)
-    clean = build_mission(load_scenario("paper-sim-fixed"))
+    clean = preset_mission("paper-sim-fixed")
     assert mission.track is not None and clean.track is not None
     assert np.array_equal(mission.track.position_m, clean.track.position_m)  # log: true path
 
@@ -144,10 +146,10 @@ def test_gps_error_moves_what_the_policy_sees_not_the_uav() -> None:
 def test_headwind_slows_an_autonomous_uav_and_a_fixed_one_falls_behind() -> None:
     wind = [{"kind": "wind", "params": {"speed_mps": 5.0, "from_deg": 0.0}}]
     for preset in PRESETS:
-        calm = _run(build_mission(load_scenario(preset)), "greedy")
+        calm = _run(preset_mission(preset), "greedy")
         windy = _run(build_mission(_with_faults(preset, wind)), "greedy")
         steps = np.diff(np.vstack([windy.position_m, windy.end_position_m[None]])[:, :2], axis=0)
-        limit = build_mission(load_scenario(preset)).max_step_m
+        limit = preset_mission(preset).max_step_m
         assert np.all(np.hypot(*steps.T) <= limit + 1e-9)
         # against the wind (flying north) no step is longer than a 5 m/s headwind allows
         north = steps[:, 1] > 1e-9
@@ -168,7 +170,7 @@ def test_battery_limit_sends_the_uav_home_before_it_is_spent() -> None:
         flight.step(policy.act(flight.observe()))
     log = flight.record(["hgad"]).mission(0)
     assert mission.home_m is not None
-    clean = _run(build_mission(load_scenario("paper-sim-autonomous")))
+    clean = _run(preset_mission("paper-sim-autonomous"))
     # a 15 Wh pack (12 Wh usable) cannot fly the whole mission: it comes home early
     battery_ = mission.faults.battery
     one_slot = float(battery_.slot_energy_j(mission.max_speed_mps, mission.slot_s))
@@ -222,7 +224,7 @@ def test_fault_missions_in_a_batch_equal_each_alone(engine: str) -> None:
         )
         for seed, duration in ((1, 500.0), (2, 120.0), (3, 37.0))
     ]
-    missions = [*faulty, build_mission(load_scenario("paper-sim-fixed"))]
+    missions = [*faulty, preset_mission("paper-sim-fixed")]
     for name in ("greedy", "hgad"):
         batched = _batch(missions, name, engine)
         for mission, log in zip(missions, batched, strict=True):
@@ -239,7 +241,7 @@ def test_compiled_loop_equals_numpy_loop_under_each_fault(fault: dict[str, Any])
     from test_compiled import assert_loops_equal_numpy
 
     missions = [build_mission(_with_faults("paper-sim-fixed", [fault], seed=s)) for s in (4, 5)]
-    missions.append(build_mission(load_scenario("paper-sim-fixed")))
+    missions.append(preset_mission("paper-sim-fixed"))
     specs = [PolicySpec(name="greedy"), PolicySpec(name="hgad"), PolicySpec(name="hgad")]
     assert_loops_equal_numpy(missions, specs)
     logs = run_missions(missions, batch_policy(specs), engine="numpy").missions()
@@ -248,14 +250,15 @@ def test_compiled_loop_equals_numpy_loop_under_each_fault(fault: dict[str, Any])
     if compiled.available():
         names = ["x"] * len(missions)
         summary = summarize_missions(missions, specs, names, engine="compiled")
-        assert summary == summarize_missions(missions, specs, names, engine="numpy")
+        want = summarize_missions(missions, specs, names, engine="numpy")
+        assert_summaries_equal(summary, want, TWIN_RTOL)
 
 
 def test_gps_error_does_not_act_on_a_fixed_path() -> None:
     """It does not move the track (docs/faults.md): Greedy and HGAD fly as without it."""
     faults = [{"kind": "gps-error", "params": {"std_m": 20.0}}]
     mission = build_mission(_with_faults("paper-sim-fixed", faults))
-    clean = build_mission(load_scenario("paper-sim-fixed"))
+    clean = preset_mission("paper-sim-fixed")
     for name in ("greedy", "hgad"):
         log, plain = _run(mission, name), _run(clean, name)
         for field in ("served", "downloaded_bit", "hovering", "position_m"):
@@ -282,7 +285,7 @@ def test_slots_csv_marks_the_faulty_slots() -> None:
     mission = build_mission(_with_faults("paper-sim-fixed", [outage]))
     frame = slots_frame(_run(mission), mission.frame)
     assert frame["fault"].tolist()[8:17] == [0, 0, 1, 1, 1, 1, 1, 0, 0]
-    clean = build_mission(load_scenario("paper-sim-fixed"))
+    clean = preset_mission("paper-sim-fixed")
     assert "fault" not in slots_frame(_run(clean), clean.frame).columns
 
 

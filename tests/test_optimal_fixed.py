@@ -192,3 +192,20 @@ def test_summary_counts_hover_time() -> None:
     mission = build_mission(straight_path_scenario((300.0, 500.0), 150.0))
     summary = summarize(run_mission(mission, OptimalFixed()), "straight")
     assert summary["hover_time_s"] > 0
+
+
+def test_off_plan_choice_takes_the_most_bits_not_hgads() -> None:
+    """Off its plan, optimal-fixed serves the sensor delivering the most bits this slot,
+    min(R dt, Q); HGAD's rule (the contract's ``hgad_choice``) takes the best rate even when
+    that buffer holds almost nothing."""
+    from skymule.policies.base import Observation
+    from skymule.policies.optimal_fixed import most_bits_choice
+    from skymule.rules.contract import hgad_choice, servable
+
+    rate = np.array([10e6, 8e6])  # sensor 0 has the better link ...
+    left = np.array([1e5, 5e6])  # ... but only 0.1 Mbit left: sensor 1 gives 8 Mbit in 1 s
+    snr = np.array([20.0, 15.0])
+    seen = Observation(0, np.zeros(3), snr, rate, left)
+    assert most_bits_choice(seen, 1.0) == 1
+    hgad = hgad_choice(rate[:, None], snr[:, None], servable(rate[:, None], left[:, None]))
+    assert int(hgad[0]) == 0

@@ -7,6 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
+from conftest import preset_mission
 from skymule.bounds.autonomous import autonomous_bound
 from skymule.errors import SkymuleError
 from skymule.metrics.summary import aadm_score, completion_time_s
@@ -58,7 +59,7 @@ def test_hover_allocation_is_a_rate_ordered_knapsack():
 
 def test_planner_finishes_the_preset_sooner_than_hgad():
     """HGAD already gets all 3000 Mbit here: the planner gets them too, sooner."""
-    mission = build_mission(load_scenario(PRESET))
+    mission = preset_mission(PRESET)
     hgad, planner = run_mission(mission, HGAD()), run_mission(mission, Planner())
     _assert_invariants(mission, planner)
     assert planner.downloaded_bit.sum() == pytest.approx(3000e6)
@@ -116,7 +117,7 @@ def test_many_sensors_use_the_heuristic_search():
 
 
 def test_planner_on_a_fixed_path_is_a_one_line_error():
-    mission = build_mission(load_scenario("paper-sim-fixed"))
+    mission = preset_mission("paper-sim-fixed")
     with pytest.raises(SkymuleError) as info:
         run_mission(mission, Planner())
     assert "autonomous" in str(info.value) and "\n" not in str(info.value)

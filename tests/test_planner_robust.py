@@ -8,14 +8,15 @@ from typing import Any
 import numpy as np
 import pytest
 
+from conftest import preset_mission
 from skymule.errors import ScenarioError
 from skymule.metrics.flights import MissionLog
 from skymule.policies import make_policy
 from skymule.policies.base import Observation
 from skymule.policies.planner import ground_speed_mps
 from skymule.policies.planner_robust import RobustPlanner
+from skymule.rules.contract import NO_SENSOR
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
-from skymule.sim.contract import NO_SENSOR
 from skymule.sim.run import mission_context, run_mission
 from skymule.world import Mission, build_mission
 from test_autonomous_bound import random_scenario
@@ -108,7 +109,7 @@ def test_the_smoothed_estimate_follows_the_mean_offset_and_drops_silent_sensors(
     robust planner goes by is the predicted one (the plain planner's is the observed, 6 dB
     low); a sensor that reports nothing now is rate 0 whatever its past.
     """
-    mission = build_mission(load_scenario(PRESET))
+    mission = preset_mission(PRESET)
     context = mission_context(mission)
     assert context.predict_snr_db is not None and context.rate_of_snr_bps is not None
     here = np.array([0.0, 0.0, mission.altitude_m])

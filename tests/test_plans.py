@@ -108,3 +108,61 @@ def test_planner_runs_the_same_with_and_without_the_compiler(monkeypatch):
     monkeypatch.setattr(planner_module, "plans_kernel", lambda: plans.simulate_plans)
     for mission, log in zip(missions, fast, strict=True):
         assert_logs_equal(log, run_mission(mission, Planner()))
+
+
+@pytest.mark.parametrize("kernel", ["python", "compiled"])
+def test_look_ahead_matches_a_hand_worked_case(kernel):
+    """An independent reference: two plans on two sensors, worked out slot by slot by hand
+    from the rules (serve the stop while it has data, else the best rate with data, ties to
+    the lowest index; y = min(R dt, Q); a stay that empties its buffer is the departure slot).
+
+    Plan A: fly leg 1 (3 slots) to hover point 0, stay 2 slots, fly leg 2 (2 slots) home.
+      t=0 departure at the start's rates [1, 0] Mbit/s: sensor 0, Q0 3 -> 2 Mbit;
+      t=1 en route [0, 1]: sensor 1, Q1 2 -> 1;  t=2 en route [0.5, 0.5]: tie, sensor 0, Q0 -> 1.5;
+      arrival at point 0 with Q0 = 1.5; t=3 stay at [2, 1]: Q0 -> 0 (emptied: departs in t=3);
+      leg home: t=3 departs (nothing left at point 0's zero rates), t=4 en route [0, 1]: Q1 -> 0:
+      everything (5 Mbit) downloaded by the end of slot 4, done = 5.
+    Plan B: straight home (leg 3, 1 slot), then serve at home's rates [0, 1] to the end:
+      t=0 sensor 0 (Q0 -> 2), t=1 and t=2 sensor 1 (Q1 -> 0); Q0 stays 2 (rate 0 at home):
+      3 Mbit, never done (done = n_slots = 10).
+    """
+    if kernel == "compiled" and not compiled.available():
+        pytest.skip("numba not installed")
+    mbit = 1e6
+    table = {
+        "slot": 0,
+        "n_slots": 10,
+        "slot_s": 1.0,
+        "return_home": True,
+        "remaining": np.array([3.0, 2.0]) * mbit,
+        "start_rates": np.array([1.0, 0.0]) * mbit,
+        "hover_rates": np.array([[2.0, 1.0], [0.0, 1.0]]) * mbit,
+        "home_rates": np.array([0.0, 1.0]) * mbit,
+        "leg_slots": np.array([0, 3, 2, 1], np.int64),
+        "leg_has_rates": np.array([False, True, True, False]),
+        "leg_row": np.array([0, 0, 2, 0], np.int64),
+        "leg_rates": np.array([[0.0, 1.0], [0.5, 0.5], [0.0, 1.0]]) * mbit,
+    }
+    orders, extras = [(0,), ()], [np.array([2]), np.array([], np.int64)]
+    legs = [np.array([1, 2]), np.array([3])]
+    run = plans.plans_kernel() if kernel == "compiled" else plans.simulate_plans
+    bits, done, arrival = run_plans(run, orders, extras, legs, table)
+    np.testing.assert_array_equal(bits, [5.0 * mbit, 3.0 * mbit])
+    np.testing.assert_array_equal(done, [5, 10])
+    np.testing.assert_array_equal(arrival, [1.5 * mbit])
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 6))
+def test_serve_picks_as_rate_choice(seed, n):
+    """The look-ahead's serve (no stop to prefer) is the contract's ``rate_choice``."""
+    from skymule.rules import contract
+
+    rng = np.random.default_rng(seed)
+    q = rng.choice([0.0, 1e6, 3e6], size=n)
+    rates = rng.choice([0.0, 1e6, 2e6, 2e6, 5e6], size=n)
+    want = int(contract.rate_choice(rates[:, None], contract.servable(rates, q)[:, None])[0])
+    left = q.copy()
+    plans.serve(left, rates, -1, 1.0, 0, 10, 0.0, 10)
+    served = np.flatnonzero(left != q)
+    assert served.tolist() == ([] if want == contract.NO_SENSOR else [want])

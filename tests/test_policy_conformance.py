@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import shapely
 
-from conftest import run_cli
+from conftest import preset_mission, run_cli
 from skymule.errors import SkymuleError
 from skymule.metrics.flights import NO_SENSOR, MissionLog
 from skymule.policies import POLICIES, make_policy, unknown_policies
@@ -58,7 +58,7 @@ def assert_slot_contract(mission: Mission, log: MissionLog) -> None:
 
 @pytest.fixture(scope="module")
 def missions() -> dict[str, Mission]:
-    return {name: build_mission(load_scenario(name)) for name in PRESETS}
+    return {name: preset_mission(name) for name in PRESETS}
 
 
 @pytest.mark.parametrize("policy_name", sorted(POLICIES))

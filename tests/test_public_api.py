@@ -2,12 +2,104 @@
 
 from __future__ import annotations
 
+import ast
+import importlib
+import inspect
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 import skymule
+
+ROOT = Path(__file__).resolve().parents[1]
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+
+
+def python_blocks(page: Path) -> list[tuple[int, str]]:
+    """(line, code) of every ```python (or ```py) block of ``page``."""
+    text = page.read_text()
+    return [
+        (text.count("\n", 0, match.start()) + 2, match.group(1))
+        for match in re.finditer(r"^```(?:python|py)\n(.*?)^```", text, flags=re.S | re.M)
+    ]
+
+
+def public_names(module: str) -> set[str]:
+    """What ``module`` exports: ``skymule.__all__``, or the ``__all__`` of a module that declares
+    one (a module without ``__all__`` is internal: nothing in it is public)."""
+    found = importlib.import_module(module)
+    return set(getattr(found, "__all__", ()))
+
+
+def non_public_imports(code: str) -> list[str]:
+    """The skymule names ``code`` imports or reaches (``skymule.X``) that are not public."""
+    bad = []
+    for node in ast.walk(ast.parse(code)):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "skymule":
+            exported = public_names(node.module or "")
+            bad += [f"{node.module}.{a.name}" for a in node.names if a.name not in exported]
+        elif isinstance(node, ast.Import):
+            bad += [
+                a.name
+                for a in node.names
+                if a.name.startswith("skymule.") and not public_names(a.name)
+            ]
+        elif (
+            isinstance(node, ast.Attribute)
+            and isinstance(node.value, ast.Name)
+            and node.value.id == "skymule"
+            and node.attr not in skymule.__all__
+        ):
+            bad.append(f"skymule.{node.attr}")
+    return bad
+
+
+def test_docs_import_only_public_names() -> None:
+    """Every import in the Python blocks of README.md and docs/*.md is public: exported from
+    ``skymule`` or listed in the ``__all__`` of its module (a user copies these lines)."""
+    pytest.importorskip("pettingzoo", reason="docs/fleet.md imports the PettingZoo env")
+    found = []
+    for page in PAGES:
+        for line, code in python_blocks(page):
+            found += [f"{page.name}:{line}: {name}" for name in non_public_imports(code)]
+    assert not found, "README/docs import names skymule does not export:\n" + "\n".join(found)
+
+
+def test_the_docs_check_catches_an_internal_import() -> None:
+    assert non_public_imports("from skymule.tasks.compare import write_compare") == [
+        "skymule.tasks.compare.write_compare"
+    ]
+    assert non_public_imports("import skymule\nskymule.run_fixed()") == ["skymule.run_fixed"]
+    assert non_public_imports("import skymule.tasks.compare") == ["skymule.tasks.compare"]
+    assert non_public_imports("from skymule import write_compare, scenario_bound") == []
+
+
+def _documented(cls: type, name: str, member: object) -> bool:
+    """A public method has a docstring; a property has one or is listed under the class
+    docstring's ``Attributes:``."""
+    if isinstance(member, property):
+        listed = re.search(rf"^\s+{name}:", cls.__doc__ or "", flags=re.M) is not None
+        return bool(member.fget and member.fget.__doc__) or listed
+    function = getattr(member, "__func__", member)
+    return not inspect.isfunction(function) or bool(function.__doc__)
+
+
+def test_every_export_and_its_public_methods_are_documented() -> None:
+    missing = []
+    for name in skymule.__all__:
+        value = getattr(skymule, name)
+        if not inspect.getdoc(value):
+            missing.append(name)
+        if inspect.isclass(value) and value.__module__.startswith("skymule"):
+            missing += [
+                f"{name}.{attr}"
+                for attr, member in vars(value).items()
+                if not attr.startswith("_") and not _documented(value, attr, member)
+            ]
+    assert not missing, f"no docstring: {missing}"
 
 
 def test_every_exported_name_resolves_and_is_documented() -> None:

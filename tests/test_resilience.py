@@ -10,11 +10,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from conftest import run_cli
+from conftest import preset_mission, run_cli
 from skymule.metrics.flights import MissionLog
 from skymule.policies import make_policy
+from skymule.rules.contract import NO_SENSOR
 from skymule.scenario import PolicySpec, Scenario, load_scenario, scenario_from_dict
-from skymule.sim.contract import NO_SENSOR
 from skymule.sim.run import run_mission
 from skymule.tasks.resilience import LEVELS, leveled, run_study
 from skymule.world import Mission, build_mission
@@ -34,7 +34,7 @@ def _run(mission: Mission, name: str, **params: Any) -> MissionLog:
 
 @pytest.mark.parametrize("preset", ["paper-sim-fixed", "paper-sim-autonomous"])
 def test_robust_hgad_without_faults_and_smoothing_is_hgad(preset: str) -> None:
-    mission = build_mission(load_scenario(preset))
+    mission = preset_mission(preset)
     plain = _run(mission, "hgad")
     robust = _run(mission, "hgad-robust", window_slots=1, arrive_m=0.0)
     assert np.array_equal(plain.served, robust.served)
@@ -64,7 +64,7 @@ def _dead_run(log: MissionLog, sensor: int) -> int:
 
 
 def test_robust_hgad_leaves_a_tower_that_goes_silent_mid_hover() -> None:
-    clean = build_mission(load_scenario("paper-sim-fixed"))
+    clean = preset_mission("paper-sim-fixed")
     start, sensor = _first_hover(_run(clean, "hgad"))
     name = clean.sensor_names[sensor]
     outage = {

@@ -1,4 +1,5 @@
-"""Learned twins (``fit-radiomap --method neural``) and ``skymule sim2real``, on small flights."""
+"""Learned twins (``fit-radiomap --method neural``) and ``skymule sim2real``, on small flights
+(the learned twin's own tests: tests/test_learned_twin.py)."""
 
 from __future__ import annotations
 
@@ -11,16 +12,7 @@ import pytest
 from conftest import run_cli
 from skymule.geo import LocalFrame
 from skymule.io.traces import read_trace, write_aadm_log, write_dt_export
-from skymule.radio.learned import fit_ensemble, link_features
-from skymule.radio.radiomap import (
-    FitOptions,
-    MapPrior,
-    RadioMap,
-    SensorSamples,
-    fit_samples,
-    fit_sensor_map,
-    read_radiomap,
-)
+from skymule.radio.radiomap import read_radiomap
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLES = ROOT / "examples" / "samples"
@@ -36,90 +28,6 @@ def _path(n: int) -> np.ndarray:
         xs = np.linspace(-300, 300, per_leg)[:: -1 if i % 2 else 1]
         legs.append(np.column_stack([xs, np.full(per_leg, 250 - 100 * i), np.full(per_leg, 30)]))
     return np.vstack(legs)
-
-
-def _sector_loss(positions: np.ndarray) -> np.ndarray:
-    """A tower antenna's azimuth pattern: 0 dB at boresight (east), 15 dB behind."""
-    delta = positions - TOWER
-    azimuth = np.arctan2(delta[:, 1], delta[:, 0])
-    return -15.0 * np.sin(azimuth / 2) ** 2
-
-
-def _free_space(positions: np.ndarray) -> np.ndarray:
-    d = np.maximum(np.linalg.norm(positions - TOWER, axis=1), 1.0)
-    return 75.0 - 20.0 * np.log10(d)
-
-
-def test_learned_residual_over_a_prior_generalises_in_time() -> None:
-    """The twin misses the antenna pattern and is 8 dB optimistic; seeing the first 40% of a
-    flight, the learned twin predicts the last 60% (other places) near the noise floor."""
-    rng = np.random.default_rng(1)
-    positions = _path(360)
-    noise_db = 1.0
-    measured = _free_space(positions) + _sector_loss(positions)
-    measured = measured + noise_db * rng.standard_normal(len(positions))
-    prior = _free_space(positions) + 8.0  # the twin: no pattern, optimistic
-    cut = int(0.4 * len(positions))
-    samples = SensorSamples(positions[:cut], measured[:cut], np.arange(cut) * 5 // cut)
-    fitted = fit_sensor_map(
-        "LW1", TOWER, samples, prior_snr_db=prior[:cut], options=FitOptions("neural", seed=3)
-    )
-    held = positions[cut:]
-    error = fitted.snr_db(held, prior[cut:]) - measured[cut:]
-    rmse = float(np.sqrt(np.mean(error**2)))
-    twin_rmse = float(np.sqrt(np.mean((prior[cut:] - measured[cut:]) ** 2)))
-    assert twin_rmse > 8.0
-    assert rmse < noise_db + 1.0, rmse  # within 1 dB of the noise floor
-    sigma = fitted.sigma_db(held, prior[cut:])
-    assert np.all(sigma > 0) and np.all(np.isfinite(sigma))
-
-
-def test_ensemble_is_seeded_and_its_spread_grows_away_from_the_data() -> None:
-    rng = np.random.default_rng(0)
-    positions = _path(120)
-    features = link_features(positions, TOWER)
-    target = _sector_loss(positions) + 0.5 * rng.standard_normal(len(positions))
-    names = ("log10_distance", "elevation_rad", "sin_azimuth", "cos_azimuth", "height_m")
-    first = fit_ensemble(features, target, names, seed=7, members=3, max_iterations=100)
-    again = fit_ensemble(features, target, names, seed=7, members=3, max_iterations=100)
-    assert json.dumps(first.to_dict()) == json.dumps(again.to_dict())
-    other = fit_ensemble(features, target, names, seed=8, members=3, max_iterations=100)
-    assert json.dumps(first.to_dict()) != json.dumps(other.to_dict())
-    near = first.members_db(features).std(axis=0).mean()
-    far = link_features(np.array([[5000.0, 5000.0, 300.0]]), TOWER)
-    assert first.members_db(far).std(axis=0)[0] > 3 * near
-
-
-def test_learned_map_round_trips_as_numbers(tmp_path: Path) -> None:
-    """The map file holds weights as JSON numbers (no pickle) and predicts the same bits."""
-    rng = np.random.default_rng(2)
-    positions = _path(120)
-    twin_samples = SensorSamples(positions, _free_space(positions), np.arange(120) // 24)
-    twin = fit_sensor_map("LW1", TOWER, twin_samples, options=FitOptions("log-distance"))
-    prior_map = RadioMap(ORIGIN, (twin,), "log-distance")
-    prior = MapPrior(prior_map, np.zeros(3), "twin.json")
-    measured = _free_space(positions) + _sector_loss(positions) + rng.standard_normal(120)
-    samples = [SensorSamples(positions, measured, np.arange(120) // 24)]
-    fitted = fit_samples(
-        samples, ["LW1"], TOWER[None], ORIGIN, options=FitOptions("neural"), prior=prior
-    )
-    path = tmp_path / "learned.json"
-    fitted.write(path)
-    text = path.read_text()
-    document = json.loads(text)
-    assert document["version"] == 2 and document["method"] == "neural"
-    assert document["prior"]["kind"] == "radiomap"
-    assert len(document["sensors"][0]["ensemble"]["networks"]) == 5
-    back = read_radiomap(path)
-    query = np.array([[0.0, 0.0, 30.0], [200.0, -300.0, 40.0]])
-    np.testing.assert_array_equal(back.source(["LW1"]).snr_db(query),
-                                  fitted.source(["LW1"]).snr_db(query))  # fmt: skip
-    np.testing.assert_array_equal(back.source(["LW1"]).sigma_db(query),
-                                  fitted.source(["LW1"]).sigma_db(query))  # fmt: skip
-    document["sensors"][0]["ensemble"]["networks"][0][0]["weights"] = [[1.0]]
-    path.write_text(json.dumps(document))
-    done = run_cli("score-radiomap", path, SAMPLES / "dt_flight.csv")
-    assert done.returncode == 2 and "malformed" in done.stderr
 
 
 def test_cli_methods_and_learned_twin_on_the_samples(tmp_path: Path) -> None:

@@ -23,7 +23,7 @@ from skymule.metrics.sim2real import (
     running_median,
     snr_errors,
 )
-from skymule.sim.contract import NO_SENSOR
+from skymule.rules.contract import NO_SENSOR
 
 
 def _mean(x: np.ndarray) -> np.ndarray:

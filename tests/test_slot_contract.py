@@ -224,7 +224,7 @@ def test_the_download_window_closes_like_the_aadm_controller(preset: str) -> Non
 def test_first_true_is_the_first_sensor_down_each_column() -> None:
     """Ties in the choices go to the lowest sensor index: the first True of each column, 0
     where a column has none (the callers mark those NO_SENSOR)."""
-    from skymule.sim.contract import first_true
+    from skymule.rules.contract import first_true
 
     rng = np.random.default_rng(3)
     for n_sensors in (1, 2, 5, 17):

@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 
 from conftest import SMALL_SWEEP, run_cli, write
+from engine_cases import TWIN_RTOL
 from skymule.experiments import store
 from skymule.experiments.run import run_sweep
 from skymule.experiments.sweep import iter_missions, load_sweep
@@ -33,8 +34,10 @@ def test_rows_equal_single_mission_runs(tmp_path):
         mission = missions[row["mission_id"]]
         summary = simulate(scenario_from_dict(mission.scenario, "t", Path("."))).summary
         assert row["policy"] == summary["policy"] == mission.params["policy.name"]
-        for key in ("total_downloaded_mbit", "handovers", "hover_time_s", "distance_m", "slots"):
+        for key in ("handovers", "hover_time_s", "slots"):
             assert row[key] == summary[key], key
+        for key in ("total_downloaded_mbit", "distance_m"):  # compiled sums: another order
+            assert row[key] == pytest.approx(summary[key], rel=TWIN_RTOL, abs=0.0), key
     # paired: both policies fly the same buffers
     results = outcome.results
     greedy = results[results["policy"] == "greedy"].reset_index(drop=True)
@@ -78,6 +81,7 @@ mode = { sample = 4 }
     assert missions[1].scenario["sensors"][1].get("lat") is not None
 
 
+@pytest.mark.slow
 @pytest.mark.filterwarnings("ignore::ResourceWarning")
 def test_executors_give_identical_tables(tmp_path):
     spec = load_sweep(write(tmp_path, SMALL.format(n=4)))

@@ -20,6 +20,9 @@ from skymule.experiments import store
 from skymule.experiments.run import run_sweep
 from skymule.experiments.sweep import load_sweep, plan_missions, sweep_plan
 
+#: Sweeps across processes and a Dask cluster: in the default run, skipped by ``-m 'not slow'``.
+pytestmark = pytest.mark.slow
+
 PRODUCT = """
 base = "paper-sim-fixed"
 seed = 3

@@ -7,11 +7,10 @@ import pytest
 import shapely
 from shapely.geometry import Polygon
 
+from conftest import preset_mission
 from skymule.flight.navigation import Navigator
-from skymule.scenario import load_scenario
 from skymule.sim import compiled
 from skymule.sim import visibility_kernels as vk
-from skymule.world import build_mission
 from test_batch_autonomous import U_FENCE
 
 #: a concave shell with a concave hole, a hole vertex on the shell's x range
@@ -22,7 +21,7 @@ HOLED = Polygon(
 
 
 def fences() -> list[Polygon]:
-    preset = build_mission(load_scenario("paper-sim-autonomous")).navigator
+    preset = preset_mission("paper-sim-autonomous").navigator
     assert preset is not None
     return [U_FENCE, preset.fence, HOLED]
 

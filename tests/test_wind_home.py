@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from shapely.geometry import Point, Polygon, box
 
+from conftest import preset_mission
 from skymule.energy import propulsion_power_w
 from skymule.errors import ScenarioError
 from skymule.faults import Battery, Wind, no_faults
@@ -45,7 +46,7 @@ def _square_mission(
 ) -> Mission:
     """paper-sim-autonomous cut to ``n_slots`` 1-s slots, home (0, 0), in a 2 km square fence,
     10 m/s speed cap, with ``wind`` and ``battery``."""
-    mission = build_mission(load_scenario("paper-sim-autonomous"))
+    mission = preset_mission("paper-sim-autonomous")
     fence = box(-1000.0, -1000.0, 1000.0, 1000.0)
     faults = replace(no_faults(n_slots, mission.n_sensors), wind=wind, battery=battery)
     assert mission.fading_db is None and mission.max_speed_mps == 10.0

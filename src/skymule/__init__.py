@@ -10,15 +10,22 @@ What a user imports, from one place (each name is loaded when first used, so imp
   :func:`build_mission`, :func:`run_mission` / :func:`run_missions` (any policy, batched or
   per mission, through the engine of the trajectory mode), :func:`summarize_missions`
   (``summary.json`` rows of many);
-* comparisons and sweeps: :func:`compare_policies`, :func:`load_sweep`, :func:`run_sweep`;
+* comparisons, bounds and sweeps: :func:`compare_policies` / :func:`compare_sources` (what
+  ``skymule compare`` runs) and :func:`write_compare` (its folder), :func:`scenario_bound`
+  (what ``skymule bound`` gives), :func:`load_sweep`, :func:`run_sweep`;
+  :func:`random_autonomous_scenario` with :class:`LayoutRanges` (random missions);
 * writing a policy: :class:`Policy` (one mission: ``reset(context)``, ``act(observation)``
   -> :class:`Action`) or :class:`BatchPolicy` (``batched = True``: ``reset(contexts)``,
   ``act(batch_observation)`` -> :class:`BatchAction`), seeing :class:`MissionContext`,
-  :class:`Observation` / :class:`BatchObservation`;
+  :class:`Observation` / :class:`BatchObservation`; :func:`make_policy` (a policy by name,
+  from a scenario's ``[policy]``); :class:`AadmAgent` (a policy behind the AADM challenge's
+  once-a-second interface);
 * the run record: :class:`Flights` (B flights) and :class:`MissionLog` (one of them).
 
-Everything else (``skymule.sim``, ``skymule.radio``, ...) is internal: importable, but free to
-change between releases.
+Beside these, a module that declares ``__all__`` (``skymule.envs`` and its environments,
+``skymule.faults``, ...) exports the names it lists. Everything else (``skymule.sim``,
+``skymule.radio``, ...) is internal: importable, but free to change between releases.
+``tests/test_public_api.py`` fails when README.md or docs/ import anything else.
 """
 
 from __future__ import annotations
@@ -39,6 +46,13 @@ _EXPORTS = {
     "run_missions": "skymule.sim.run",
     "summarize_missions": "skymule.sim.run",
     "compare_policies": "skymule.tasks.compare",
+    "compare_sources": "skymule.tasks.compare",
+    "scenario_bound": "skymule.tasks.compare",
+    "write_compare": "skymule.tasks.compare",
+    "LayoutRanges": "skymule.experiments.layouts",
+    "random_autonomous_scenario": "skymule.experiments.layouts",
+    "make_policy": "skymule.policies",
+    "AadmAgent": "skymule.aadm.agent",
     "load_sweep": "skymule.experiments.sweep",
     "run_sweep": "skymule.experiments.run",
     "Action": "skymule.policies.base",
@@ -53,11 +67,13 @@ _EXPORTS = {
 }
 
 __all__ = [
+    "AadmAgent",
     "Action",
     "BatchAction",
     "BatchObservation",
     "BatchPolicy",
     "Flights",
+    "LayoutRanges",
     "Mission",
     "MissionContext",
     "MissionLog",
@@ -67,19 +83,27 @@ __all__ = [
     "Scenario",
     "build_mission",
     "compare_policies",
+    "compare_sources",
     "load_scenario",
     "load_sweep",
+    "make_policy",
+    "random_autonomous_scenario",
     "run_mission",
     "run_missions",
     "run_sweep",
+    "scenario_bound",
     "simulate",
     "summarize_missions",
+    "write_compare",
 ]
 
 if TYPE_CHECKING:
+    from skymule.aadm.agent import AadmAgent
+    from skymule.experiments.layouts import LayoutRanges, random_autonomous_scenario
     from skymule.experiments.run import run_sweep
     from skymule.experiments.sweep import load_sweep
     from skymule.metrics.flights import Flights, MissionLog
+    from skymule.policies import make_policy
     from skymule.policies.base import (
         Action,
         BatchAction,
@@ -91,7 +115,12 @@ if TYPE_CHECKING:
     )
     from skymule.scenario import Scenario, load_scenario
     from skymule.sim.run import run_mission, run_missions, summarize_missions
-    from skymule.tasks.compare import compare_policies
+    from skymule.tasks.compare import (
+        compare_policies,
+        compare_sources,
+        scenario_bound,
+        write_compare,
+    )
     from skymule.tasks.simulate import RunResult, simulate
     from skymule.world import Mission, build_mission
 

@@ -12,7 +12,6 @@ Geofences are shapely polygons in the same local frame, loaded from a built-in n
 
 from __future__ import annotations
 
-import json
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from importlib import resources
@@ -25,6 +24,7 @@ import shapely
 from shapely.geometry import Polygon
 
 from skymule.errors import SkymuleError
+from skymule.io.textfiles import parse_json
 
 #: Built-in site files shipped as package data.
 #: ``lake_wheeler.geojson`` holds the AERPAW Lake Wheeler phase-1 UAV geofence, the AADM
@@ -99,7 +99,7 @@ def load_site(name: str) -> Site:
             f"site {name!r} is not built in; built-in sites: {', '.join(sorted(BUILTIN_SITES))}"
         )
     text = resources.files("skymule").joinpath("data", BUILTIN_SITES[name]).read_text()
-    collection = json.loads(text)
+    collection = parse_json(text)
     ring: tuple[tuple[float, float], ...] = ()
     points: list[SitePoint] = []
     for feature in collection["features"]:
@@ -137,8 +137,8 @@ def polygon_from_lonlat(ring_lonlat: Any, frame: LocalFrame, source: str) -> Pol
 
 def _geojson_ring(path: Path) -> list[list[float]]:
     try:
-        data = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
+        data = parse_json(path.read_text())
+    except (OSError, ValueError) as exc:
         raise SkymuleError(f"{path}: cannot read GeoJSON geofence ({exc})") from None
     features = data.get("features", [data]) if isinstance(data, dict) else []
     for feature in features:

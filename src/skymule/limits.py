@@ -38,6 +38,17 @@ MAX_EFFICIENCY_BPS_HZ = 100.0
 symbol, and Shannon's log2(1 + SNR) reaches 33 only at 100 dB SNR."""
 
 
+MAX_BANDWIDTH_HZ = 1e11
+"""Widest radio channel [Hz] (100 GHz): above any UAV link's (LTE's widest carrier is 20 MHz,
+5G's 400 MHz, 802.11ay's 8.64 GHz); a wider figure is a typo (``1e308`` made every buffer
+download in three slots)."""
+
+MAX_SNR_DB = 300.0
+"""Largest |SNR| [dB] a recorded trace may hold: 10^30 in power, far beyond any receiver
+(with a 100 bit/s/Hz rate table, :data:`MAX_EFFICIENCY_BPS_HZ`, Shannon needs about 300 dB).
+A sample of ``1e308`` is a damaged log, not a measurement."""
+
+
 def at_most(limit: float, unit: str, why: str) -> str:
     """The words of a refusal: ``at most 340 m/s (the speed of sound ...)``."""
     return f"at most {limit:g} {unit} ({why})"

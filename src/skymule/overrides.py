@@ -8,10 +8,10 @@ result is validated like a file, so a bad value gets the same one-line error.
 from __future__ import annotations
 
 import re
-import tomllib
 from typing import Any
 
 from skymule.errors import ScenarioError
+from skymule.io.textfiles import parse_toml
 
 _KEY_PART = re.compile(r"([A-Za-z_][A-Za-z0-9_-]*)((?:\[\d+\])*)")
 
@@ -34,8 +34,8 @@ def parse_override_key(key: str) -> list[str | int]:
 def parse_override_value(text: str) -> Any:
     """A TOML value (``3``, ``1.5``, ``true``, ``[1, 2]``, ``"a"``); a bare word is a string."""
     try:
-        return tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
+        return parse_toml(f"v = {text}")["v"]
+    except ValueError:  # tomllib.TOMLDecodeError, or nested too deeply
         return text.strip()
 
 

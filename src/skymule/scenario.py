@@ -1,6 +1,6 @@
 """Scenario files: a validated, serialisable description of one mission.
 
-A scenario is TOML (see the README for the schema). It is validated by pydantic models that
+A scenario is TOML (schema: docs/cli.md). It is validated by pydantic models that
 forbid unknown keys, so a misspelt field is an error, never silently ignored. Mbit and lat/lon
 appear here, at the edge; :mod:`skymule.world` turns a scenario into SI arrays.
 
@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import functools
 import math
-import tomllib
 from collections.abc import Iterable, Sequence
 from importlib import resources
 from pathlib import Path
@@ -30,13 +29,15 @@ from pydantic import (
 )
 from pydantic_core import ErrorDetails, PydanticCustomError
 
+from skymule.aadm.rules import TESTBED_POLL_INTERVAL_S
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.faults.specs import SINGLE_KINDS, fault_params
-from skymule.io.textfiles import read_text
+from skymule.io.textfiles import parse_toml, read_text
 from skymule.limits import (
     ALTITUDE_LIMIT,
     COORDINATE_LIMIT,
     MAX_ALTITUDE_M,
+    MAX_BANDWIDTH_HZ,
     MAX_BUFFER_MBIT,
     MAX_COORDINATE_M,
     MAX_DURATION_S,
@@ -118,6 +119,16 @@ class MissionSpec(_Spec):
     at 500 s: later slots serve nothing. None: downloads count until the mission ends."""
 
 
+class AadmSpec(_Spec):
+    """How the AADM testbed runs a mission (``skymule.aadm.score.predicted_testbed_score``)."""
+
+    poll_interval_s: Annotated[float, Field(ge=1.0, le=10.0)] = TESTBED_POLL_INTERVAL_S
+    """Mean wall time between the UAV's polls on the testbed [s] (1.031: 330 polls in 339.2 s
+    of the recorded flight log; its controller answers at most one poll a second)."""
+    poll_jitter_s: Annotated[float, Field(ge=0.0, le=5.0)] = 0.0
+    """Standard deviation of that time [s], drawn from the scenario's seed (0: steady)."""
+
+
 class SiteSpec(_Spec):
     origin: LatLon = LatLon(lat=35.7274824, lon=-78.6962749)
     """Origin of the local east/north frame (default: the AADM launch point)."""
@@ -166,7 +177,8 @@ class RadioSpec(_Spec):
     tx_gain_dbi: float = 10.0
     rx_gain_dbi: float = 2.0
     noise_dbm: float = -90.0
-    bandwidth_hz: PositiveFloat = 1.4e6
+    bandwidth_hz: Annotated[float, Field(gt=0, le=MAX_BANDWIDTH_HZ)] = 1.4e6
+    """Channel bandwidth [Hz], at most :data:`~skymule.limits.MAX_BANDWIDTH_HZ` (100 GHz)."""
     rate_table: str = "aadm-lte-cqi"
     shadowing_std_db: Annotated[float, Field(ge=0, le=30)] = 0.0
     """Log-normal shadowing standard deviation [dB] (0: none); model sources only."""
@@ -446,6 +458,29 @@ def route_policy_params(
     ]
 
 
+def plugin_default_overrides(params: dict[str, Any], names: Sequence[str], owner: str) -> list[str]:
+    """One line for each ``[policy.params]`` key written for the scenario's own policy
+    ``owner`` that replaces the default a *plug-in* among ``names`` declares for it (a
+    preset's HGAD longest hover given to a plug-in whose own default is shorter): the value
+    is applied, as :func:`route_policy_params` shares it out, and the user is told."""
+    lines = []
+    shares = route_policy_params(params, names, owner)
+    for name, share in zip(names, shares, strict=True):
+        if name == owner or not is_plugin(name):
+            continue
+        model = policy_params_model(name)
+        fields = model.model_fields if model is not None else {}
+        for key, value in share.items():
+            field = fields.get(key)
+            if field is None or field.is_required() or field.default == value:
+                continue
+            lines.append(
+                f"policy.params.{key} = {value!r} (written for {owner!r}) replaces "
+                f"{name!r}'s own default {field.default!r}"
+            )
+    return lines
+
+
 def _pathloss_param_names() -> frozenset[str]:
     return _param_names_of_models(tuple(kind.params for _, kind in PATHLOSS_MODELS.items()))
 
@@ -499,7 +534,8 @@ class Scenario(_Spec):
     table, shadowing, fading), ``[signal]`` (model, radio map or recorded trace),
     ``[trajectory]`` (fixed waypoints or autonomous flight: home, speed, altitude, return
     home), ``[policy]`` (name and ``[policy.params]``), ``[[faults]]`` and ``[[uavs]]``
-    (several UAVs). Load one with :func:`load_scenario`; ``to_toml_dict`` writes it back.
+    (several UAVs), ``[aadm]`` (the AADM testbed's poll cadence). Load one with
+    :func:`load_scenario`; ``to_toml_dict`` writes it back.
     """
 
     name: str = "scenario"
@@ -516,6 +552,8 @@ class Scenario(_Spec):
     """Faults injected into the mission (none by default); see docs/faults.md."""
     uavs: list[UavSpec] | None = None
     """Several UAVs sharing the sensors' buffers (``docs/fleet.md``); None: one UAV."""
+    aadm: AadmSpec | None = None
+    """The AADM testbed's poll cadence (docs/aadm.md); None: its recorded 1.031 s a poll."""
     base_dir: str = Field(default=".", exclude=True)
     """Folder that relative paths in the scenario are resolved against (not serialised)."""
 
@@ -566,6 +604,7 @@ class Scenario(_Spec):
         return self
 
     def resolve_path(self, value: str) -> Path:
+        """``value`` as a path: absolute as given, else relative to the scenario's folder."""
         path = Path(value)
         return path if path.is_absolute() else Path(self.base_dir) / path
 
@@ -589,6 +628,7 @@ class Scenario(_Spec):
         return scenarios
 
     def to_toml_dict(self) -> dict[str, Any]:
+        """The scenario as plain TOML/JSON values (unset fields left out), as a file holds it."""
         return self.model_dump(mode="json", exclude_none=True)
 
 
@@ -719,6 +759,6 @@ def load_scenario(
 
 def _toml(text: str, source: str) -> dict[str, Any]:
     try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
+        return parse_toml(text)
+    except ValueError as exc:  # tomllib.TOMLDecodeError, or nested too deeply
         raise ScenarioError(f"{source}: not valid TOML ({exc})") from None

@@ -14,7 +14,6 @@ from pathlib import Path
 import numpy as np
 from shapely.geometry import Point, Polygon, box
 
-from skymule.aadm.rules import AADM_WINDOW_S
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.faults.draws import FaultDraws, draw_faults, fault_rng
 from skymule.flight.navigation import Navigator, hover_point
@@ -25,8 +24,9 @@ from skymule.limits import waypoint_problem
 from skymule.radio.channel import mission_fading_db, signal_source
 from skymule.radio.rates import RateTable, rate_bps, resolve_rate_table
 from skymule.radio.sources import SignalSource
+from skymule.rules import contract
+from skymule.rules.defaults import AADM_WINDOW_S, HOVER_THRESHOLD, MAX_HOVER_S
 from skymule.scenario import Scenario
-from skymule.sim import contract
 from skymule.units import BITS_PER_MBIT
 
 #: Half-width [m] of the square that stands in for a geofence when a scenario gives none.
@@ -128,6 +128,7 @@ class Mission:
 
     @property
     def n_sensors(self) -> int:
+        """How many sensors the mission has (N)."""
         return len(self.sensor_names)
 
     def rate_bps(self, snr_db: np.ndarray) -> np.ndarray:
@@ -308,6 +309,7 @@ def _trace_track(scenario: Scenario, frame: LocalFrame) -> Track:
     if "slot_s" in scenario.mission.model_fields_set and trace.n_samples > 1:
         # resample the recording at the requested slot length (sample-and-hold)
         slot_s = scenario.mission.slot_s
+        _check_flight_slots(f"signal.trace = {str(path)!r}", trace.time_s, slot_s)
         times = flight_slot_times_s(trace.time_s, slot_s)
         index = np.searchsorted(trace.time_s, times + 1e-9, side="right") - 1
         positions, snr = positions[index], snr[index]
@@ -319,7 +321,22 @@ def flight_slot_times_s(time_s: np.ndarray, slot_s: float) -> np.ndarray:
 
     Slot k starts at k * slot_s; the last slot starts at or before the last sample.
     """
-    return np.arange(int(np.floor(time_s[-1] / slot_s + 1e-9)) + 1) * slot_s
+    return np.arange(flight_slot_count(time_s, slot_s)) * slot_s
+
+
+def flight_slot_count(time_s: np.ndarray, slot_s: float) -> int:
+    """How many slots :func:`flight_slot_times_s` gives, computed without building them."""
+    return int(np.floor(time_s[-1] / slot_s + 1e-9)) + 1
+
+
+def _check_flight_slots(what: str, time_s: np.ndarray, slot_s: float) -> None:
+    """Refuse a recording that spans more than MAX_SLOTS slots, before any slot is built."""
+    span = float(time_s[-1]) / slot_s
+    if not np.isfinite(span) or span + 1 > MAX_SLOTS:
+        raise ScenarioError(
+            f"{what} lasts {time_s[-1]:g} s: {span + 1:,.0f} slots of {slot_s:g} s; at most "
+            f"{MAX_SLOTS:,} are allowed"
+        )
 
 
 def resample_positions(time_s: np.ndarray, positions_m: np.ndarray, slot_s: float) -> np.ndarray:
@@ -332,7 +349,9 @@ def resample_positions(time_s: np.ndarray, positions_m: np.ndarray, slot_s: floa
     return np.column_stack([np.interp(times, time_s, positions_m[:, axis]) for axis in range(3)])
 
 
-def _flight_track(scenario: Scenario, frame: LocalFrame, source: SignalSource) -> Track:
+def _flight_track(
+    scenario: Scenario, frame: LocalFrame, source: SignalSource, fence: Polygon | None
+) -> Track:
     """The recorded flight of ``trajectory.flight``, resampled to the slots, under ``source``."""
     from skymule.io.traces import TraceError, positions_local, read_trace
 
@@ -342,13 +361,10 @@ def _flight_track(scenario: Scenario, frame: LocalFrame, source: SignalSource) -
         trace = read_trace(path)
     except TraceError as exc:
         raise ScenarioError(f"trajectory.flight: {exc}") from None
+    # counted before the slot times are built: a 1e8-s log must not allocate first
+    _check_flight_slots(f"trajectory.flight = {str(path)!r}", trace.time_s, scenario.mission.slot_s)
     recorded = positions_local(trace, frame.to_local)
-    slots = len(flight_slot_times_s(trace.time_s, scenario.mission.slot_s))
-    if slots > MAX_SLOTS:
-        raise ScenarioError(
-            f"trajectory.flight = {str(path)!r} lasts {trace.time_s[-1]:g} s: {slots:,} slots of "
-            f"{scenario.mission.slot_s:g} s; at most {MAX_SLOTS:,} are allowed"
-        )
+    _check_inside(fence, recorded, "trajectory.flight")  # like waypoints (issue 32)
     positions = resample_positions(trace.time_s, recorded, scenario.mission.slot_s)
     return Track(position_m=positions, snr_db=source.snr_db(positions), hold_at_end=False)
 
@@ -417,7 +433,7 @@ def build_mission(scenario: Scenario) -> Mission:
             )
         source = signal_source(scenario, frame, sensor_m, fence)
         if scenario.trajectory.flight is not None:
-            track = _flight_track(scenario, frame, source)
+            track = _flight_track(scenario, frame, source, fence)
             n_slots = track.n_samples if duration_s is None else _n_slots(duration_s, slot_s)
         else:
             assert duration_s is not None
@@ -474,8 +490,8 @@ def mission_from_track(
     bandwidth_hz: float = 1.4e6,
     rate_table: str = "aadm-lte-cqi",
     policy: str = "hgad",
-    hover_threshold: float = 1.0,
-    max_hover_s: float = 60.0,
+    hover_threshold: float = HOVER_THRESHOLD,
+    max_hover_s: float = MAX_HOVER_S,
 ) -> Mission:
     """A fixed-trajectory mission straight from a track (no scenario file, no geodesy).
 

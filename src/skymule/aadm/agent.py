@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from skymule.aadm import files, protocol
+from skymule.aadm import files, net, protocol
 from skymule.aadm.controller import poll_once, send_telemetry
 from skymule.aadm.protocol import NOT_HEARD_DB, Reply
 from skymule.aadm.score import UNREADABLE_SNR_DB, poll_download_bit
@@ -57,11 +57,18 @@ def policy_context(mission: Mission) -> MissionContext:
 
 @dataclass(frozen=True)
 class AgentStep:
-    """One decision: the tower to name (1..N), where to fly, and the policy's own choice."""
+    """One decision: the tower to name (1..N), where to fly, and the policy's own choice.
+
+    ``goto_m`` is where the engine's UAV is at the end of this slot; ``lead_m`` where it is
+    at the end of the next one, along the same path: the goal for a vehicle that flies in real
+    time (a MAVLink autopilot), which then never stops at the slot's end point to wait for the
+    next poll (it lagged the engine by the poll's own time every slot, and ended up elsewhere).
+    """
 
     tower_id: int
     goto_m: tuple[float, float] | None
     serve: int | None
+    lead_m: tuple[float, float] | None = None
 
 
 class AadmAgent:
@@ -83,6 +90,7 @@ class AadmAgent:
 
     @property
     def n_towers(self) -> int:
+        """How many towers (the mission's sensors) the agent chooses among."""
         return self.mission.n_sensors
 
     @property
@@ -91,6 +99,7 @@ class AadmAgent:
         return self.slot >= self.context.n_slots
 
     def home_xy(self) -> tuple[float, float]:
+        """(x, y) of home [m]: the mission's home when autonomous, else the origin."""
         home = self.mission.home_m if self.autonomous else None
         home = np.zeros(2) if home is None else home
         return float(home[0]), float(home[1])
@@ -146,10 +155,10 @@ class AadmAgent:
         serve = int(check_actions(action, 1, self.n_towers, self.policy.name)[0])
         hover = action.hover is not None and bool(np.asarray(action.hover)[0])
         goto_m = None if action.goto_m is None else np.asarray(action.goto_m, float)[0]
-        goto = self._goal(goto_m, hover, position)
+        goto, lead = self._goal(goto_m, hover, position)
         self.slot += 1
         tower = serve if serve >= 0 else self._idle_tower(remaining, seen)
-        return AgentStep(tower + 1, goto, None if serve < 0 else serve)
+        return AgentStep(tower + 1, goto, None if serve < 0 else serve, lead)
 
     def _idle_tower(self, remaining: np.ndarray, snr: np.ndarray) -> int:
         # the protocol needs a tower every poll: name an empty one, so that nothing is
@@ -159,20 +168,25 @@ class AadmAgent:
 
     def _goal(
         self, goto_m: np.ndarray | None, hover: bool, position: np.ndarray
-    ) -> tuple[float, float] | None:
+    ) -> tuple[tuple[float, float] | None, tuple[float, float] | None]:
+        """(end of this slot, end of the next one if the goal stays) by the engine's rules."""
         if not self.autonomous:
             track = self.mission.track
             if track is None:
-                return None
+                return None, None
             if not hover:
                 self._track_sample = min(self._track_sample + 1, track.n_samples - 1)
             target = track.position_m[self._track_sample]
-            return float(target[0]), float(target[1])
+            ahead = track.position_m[
+                min(self._track_sample + (0 if hover else 1), track.n_samples - 1)
+            ]
+            return (float(target[0]), float(target[1])), (float(ahead[0]), float(ahead[1]))
         # the engine's own motion rule (fence, speed cap, return home): one step ahead
         assert self._engine is not None
         goal = np.full((1, 2), np.nan) if goto_m is None else goto_m.reshape(1, 2)
         moved = self._engine.moves_from(position[None, :2], goal, np.array([self.slot]))[0]
-        return float(moved[0]), float(moved[1])
+        ahead = self._engine.moves_from(moved[None], goal, np.array([self.slot + 1]))[0]
+        return (float(moved[0]), float(moved[1])), (float(ahead[0]), float(ahead[1]))
 
 
 # ---------------------------------------------------------------------------
@@ -180,11 +194,17 @@ class AadmAgent:
 # ---------------------------------------------------------------------------
 
 #: Failed polls in a row the agent tries again before it returns to launch.
-POLL_RETRIES = 5
-#: Wall seconds between those tries.
-RETRY_WAIT_S = 0.5
+POLL_RETRIES = 12
+#: Wall seconds between those tries: 12 x 1 s outlasts the controller's 10-s message deadline
+#: (and its 2-s first-byte deadline), so a crowd of idle connections, closed at that deadline,
+#: cannot make the UAV give up.
+RETRY_WAIT_S = 1.0
 #: Slots the vehicle may take to fly home and land once the controller is lost.
 LANDING_SLOTS = 2000
+#: The agent polls once the vehicle is this close to its take-off altitude [m] ...
+CLIMB_TOLERANCE_M = 0.5
+#: ... or after this many slots of climbing, whichever comes first.
+CLIMB_SLOTS = 600
 
 
 @dataclass
@@ -195,6 +215,7 @@ class FlightRecord:
     towers: list[int] = field(default_factory=list)
     reports: list[str] = field(default_factory=list)
     polls: int = 0
+    climb_slots: int = 0  # slots spent climbing before the first poll
     share_poll: int | None = None
     rejoined: bool = False
     score_line: str | None = None  # the controller's "T1: ..., Score:..." telemetry reply
@@ -273,6 +294,8 @@ class _Pilot:
                 self.agent.start(volumes_mbit)
             step = self.agent.step(snr, np.zeros(len(snr)), position, remaining_bit=remaining_bit)
             tower, goto = step.tower_id, step.goto_m
+            if getattr(self.vehicle, "real_time", False) and step.lead_m is not None:
+                goto = step.lead_m  # it flies on while the next poll is made
             if kind == "download_complete" or self.agent.finished:
                 self.done = True
         if self.done:
@@ -387,15 +410,21 @@ def fly_tcp(
     def one_poll() -> tuple[Reply, str]:
         if telemetry_port is not None:
             answer = send_telemetry(host, telemetry_port, telemetry_message(agent, vehicle))
-            if answer.startswith("T1:"):
+            if answer.startswith("T1:"):  # the score is out: the mission is over
                 pilot.record.score_line = answer
+                pilot.done = True
         reply, report = poll_once(host, port, choose, n_towers)
+        if reply.kind == "off":  # the testbed's controller after the score: fly home, land
+            pilot.done = True
+            pilot.decide(reply.kind, None, None, np.zeros(n_towers))
+            return reply, report
         if reply.kind == "error":
             raise SkymuleError(f"controller {host}:{port} refused the poll: {reply.text}")
         if book and reply.snr_db is not None:
             book[0].credit(protocol.parse_report(report), reply.snr_db, agent.mission.slot_s)
         return reply, report
 
+    _climb(agent, vehicle, host, telemetry_port, altitude_m, poll_s, wait_s, pilot.record)
     failures = 0
     for _ in range(max_polls):
         started = time.monotonic()
@@ -437,6 +466,40 @@ def fly_tcp(
     return pilot.record
 
 
+def _climb(
+    agent: AadmAgent,
+    vehicle: Vehicle,
+    host: str,
+    telemetry_port: int | None,
+    altitude_m: float,
+    poll_s: float,
+    wait_s: float,
+    record: FlightRecord,
+) -> None:
+    """Climb to the take-off altitude before the first poll, sending telemetry meanwhile.
+
+    The controller shares the volumes (slot 0, t1 = 0) at the first poll above 24 m; polled
+    during the climb, the UAV would get them at 25 m with a few slots of climbing ahead, in
+    which it cannot fly off: a policy that heads away at once (the README's
+    LargestBufferFirst) then flew 2 slots behind ``skymule run``, whose slot 0 is at the
+    mission altitude. Polling once at altitude makes slot 0 the same in both; on the testbed
+    it only starts t1 at the mission altitude instead of 24 m.
+    """
+    quiet = net.RateLimitedLog(log, every_s=10.0)
+    for _ in range(CLIMB_SLOTS):
+        if vehicle.position_m()[2] >= altitude_m - CLIMB_TOLERANCE_M:
+            return
+        started = time.monotonic()
+        if telemetry_port is not None:
+            try:
+                send_telemetry(host, telemetry_port, telemetry_message(agent, vehicle))
+            except OSError as exc:
+                quiet.warning(f"telemetry to {host}:{telemetry_port} failed while climbing: {exc}")
+        vehicle.tick(poll_s)
+        record.climb_slots += 1
+        time.sleep(max(0.0, wait_s - (time.monotonic() - started)))
+
+
 def run_file_agent(
     agent: AadmAgent,
     vehicle: Vehicle,
@@ -447,21 +510,40 @@ def run_file_agent(
     altitude_m: float = 25.0,
     max_polls: int = 100_000,
     should_stop: Callable[[], bool] = lambda: False,
+    telemetry: tuple[str, int] | None = None,
 ) -> FlightRecord:
     """Beside the challenge's comm process: read ss/dv/dd/tn.txt, write bc.txt, each poll.
 
     Each poll is one slot of ``poll_s`` for the vehicle; the loop waits ``pace_s`` of wall
-    time between polls (default ``poll_s``; 0 = as fast as possible).
+    time between polls (default ``poll_s``; 0 = as fast as possible). ``telemetry``: the
+    controller's telemetry (host, port), sent the vehicle's state each poll as the UAV's own
+    telemetry process does on the testbed (None: something else sends it), from the mission
+    altitude on (the vehicle climbs first); the score line it gets back ends the mission
+    (``record.score_line``).
     """
     if poll_s <= 0:
         raise SkymuleError(f"poll_s = {poll_s:g}: each poll must stand for > 0 s")
     pilot = _Pilot(agent, vehicle, altitude_m)
     vehicle.takeoff(altitude_m)
     n_towers = agent.n_towers
+    # climb first, telling nobody: the controller shares the volumes (slot 0) at the first
+    # poll after the telemetry put the UAV above 24 m, here at the mission altitude
+    pace = poll_s if pace_s is None else pace_s
+    _climb(agent, vehicle, "", None, altitude_m, poll_s, pace, pilot.record)
+    quiet = net.RateLimitedLog(log, every_s=10.0)
     for _ in range(max_polls):
         if should_stop():
             break
         started = time.monotonic()
+        if telemetry is not None:
+            try:
+                answer = send_telemetry(*telemetry, telemetry_message(agent, vehicle))
+            except OSError as exc:
+                quiet.warning(f"telemetry to {telemetry[0]}:{telemetry[1]} failed: {exc}")
+            else:
+                if answer.startswith("T1:"):
+                    pilot.record.score_line = pilot.record.score_line or answer
+                    pilot.done = True
         try:
             snr = files.read_tower_file(folder / files.SNR_FILE, n_towers)
         except SkymuleError as exc:
@@ -481,6 +563,13 @@ def run_file_agent(
             tower = pilot.decide(kind, snr, volumes, remaining)
             files.write_choice_file(folder / files.CHOICE_FILE, tower)
         if pilot.advance(poll_s):
+            if telemetry is not None:  # the controller sees the disarm: session over
+                try:
+                    answer = send_telemetry(*telemetry, telemetry_message(agent, vehicle))
+                    if answer.startswith("T1:"):
+                        pilot.record.score_line = pilot.record.score_line or answer
+                except OSError:
+                    log.info("controller gone before the final telemetry")
             break
         wait_s = poll_s if pace_s is None else pace_s
         time.sleep(max(0.0, wait_s - (time.monotonic() - started)))

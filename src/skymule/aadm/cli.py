@@ -31,7 +31,7 @@ from skymule.trust import TRUST_HELP, trust_option
 #: Seconds a running session may go without a poll before the controller calls it lost.
 AGENT_TIMEOUT_S = 30.0
 #: Failed polls the agent tries again (:data:`skymule.aadm.agent.POLL_RETRIES`).
-POLL_RETRIES = 5
+POLL_RETRIES = 12
 
 if TYPE_CHECKING:
     from skymule.aadm.agent import AadmAgent
@@ -84,6 +84,26 @@ def controller(
         float,
         typer.Option("--agent-timeout", help="Seconds without a poll before the flight is lost."),
     ] = AGENT_TIMEOUT_S,
+    clock: Annotated[
+        str,
+        typer.Option(
+            "--clock",
+            help="wall: t1 and the window on the wall clock, as the testbed (polls at most "
+            "once a second); poll: one poll = --poll-s seconds (accelerated runs).",
+        ),
+    ] = "wall",
+    dialect: Annotated[
+        str,
+        typer.Option(
+            "--dialect",
+            help="testbed: answer as the real controller, warn about what fails there; "
+            "lenient: strip whitespace, refuse requests other than snr_dd.",
+        ),
+    ] = "testbed",
+    speed: Annotated[
+        float,
+        typer.Option("--speed", help="Run the wall clock this many times faster (tests)."),
+    ] = 1.0,
 ) -> None:
     """Serve the AADM controller's bytes with SNR from the scenario's signal source."""
     from skymule.aadm.controller import ControllerCore, serve_controller
@@ -91,19 +111,29 @@ def controller(
     from skymule.scenario import load_scenario
     from skymule.world import build_mission
 
-    if poll_s <= 0 or window_s <= 0 or agent_timeout <= 0:
+    if poll_s <= 0 or window_s <= 0 or agent_timeout <= 0 or speed <= 0:
         raise SkymuleError(
             f"--poll-s {poll_s:g} / --window-s {window_s:g} / --agent-timeout "
-            f"{agent_timeout:g}: each must be > 0"
+            f"{agent_timeout:g} / --speed {speed:g}: each must be > 0"
         )
     logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s", stream=sys.stderr)
     mission = build_mission(load_scenario(scenario))
     shared = None if volumes is None else read_volume_file(volumes, mission.n_sensors)
-    core = ControllerCore(mission, shared, poll_s=poll_s, window_s=window_s, log_path=log)
+    core = ControllerCore(
+        mission,
+        shared,
+        poll_s=poll_s,
+        window_s=window_s,
+        log_path=log,
+        clock=clock,
+        dialect=dialect,
+        speed=speed,
+    )
     lost: float | None = None
     with _until_stopped() as stopped, serve_controller(core, host, port, telemetry_port) as server:
         _say(f"listening on {server.host}:{server.port} (UAV polls)")
         _say(f"listening on {server.host}:{server.telemetry_port} (telemetry)")
+        _say(f"clock: {clock}, dialect: {dialect}")
         while not stopped.wait(0.1):
             if exit_on_disarm and core.disarmed:
                 break
@@ -169,9 +199,17 @@ def agent(
         float | None,
         typer.Option(
             "--poll-s",
-            help="Wall seconds between polls (default: 0 kinematic, 1 mavsdk; each is a 1-s slot).",
+            help="Wall seconds between polls (default: 1 with --files or mavsdk, as the comm "
+            "process; else 0: as fast as the controller answers; each is a 1-s slot).",
         ),
     ] = None,
+    send_telemetry: Annotated[
+        bool,
+        typer.Option(
+            "--telemetry/--no-telemetry",
+            help="With --files: send the vehicle's telemetry to --telemetry-port each poll.",
+        ),
+    ] = True,
     altitude: Annotated[
         float | None,
         typer.Option("--altitude", help="Take-off altitude [m] (default: the scenario's)."),
@@ -196,13 +234,25 @@ def agent(
     mission = build_mission(spec)
     the_agent = AadmAgent(mission, make_policy(spec.policy))
     craft = _make_vehicle(vehicle, the_agent, mavsdk_address)
-    pace = poll_s if poll_s is not None else (0.0 if vehicle == "kinematic" else 1.0)
+    # the file protocol: the comm process polls once a second; a faster agent would fly its
+    # mission on stale files (the controller then cut it off)
+    fast = vehicle == "kinematic" and files_dir is None
+    pace = poll_s if poll_s is not None else (0.0 if fast else 1.0)
     climb = takeoff_altitude_m(spec, mission) if altitude is None else altitude
     try:
         if files_dir is not None:
             if not files_dir.is_dir():
                 raise SkymuleError(f"--files {files_dir}: no such folder")
-            record = run_file_agent(the_agent, craft, files_dir, pace_s=pace, altitude_m=climb)
+            record = run_file_agent(
+                the_agent,
+                craft,
+                files_dir,
+                pace_s=pace,
+                altitude_m=climb,
+                telemetry=(host, telemetry_port) if send_telemetry else None,
+            )
+            if record.score_line:
+                _say(f"controller: {record.score_line}")
         else:
             record = fly_tcp(
                 the_agent,
@@ -266,6 +316,9 @@ def towers(
         Path | None,
         typer.Option("--write-env", help="Write an experiment-environment file here."),
     ] = None,
+    force: Annotated[
+        bool, typer.Option("--force", help="Let --write-env replace an existing file.")
+    ] = False,
 ) -> None:
     """Answer as the AADM towers (00,<snr>,<rate>) so the challenge's own controller runs."""
     from skymule.aadm.towers import TowerRadio, experiment_env, serve_towers
@@ -275,6 +328,17 @@ def towers(
 
     target = None if not forward else _host_port(forward)
     mission = build_mission(load_scenario(scenario))
+    env_text = None if write_env is None else experiment_env(mission.n_sensors, host)
+    if write_env is not None and write_env.exists() and not force:
+        try:
+            same = write_env.read_text(encoding="utf-8") == env_text
+        except (OSError, UnicodeDecodeError):
+            same = False
+        if not same:
+            raise SkymuleError(
+                f"--write-env {write_env}: the file exists (on the testbed it names the real "
+                "nodes); pass --force to replace it, or give another path"
+            )
     n_towers = mission.n_sensors
     ports = [0 if first_port == 0 else first_port + k for k in range(n_towers)]
     logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s", stream=sys.stderr)
@@ -285,10 +349,56 @@ def towers(
         for name, port in zip(mission.sensor_names, served.ports, strict=True):
             _say(f"listening on {host}:{port} (tower {name})")
         _say(f"listening on {host}:{served.telemetry_port} (telemetry)")
-        if write_env is not None:
-            atomic.write_text(write_env, experiment_env(n_towers, host))
+        if write_env is not None and env_text is not None:
+            atomic.write_text(write_env, env_text)
             _say(f"wrote {write_env}")
         stopped.wait()
+
+
+@aadm_app.command()
+def vehicle(
+    mavlink: Annotated[
+        str,
+        typer.Option(
+            "--mavlink",
+            help="Where the MAVSDK script listens: udp://[HOST]:PORT (as PX4 SITL's 14540).",
+        ),
+    ] = "udp://:14540",
+    scenario: Annotated[
+        str | None,
+        typer.Option("--scenario", help="Scenario whose origin is home (default: AADM launch)."),
+    ] = None,
+    speed_mps: Annotated[float, typer.Option("--speed-mps", help="Cruise speed [m/s].")] = 10.0,
+    time_scale: Annotated[
+        float, typer.Option("--time-scale", help="Run the vehicle's clock this much faster.")
+    ] = 1.0,
+) -> None:
+    """A kinematic MAVLink test vehicle (NOT PX4 or ArduPilot) for MAVSDK scripts and tests."""
+    from skymule.aadm.mavlink_vehicle import MavlinkTestVehicle, parse_mavlink_address
+    from skymule.geo import LocalFrame
+
+    host, port = parse_mavlink_address(mavlink)
+    if speed_mps <= 0 or time_scale <= 0:
+        raise SkymuleError(
+            f"--speed-mps {speed_mps:g} / --time-scale {time_scale:g}: each must be > 0"
+        )
+    if scenario is None:
+        frame = LocalFrame(35.7274824, -78.6962749)  # the AADM launch point
+    else:
+        from skymule.scenario import load_scenario
+        from skymule.world import build_mission
+
+        frame = build_mission(load_scenario(scenario)).frame
+    craft = MavlinkTestVehicle(frame, port, host=host, speed_mps=speed_mps, time_scale=time_scale)
+    try:
+        with _until_stopped() as stopped:
+            _say(
+                f"MAVLink test vehicle (kinematic, not PX4 or ArduPilot) sending to {host}:{port}"
+                f" from {frame.origin_lat_deg:.7f}, {frame.origin_lon_deg:.7f}; Ctrl-C to stop"
+            )
+            stopped.wait()
+    finally:
+        craft.close()
 
 
 def _host_port(text: str) -> tuple[str, int]:
@@ -311,7 +421,8 @@ def fly(
     trust_model: TrustOption = None,
 ) -> None:
     """Offline AADM flight on loopback (controller + agent + kinematic vehicle) vs skymule run."""
-    from skymule.aadm.loopback import fly_loopback
+    from skymule.aadm.loopback import first_difference, fly_loopback
+    from skymule.aadm.score import describe_cadence
     from skymule.scenario import load_scenario
 
     if poll_s < 0:
@@ -322,7 +433,10 @@ def fly(
 
         announce_imports([spec.policy.name], scenario)
     result = fly_loopback(spec, policy, poll_s=poll_s, log_path=log)
-    _say(f"{result.policy}: {result.polls} polls, volumes shared at poll {result.share_poll}")
+    _say(
+        f"{result.policy}: {result.climb_slots} s of climbing, then {result.polls} polls; "
+        f"volumes shared at poll {result.share_poll}"
+    )
     _say(f"{'':14}{'flight':>12}{'skymule run':>14}{'difference':>12}")
     for index, name in enumerate(result.sensor_names):
         flight, engine = result.flight_mbit[index], result.engine_mbit[index]
@@ -332,11 +446,22 @@ def fly(
     for key, label in (("aadm_t1_s", "t1 [s]"), ("aadm_score", "AADM score")):
         flight_v, engine_v = float(result.flight_score[key]), float(result.engine_score[key])
         _say(f"{label:14}{flight_v:12.1f}{engine_v:14.1f}{flight_v - engine_v:12.1f}")
+    flight_p, engine_p = result.flight_prediction, result.engine_prediction
+    cadence = describe_cadence(
+        float(flight_p["aadm_poll_interval_s"]), float(flight_p["aadm_poll_jitter_s"])
+    )
+    _say(f"on the testbed's clock ({cadence}, [aadm] poll_interval_s):")
+    for key, label in (("aadm_t1_s", "  t1 [s]"), ("aadm_score", "  AADM score")):
+        flight_v, engine_v = float(flight_p[key]), float(engine_p[key])
+        _say(f"{label:14}{flight_v:12.1f}{engine_v:14.1f}{flight_v - engine_v:12.1f}")
     if abs(result.engine_mission_mbit - total_e) > 1e-6:
         _say(
             f"(skymule run downloads {result.engine_mission_mbit:.1f} Mbit over its whole "
             "mission; the columns count the controller's window)"
         )
+    parted = first_difference(result)
+    if parted is not None:
+        _say(parted)
     _say(f"landed {result.landed_distance_m:.1f} m from the launch point")
     if log is not None:
         _say(f"wrote {log}")

@@ -6,11 +6,11 @@ the challenge's TCP bytes (telemetry, then the poll: the same code path as ``sky
 agent`` against ``skymule aadm controller`` in two processes), then runs the same scenario
 and policy through the engine (``skymule run``) and scores both by the rule in force.
 
-Why they may differ: the engine starts at slot 0 already at altitude; the flight takes off
-from the ground at 2.5 m/s and the volumes are shared (t1 = 0, slot 0 of the policy) at the
-first poll above 24 m, at home but a few metres lower than the engine's altitude; and the
-vehicle finishes its climb during the first slots. Everything else (one poll = one 1-s slot,
-the slot contract, the fence and return-home rules) is the same.
+The flight climbs to the mission altitude before its first poll (telemetry only), so the
+volumes are shared (t1 = 0, slot 0 of the policy) at home at the engine's altitude, as the
+engine's slot 0. Everything else (one poll = one 1-s slot, the slot contract, the fence and
+return-home rules) is the same, so the two give the same Mbit poll by poll;
+:func:`first_difference` names the first poll where they do not.
 """
 
 from __future__ import annotations
@@ -23,10 +23,11 @@ import numpy as np
 
 from skymule.aadm.agent import AadmAgent, fly_tcp
 from skymule.aadm.controller import ControllerCore, serve_controller
-from skymule.aadm.score import aadm_score_one
+from skymule.aadm.score import aadm_score_one, scenario_prediction
 from skymule.aadm.vehicle import TAKEOFF_ALTITUDE_M, KinematicVehicle
 from skymule.flight.navigation import Navigator
 from skymule.policies import make_policy
+from skymule.rules.contract import window_slots
 from skymule.scenario import Scenario
 from skymule.units import BITS_PER_MBIT
 from skymule.world import Mission, build_mission, fence_or_box
@@ -47,7 +48,11 @@ class LoopbackResult:
     engine_mbit: np.ndarray
     engine_mission_mbit: float
     engine_score: dict[str, Any]
+    flight_prediction: dict[str, Any]
+    engine_prediction: dict[str, Any]
+    engine_per_slot_bit: list[float]
     polls: int
+    climb_slots: int
     share_poll: int
     landed_distance_m: float
     sensor_names: tuple[str, ...]
@@ -102,7 +107,7 @@ def fly_loopback(
         )
     engine = simulate(scenario, mission=mission)
     total = float(mission.buffers_bit.sum())
-    in_window = min(engine.log.n_slots, round(core.window_s / mission.slot_s))
+    in_window = min(engine.log.n_slots, int(window_slots(core.window_s, mission.slot_s)))
     left = engine.log.remaining_bit[in_window - 1] if in_window else mission.buffers_bit
     return LoopbackResult(
         policy=scenario.policy.name,
@@ -112,8 +117,30 @@ def fly_loopback(
         engine_mbit=(mission.buffers_bit - left) / BITS_PER_MBIT,
         engine_mission_mbit=float(engine.log.downloaded_bit.sum()) / BITS_PER_MBIT,
         engine_score=aadm_score_one(engine.log.downloaded_bit, total, mission.slot_s),
+        flight_prediction=scenario_prediction(scenario, np.array(core.per_poll_bit), total),
+        engine_prediction=scenario_prediction(scenario, engine.log.downloaded_bit, total),
+        engine_per_slot_bit=[float(b) for b in engine.log.downloaded_bit],
         polls=record.polls,
+        climb_slots=record.climb_slots,
         share_poll=record.share_poll if record.share_poll is not None else -1,
         landed_distance_m=record.end_distance_to(agent.home_xy()),
         sensor_names=mission.sensor_names,
+    )
+
+
+def first_difference(result: LoopbackResult, tolerance_bit: float = 1.0) -> str | None:
+    """Where the flight and the engine part, in one line (None: poll by poll the same, up to
+    the shorter of the two)."""
+    flight = np.asarray(result.flight_per_poll_bit, float)
+    engine = np.asarray(result.engine_per_slot_bit, float)
+    n = min(flight.size, engine.size)
+    apart = np.flatnonzero(np.abs(flight[:n] - engine[:n]) > tolerance_bit)
+    if apart.size == 0:
+        return None
+    k = int(apart[0])
+    return (
+        f"the flight and skymule run part at poll {k} after sharing: "
+        f"{flight[k] / BITS_PER_MBIT:.3f} Mbit credited in the flight, "
+        f"{engine[k] / BITS_PER_MBIT:.3f} in skymule run (the UAV was elsewhere, or the policy "
+        "chose another tower)"
     )

@@ -8,8 +8,11 @@ real check before a flight is PX4 SIH or ArduPilot SITL.
 What it answers (common MAVLink message set, mavlink.io):
 
 * ``HEARTBEAT`` once a second (quadrotor, ArduPilot autopilot, GUIDED/LAND/RTL custom
-  modes, the armed flag); ``GLOBAL_POSITION_INT`` ten times a second; ``HOME_POSITION`` and
-  ``EXTENDED_SYS_STATE`` once a second;
+  modes, the armed flag); ``GLOBAL_POSITION_INT`` ten times a second; ``HOME_POSITION``,
+  ``EXTENDED_SYS_STATE``, ``SYS_STATUS`` (gyro, accelerometer, magnetometer, GPS and the
+  pre-arm check present, enabled and healthy) and ``GPS_RAW_INT`` (3D fix, 12 satellites)
+  once a second, so that MAVSDK's ``telemetry.health()`` reports a good global and home
+  position and the vehicle armable, as a plain "wait for health" loop expects;
 * ``COMMAND_LONG``/``COMMAND_INT``: arm/disarm, set mode, take-off (to param 7), land, return
   to launch, reposition (``DO_REPOSITION``), message requests (``AUTOPILOT_VERSION``,
   ``HOME_POSITION``) and message intervals, each with a ``COMMAND_ACK``; anything else is
@@ -41,6 +44,20 @@ CMD_NAV_RETURN_TO_LAUNCH, CMD_NAV_LAND, CMD_NAV_TAKEOFF = 20, 21, 22
 CMD_DO_SET_MODE, CMD_DO_REPOSITION, CMD_ARM_DISARM = 176, 192, 400
 CMD_SET_MESSAGE_INTERVAL, CMD_REQUEST_MESSAGE, CMD_REQUEST_CAPABILITIES = 511, 512, 520
 MSG_AUTOPILOT_VERSION, MSG_HOME_POSITION = 148, 242
+
+
+def parse_mavlink_address(text: str) -> tuple[str, int]:
+    """(host, port) the vehicle sends to, from MAVSDK's listening address: ``udp://:14540``,
+    ``udp://0.0.0.0:14540``, ``udpin://127.0.0.1:14540`` (an empty or 0.0.0.0 host is this
+    machine's loopback); one-line SkymuleError otherwise."""
+    scheme, sep, rest = text.partition("://")
+    host, colon, port = rest.rpartition(":")
+    if not sep or scheme not in ("udp", "udpin") or not colon or not port.isdigit():
+        raise SkymuleError(f"--mavlink {text!r}: expected udp://[HOST]:PORT, like udp://:14540")
+    number = int(port)
+    if not 0 < number < 65536:
+        raise SkymuleError(f"--mavlink {text!r}: port {number} is not 1..65535")
+    return (host if host not in ("", "0.0.0.0") else "127.0.0.1"), number
 
 
 def _mavutil() -> Any:
@@ -106,9 +123,9 @@ class MavlinkTestVehicle:
             with self._lock:
                 self._fly((now - last) * self.time_scale)
             last = now
-            if now >= next_fast:
+            if now >= next_fast:  # 10 Hz of the vehicle's own clock (at most 100 Hz)
                 self._send_position()
-                next_fast = now + 0.1
+                next_fast = now + max(0.01, 0.1 / self.time_scale)
             if now >= next_slow:
                 self._send_status()
                 next_slow = now + 1.0
@@ -156,8 +173,29 @@ class MavlinkTestVehicle:
             mav.MAV_TYPE_QUADROTOR, mav.MAV_AUTOPILOT_ARDUPILOTMEGA, flags, mode, state
         )
         self._send_home()
+        self._send_health()
         landed = mav.MAV_LANDED_STATE_IN_AIR if z > 0.1 else mav.MAV_LANDED_STATE_ON_GROUND
         self.link.mav.extended_sys_state_send(mav.MAV_VTOL_STATE_UNDEFINED, landed)
+
+    def _send_health(self) -> None:
+        mav = self.mavlink
+        sensors = (
+            mav.MAV_SYS_STATUS_SENSOR_3D_GYRO
+            | mav.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+            | mav.MAV_SYS_STATUS_SENSOR_3D_MAG
+            | mav.MAV_SYS_STATUS_SENSOR_GPS
+            | mav.MAV_SYS_STATUS_PREARM_CHECK
+        )
+        # present, enabled, healthy; no load, 16.8 V, current unknown, 100 %, no errors
+        self.link.mav.sys_status_send(
+            sensors, sensors, sensors, 0, 16800, -1, 100, 0, 0, 0, 0, 0, 0
+        )
+        with self._lock:
+            lat, lon = self._latlon_e7(self.xy)
+            z_mm = round(self.z * 1000)
+        boot_us = int(time.monotonic() * 1e6)
+        fix_3d = mav.GPS_FIX_TYPE_3D_FIX
+        self.link.mav.gps_raw_int_send(boot_us, fix_3d, lat, lon, z_mm, 80, 120, 0, 0, 12)
 
     def _send_home(self) -> None:
         lat, lon = self._latlon_e7(self.home)

@@ -32,8 +32,9 @@ Telemetry (port 8006), one message a connection::
                            None                             (otherwise)
 
 Towers (fixed nodes, ports 8001-8004 on their own addresses): the controller sends the bare
-tower id and reads ``00,<snr dB>,<previous rate>``; it uses the second field only (a value
-that is not a number counts as 0 dB).
+tower id and reads ``00,<snr dB>,<previous rate>`` (the SNR a float32, the Shannon rate of
+the previous answer in bit/s); it uses the second field only (a value that is not a number
+counts as 0 dB).
 
 Every receiver here also accepts a message ending in a newline (skymule's own senders add one
 where the testbed's parser strips it: telemetry values go through ``float``).
@@ -65,7 +66,16 @@ WAIT_REPORT = f"{PREFIX} Please wait for the UAV to reach the desired altitude."
 INVALID_TOWER = "Invalid BS Number"
 NOT_STARTED = "Start time not initialized."
 NOTHING_NEW = "None"
-KINDS = ("wait", "vol", "download", "download_complete", "error")
+#: The testbed's answer to every poll once the score is out (its controller is "off").
+OFF_REPLY = f"{PREFIX} The system is currently off;"
+KINDS = ("wait", "vol", "download", "download_complete", "off", "error")
+
+#: Telemetry values the controllers here take [m, deg]: a UAV of the challenge flies below
+#: 120 m; the altitude may read a little below 0 on the ground (barometer drift).
+ALTITUDE_RANGE_M = (-5.0, 200.0)
+LATITUDE_RANGE_DEG = (-90.0, 90.0)
+LONGITUDE_RANGE_DEG = (-180.0, 180.0)
+_RANGES = {"alt": ALTITUDE_RANGE_M, "lat": LATITUDE_RANGE_DEG, "lon": LONGITUDE_RANGE_DEG}
 
 _REPORT_RE = re.compile(r"bs>(\d+), snr>(\S+) db, rate>(\S+) mbps, RECV>(\S+) mbits")
 _NO_DATA_RE = re.compile(r"No data left for download from BS(\d+)")
@@ -155,6 +165,8 @@ def parse_reply(text: str) -> Reply:
     body = text.strip()
     if body.startswith(PREFIX) and "Cannot share now" in body:
         return Reply("wait", None, None, body)
+    if body == OFF_REPLY:
+        return Reply("off", None, None, body)
     kind, values, snr = "", None, None
     for part in body.split(";"):
         part = part.strip()
@@ -226,7 +238,8 @@ def format_telemetry(alt_m: float, armed: bool, lat_deg: float, lon_deg: float) 
 
 def parse_telemetry(text: str) -> Telemetry:
     """Parse ``alt:..,arm:..,rtl:..,land:..,lat:..,lon:..`` (any order; unknown keys are
-    ignored as the controller does); one-line SkymuleError for a value that is not a number."""
+    ignored as the controller does); one-line SkymuleError for a value that is not a number
+    or out of range (:data:`ALTITUDE_RANGE_M`, valid latitude and longitude)."""
     fields: dict[str, float | bool | None] = {}
     for part in text.strip().split(","):
         key, _, value = part.strip().partition(":")
@@ -241,6 +254,11 @@ def parse_telemetry(text: str) -> Telemetry:
                 number = math.nan
             if not math.isfinite(number):
                 raise SkymuleError(f"telemetry field {key}:{value[:20]!r} is not a number")
+            low, high = _RANGES[key]
+            if not low <= number <= high:
+                raise SkymuleError(
+                    f"telemetry field {key}:{value.strip()[:20]}: allowed {low:g} to {high:g}"
+                )
             fields[key] = number
     return Telemetry(
         alt_m=_float(fields.get("alt")),
@@ -250,6 +268,22 @@ def parse_telemetry(text: str) -> Telemetry:
         lat_deg=_float(fields.get("lat")),
         lon_deg=_float(fields.get("lon")),
     )
+
+
+def testbed_telemetry_problems(text: str) -> list[str]:
+    """What the testbed's controller would misread in a telemetry line it accepts: it splits
+    on ``,`` and compares ``arm:`` to the bare ``1`` / ``0`` (``arm:1\n`` or ``arm: 1`` is
+    neither, so it never sees the UAV arm or disarm, and never ends the session)."""
+    problems = []
+    for part in text.split(","):
+        if part.startswith("arm:") and part[4:] not in ("0", "1"):
+            problems.append(
+                f"{part[:20]!r}: the testbed compares arm to the bare '0' / '1' and would "
+                "not see the UAV arm or disarm"
+            )
+        elif part.strip().startswith("arm:") and not part.startswith("arm:"):
+            problems.append(f"{part[:20]!r}: the testbed would not see this arm field")
+    return problems
 
 
 def _float(value: float | bool | None) -> float | None:
@@ -263,11 +297,20 @@ def _flag(value: float | bool | None) -> bool | None:
 # --- towers -----------------------------------------------------------------------------------
 
 
-def format_tower_reply(snr_db: float, previous_rate_mbit: float) -> str:
-    """``00,<snr>,<previous rate>``: an unreadable SNR is sent as an empty field (the
-    controller then counts 0 dB), a tower not heard as -99."""
-    snr = "" if math.isnan(snr_db) else repr(max(float(snr_db), NOT_HEARD_DB))
-    return f"00,{snr},{previous_rate_mbit:.2f}"
+def format_tower_reply(snr_db: float, previous_rate_bps: float) -> str:
+    """``00,<snr>,<previous rate>`` as the fixed nodes send it: the SNR as a float32 printed
+    by Python (``12.345678``), the Shannon rate of the previous answer in bit/s as
+    ``str(float)``. An unreadable SNR is an empty field (the controller then counts 0 dB), a
+    tower not heard -99."""
+    snr = "" if math.isnan(snr_db) else str(np.float32(max(float(snr_db), NOT_HEARD_DB)))
+    return f"00,{snr},{float(previous_rate_bps)!r}"
+
+
+def shannon_rate_bps(snr_db: float, bandwidth_hz: float = 1.4e6) -> float:
+    """B log2(1 + SNR) [bit/s], the rate the fixed nodes report (0 for an unreadable SNR)."""
+    if math.isnan(snr_db):
+        return 0.0
+    return float(bandwidth_hz * math.log2(1.0 + 10.0 ** (max(snr_db, NOT_HEARD_DB) / 10.0)))
 
 
 def parse_tower_reply(text: str) -> float:

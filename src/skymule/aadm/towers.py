@@ -22,6 +22,7 @@ import logging
 import re
 import socket
 import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
@@ -31,7 +32,6 @@ import numpy as np
 from skymule.aadm import net, protocol
 from skymule.aadm.controller import PositionSource, SignalFeed, telemetry_position
 from skymule.errors import SkymuleError
-from skymule.units import BITS_PER_MBIT
 from skymule.world import Mission
 
 log = logging.getLogger("skymule.aadm.towers")
@@ -51,13 +51,19 @@ class TowerRadio:
         self.position_source = position_source
         self._position: np.ndarray | None = None
         self._requests = np.zeros(mission.n_sensors, np.int64)
-        self._last_rate_mbit = np.zeros(mission.n_sensors)
+        self._last_rate_bps = np.zeros(mission.n_sensors)
         self._lock = threading.Lock()
+        self.owner: str | None = None  # the address whose valid telemetry came first
 
-    def telemetry(self, text: str) -> None:
-        """Take the UAV's position from one telemetry line (one-line SkymuleError if bad)."""
+    def telemetry(self, text: str, peer: str = "") -> None:
+        """Take the UAV's position from one telemetry line (one-line SkymuleError if bad, or
+        if it comes from another address than the first valid one: the session's UAV)."""
+        with self._lock:
+            if self.owner is not None and peer != self.owner:
+                raise SkymuleError(f"telemetry from {peer}: the session's comes from {self.owner}")
         message = protocol.parse_telemetry(text)
         with self._lock:
+            self.owner = self.owner or peer
             self._position = telemetry_position(message, self.mission.frame, self._position)
 
     def answer(self, index: int) -> str:
@@ -69,9 +75,8 @@ class TowerRadio:
             snr, _ = self.feed.snr_db(position, int(self._requests[index]))
             self._requests[index] += 1
             value = float(snr[index])
-            reply = protocol.format_tower_reply(value, float(self._last_rate_mbit[index]))
-            shown = np.array([0.0 if np.isnan(value) else value])
-            self._last_rate_mbit[index] = float(self.mission.rate_bps(shown)[0]) / BITS_PER_MBIT
+            reply = protocol.format_tower_reply(value, float(self._last_rate_bps[index]))
+            self._last_rate_bps[index] = protocol.shannon_rate_bps(value)
             return reply
 
 
@@ -86,31 +91,71 @@ class RunningTowers:
 
 def _tower(radio: TowerRadio, index: int) -> Callable[[socket.socket, str], None]:
     def handle(sock: socket.socket, peer: str) -> None:
-        if net.receive(sock, lambda data: "whole") is not None:
+        if net.receive(sock, lambda data: "whole", first_byte_s=net.FIRST_BYTE_S) is not None:
             sock.sendall(radio.answer(index).encode())
 
     return handle
 
 
+class Forwarder:
+    """Passes telemetry on to the controller; once the controller's port stops answering (the
+    testbed's controller closes it after the score line), says so once and stops trying for
+    :data:`DEAD_FOR_S` seconds, answering ``None`` meanwhile."""
+
+    def __init__(self, target: tuple[str, int], timeout_s: float = 2.0) -> None:
+        self.target = target
+        self.timeout_s = timeout_s
+        self._dead_until = 0.0
+        self._said = False
+        self._lock = threading.Lock()
+
+    def send(self, text: str) -> str:
+        with self._lock:
+            if time.monotonic() < self._dead_until:
+                return protocol.NOTHING_NEW
+        host, port = self.target
+        try:
+            reply = net.exchange(host, port, text, timeout_s=self.timeout_s)
+        except OSError as exc:
+            with self._lock:
+                self._dead_until = time.monotonic() + DEAD_FOR_S
+                said, self._said = self._said, True
+            if not said:
+                log.warning(
+                    "controller telemetry %s:%d does not answer (%s); not forwarding for %g s "
+                    "at a time (the testbed's controller stops listening after its score line)",
+                    host,
+                    port,
+                    exc,
+                    DEAD_FOR_S,
+                )
+            return protocol.NOTHING_NEW
+        with self._lock:
+            self._said = False
+        return reply
+
+
+#: Seconds the towers stop forwarding after the controller's telemetry port failed.
+DEAD_FOR_S = 10.0
+
+
 def _telemetry(
     radio: TowerRadio, forward: tuple[str, int] | None
 ) -> Callable[[socket.socket, str], None]:
+    forwarder = None if forward is None else Forwarder(forward)
+
     def handle(sock: socket.socket, peer: str) -> None:
-        data = net.receive(sock, net.text_line)
+        data = net.receive(sock, net.text_line, first_byte_s=net.FIRST_BYTE_S)
         if data is None:
             return
         text = data.decode("utf-8", "replace")
         try:
-            radio.telemetry(text)
+            radio.telemetry(text, peer)
         except SkymuleError as exc:
+            log.warning("refused: %s", exc)
             sock.sendall(f"Error: {exc}".encode())
             return
-        reply = protocol.NOTHING_NEW
-        if forward is not None:
-            try:
-                reply = net.exchange(forward[0], forward[1], text, timeout_s=5.0)
-            except OSError as exc:
-                reply = f"Error: controller telemetry {forward[0]}:{forward[1]}: {exc}"
+        reply = protocol.NOTHING_NEW if forwarder is None else forwarder.send(text)
         sock.sendall(reply.encode())
 
     return handle

@@ -240,6 +240,10 @@ class MavsdkVehicle:
     def land(self) -> None:
         self._run(self._drone.action.land())
 
+    #: It flies in real time (``tick`` does nothing): the agent gives it the goal one slot
+    #: further on, so that it does not stop between polls.
+    real_time = True
+
     def tick(self, dt_s: float) -> None:
         """Real time: the agent's own pacing lets the vehicle fly."""
 

@@ -91,7 +91,8 @@ from skymule.bounds.result import BoundResult
 from skymule.errors import SkymuleError
 from skymule.flight.navigation import Navigator
 from skymule.radio.pathloss import PATHLOSS_MODELS
-from skymule.sim.contract import seen_snr_db
+from skymule.rules.contract import seen_snr_db
+from skymule.rules.home import home_budget
 from skymule.world import Mission
 
 __all__ = [
@@ -147,7 +148,7 @@ def reach_radii_m(n_slots: int, step_m: float, return_home: bool) -> np.ndarray:
     t = np.arange(n_slots, dtype=float)
     reach = t * step_m
     if return_home:
-        reach = np.minimum(reach, (n_slots - t) * step_m)
+        reach = np.minimum(reach, home_budget(n_slots, t - 1, step_m))  # home by the end
     return reach + REACH_SLACK_M
 
 

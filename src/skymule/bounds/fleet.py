@@ -40,7 +40,7 @@ from scipy.optimize import linprog
 
 from skymule.bounds.fixed import LP_METHOD
 from skymule.bounds.result import BoundError, MissionBound
-from skymule.sim.contract import seen_snr_db
+from skymule.rules.contract import seen_snr_db
 from skymule.sim.fleet import Fleet
 from skymule.world import Mission
 

@@ -14,6 +14,7 @@ from skymule.cli.folders import guard_analysis, inspect_folder
 from skymule.cli.missions import TrustOption
 from skymule.cli.tables import print_table
 from skymule.errors import SkymuleError
+from skymule.io.textfiles import json_safe
 
 
 def plot(
@@ -72,7 +73,12 @@ def report(
     ] = None,
 ) -> None:
     """Write DIR/report.html (self-contained) and DIR/figures/*.png|pdf from its files."""
+    from skymule.cli.missions import warn
+    from skymule.report.inputs import bound_warnings
+
     path = _report(run_dir, pdf, baseline)
+    # a compare folder's bound whose condition fails is drawn as invalid: say so here too
+    warn([f"{run_dir / 'bound.json'}: {w}" for w in bound_warnings(run_dir)])
     kinds = "*.png, *.pdf" if pdf else "*.png"
     output.say(f"wrote {path} and {run_dir / 'figures'}/{kinds}")
 
@@ -158,7 +164,8 @@ def fit_radiomap_command(
         typer.Option(
             "--method",
             help="kriging (log-distance + kriged residual), log-distance, gp (kriging with "
-            "maximum-likelihood parameters) or neural (a learned twin).",
+            "maximum-likelihood parameters) or neural (a learned twin: falls back to a simpler "
+            "model when blocked cross-validation says the networks do not beat it).",
         ),
     ] = "kriging",
     prior: Annotated[
@@ -173,8 +180,10 @@ def fit_radiomap_command(
 ) -> None:
     """Fit a radio map per sensor to recorded flights (a signal source like any map)."""
     from skymule.cli.missions import _working
-    from skymule.tasks.radiomaps import RadioMapFit, fit_radiomap_files, parse_origin
+    from skymule.tasks.radiomaps import fit_radiomap_files, parse_origin
 
+    if seed < 0:  # numpy's generators take non-negative seeds only
+        raise SkymuleError(f"--seed {seed}: allowed: a whole number 0 or above")
     with _working(f"fitting the radio map ({method})"):
         fit = fit_radiomap_files(
             traces,
@@ -190,11 +199,15 @@ def fit_radiomap_command(
         print(f"skymule: warning: {warning}", file=sys.stderr)
     if json_out:
         shown = {"map": str(out), "method": method, "sensors": fit.rows}
-        print(json.dumps({**shown, "warnings": list(fit.warnings)}, indent=2))
+        print(json.dumps({**shown, "warnings": list(fit.warnings), "note": fit.note}, indent=2))
         return
-    held_out = "last segment of each trace" if method == "neural" else "held-out trace segments"
+    from skymule.radio.radiomap import CV_BUFFER_M
+
+    held_out = f"blocked: held-out segments, {CV_BUFFER_M:g} m buffer"
     title = f"radio map fit, {method} (cv: {held_out}; baseline: fspl)"
-    print_table(output.console, title, fit.rows, RadioMapFit.COLUMNS)
+    print_table(output.console, title, fit.rows, fit.columns())
+    if fit.note:
+        output.say(fit.note)
     output.say(f"wrote {out}")
 
 
@@ -208,8 +221,8 @@ def score_radiomap_command(
     from skymule.tasks.radiomaps import parse_origin, score_against_trace
 
     scores = score_against_trace(source, trace, origin=parse_origin(origin) if origin else None)
-    if json_out:
-        print(json.dumps(scores, indent=2))
+    if json_out:  # a score that is not a number (no samples) is null: NaN is not JSON
+        print(json.dumps(json_safe(scores), indent=2, allow_nan=False))
         return
     names = list(next(iter(scores.values())))
     rows = [{"sensor": n, **{k: v[n] for k, v in scores.items()}} for n in names]

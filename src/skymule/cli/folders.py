@@ -12,15 +12,15 @@ file, in one line.
 from __future__ import annotations
 
 import csv
-import json
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from skymule.errors import SkymuleError
+from skymule.io.textfiles import parse_json
 
-SWEEP_FILES = ("sweep.json", "results", "results.parquet", "summary.csv", ".lock")
+SWEEP_FILES = ("sweep.json", "results", "results.parquet", "summary.csv", ".lock", ".lock.holder")
 """What a sweep folder holds (``skymule.experiments.store``)."""
 
 SIM2REAL_FILE = "sim2real.json"
@@ -54,7 +54,7 @@ class Holds:
 
 def _read_json(path: Path) -> dict[str, Any]:
     try:
-        data = json.loads(path.read_text())
+        data = parse_json(path.read_text())
     except (OSError, ValueError):
         return {}
     return data if isinstance(data, dict) else {}

@@ -118,6 +118,9 @@ def run(
             announce_imports(fleet_policy_names(spec), scenario)
         return run_fleet_command(spec, policy, out, json_out)
     if policy is not None:
+        from skymule.scenario import plugin_default_overrides
+
+        warn(plugin_default_overrides(spec.policy.params, [policy], spec.policy.name))
         spec = spec.with_policy(policy)
     if out is not None:
         guard_run(out, spec.name, spec.policy.name, force)
@@ -135,8 +138,30 @@ def run(
         ("sensor", "buffer_mbit", "downloaded_mbit"),
     )  # fmt: skip
     print_table(output.console, "summary", [result.summary], summary_columns())
+    testbed = testbed_line(spec, result)
+    if testbed:
+        output.say(testbed)
     if out is not None:
         output.say(f"wrote {out}/summary.json, slots.csv, scenario.json")
+
+
+def testbed_line(spec: Scenario, result: Any) -> str | None:
+    """The AADM score at the testbed's poll cadence (``[aadm] poll_interval_s``; the table's
+    AADM counts 1 s a poll), one line; None when a slot is not the controller's 1-s poll."""
+    from skymule.aadm.score import AADM_POLL_S, scenario_prediction
+
+    mission = result.mission
+    if abs(mission.slot_s - AADM_POLL_S) > 1e-9:
+        return None
+    parts = scenario_prediction(
+        spec, result.log.downloaded_bit, float(mission.buffers_bit.sum()), mission.score_window_s
+    )
+    jitter = float(parts["aadm_poll_jitter_s"])
+    cadence = f"{float(parts['aadm_poll_interval_s']):g}" + (f"±{jitter:g}" if jitter else "")
+    return (  # short: the line fits a 60-column terminal
+        f"testbed ({cadence} s/poll): t1 {float(parts['aadm_t1_s']):.1f} s, "
+        f"AADM {float(parts['aadm_score']):.1f}"
+    )
 
 
 def fleet_policy_names(spec: Scenario) -> list[str]:
@@ -175,6 +200,7 @@ def compare(
 ) -> None:
     """Run one scenario under several policies on identical signal draws."""
     from skymule.policies import check_policies
+    from skymule.scenario import plugin_default_overrides
     from skymule.tasks.compare import (
         compare_policies,
         compare_sources,
@@ -195,6 +221,7 @@ def compare(
     source_specs = parse_sources(sources) if sources is not None else None
     if out is not None:
         guard_compare(out, base.name, names, force, source_specs)
+    warn(plugin_default_overrides(base.policy.params, names, base.policy.name))
     if source_specs is None:
         comparison = compare_policies(base, names)
     else:

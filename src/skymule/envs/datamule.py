@@ -37,6 +37,7 @@ from skymule.envs.vector import ENV_POLICY_NAME, REWARDS, EnvMissions, anchors_m
 from skymule.errors import SkymuleError
 from skymule.metrics.flights import MissionLog
 from skymule.policies.base import Observation
+from skymule.rules.home import time_left_s
 from skymule.scenario import Scenario, load_scenario
 from skymule.units import BITS_PER_MBIT
 from skymule.world import Mission, build_mission
@@ -57,7 +58,7 @@ def observation_vector(
 ) -> np.ndarray:
     """(3 + 5N,) float32 encoding of an engine Observation (``position_m`` overrides)."""
     position = observation.position_m[:2] if position_m is None else position_m[:2]
-    time_left = (mission.n_slots - observation.slot) * mission.slot_s
+    time_left = time_left_s(mission.n_slots, observation.slot, mission.slot_s)
     return enc.encode(
         np.asarray(position, float)[None],
         np.array([time_left]),

@@ -34,10 +34,13 @@ from pettingzoo import ParallelEnv
 
 from skymule.errors import SkymuleError
 from skymule.policies.base import BatchAction, Observation
+from skymule.rules.home import time_left_s
 from skymule.scenario import Scenario, load_scenario
 from skymule.sim.autonomous import AutonomousEngine
 from skymule.sim.fleet import Fleet, build_fleet
 from skymule.units import BITS_PER_MBIT
+
+__all__ = ["DataMuleParallelEnv"]
 
 #: SNR sent for "no link" (-inf) [dB]: below every rate table's lowest entry.
 NO_LINK_DB = -100.0
@@ -80,7 +83,7 @@ class DataMuleParallelEnv(ParallelEnv[str, np.ndarray, np.ndarray]):
 
     def _encode(self, observation: Observation, fleet: Fleet) -> np.ndarray:
         mission = fleet.missions[0]
-        left_s = (mission.n_slots - observation.slot) * mission.slot_s
+        left_s = time_left_s(mission.n_slots, observation.slot, mission.slot_s)
         snr = np.where(np.isfinite(observation.snr_db), observation.snr_db, NO_LINK_DB)
         return np.concatenate(
             [

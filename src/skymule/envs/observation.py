@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from skymule.sim.contract import NO_SENSOR
+from skymule.rules.contract import NO_SENSOR
 from skymule.units import BITS_PER_MBIT
 
 #: SNR values are clipped to this range [dB]; no link (-inf, NaN) maps to the floor.

@@ -34,14 +34,17 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 import skymule.envs.observation as enc
-from skymule.aadm.score import slot_rewards
 from skymule.errors import SkymuleError
 from skymule.metrics.flights import MissionLog
 from skymule.policies.base import BatchAction, BatchObservation
+from skymule.rules.contract import NO_SENSOR
+from skymule.rules.home import time_left_s
+from skymule.rules.score import slot_rewards
 from skymule.scenario import Scenario, load_scenario
-from skymule.sim.contract import NO_SENSOR
 from skymule.units import BITS_PER_MBIT
 from skymule.world import Mission, build_mission
+
+__all__ = ["DataMuleVectorEnv"]
 
 REWARDS = ("mbit", "aadm")
 
@@ -111,7 +114,7 @@ class EnvMissions:
     def encoded(self, observation: BatchObservation | None = None) -> np.ndarray:
         """(B, 3 + 5N) the encoded observation (the last one by default)."""
         seen = self.last if observation is None else observation
-        time_left = (self._n_slots - seen.slot) * self._slot_s
+        time_left = time_left_s(self._n_slots, seen.slot, self._slot_s)
         return enc.encode(
             seen.position_m[:, :2], time_left, seen.snr_db, seen.rate_bps, seen.remaining_bit,
             self._anchors,

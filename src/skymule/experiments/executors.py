@@ -29,6 +29,7 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
+from types import FrameType
 from typing import Any
 
 from skymule.errors import SkymuleError
@@ -92,6 +93,22 @@ def start_worker(parent_pid: int, modules: tuple[str, ...]) -> None:
     exit_with_parent(parent_pid)
     for module in modules:
         importlib.import_module(module)
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, _interrupt_a_running_chunk)
+
+
+def _interrupt_a_running_chunk(number: int, frame: FrameType | None) -> None:
+    """A pool worker's Ctrl-C (a terminal sends it to the whole process group).
+
+    A chunk being run stops at once: its ``KeyboardInterrupt`` removes the temporary file it
+    was writing, and the pool hands it to the sweep process, which prints the one line. A
+    worker waiting for work ignores it: interrupted there, multiprocessing prints the
+    traceback of the wait. The worker's stack tells the two apart (a chunk runs skymule code).
+    """
+    while frame is not None:
+        if frame.f_globals.get("__name__", "").startswith("skymule."):
+            raise KeyboardInterrupt
+        frame = frame.f_back
 
 
 @contextmanager
@@ -105,8 +122,13 @@ def _process(
         initializer=start_worker,
         initargs=(os.getpid(), warm),
     ) as executor:
-        # a spawn pool starts its workers at the first submit: start them now
-        executor.submit(os.getpid)
+        # A spawn pool starts a worker at each submit until it has them all: start them all
+        # now, deaf to Ctrl-C (inherited) until their imports are done and
+        # _interrupt_a_running_chunk takes over; a Ctrl-C in a worker's start-up or imports
+        # would print its traceback
+        with _workers_deaf_to_ctrl_c():
+            for _ in range(workers or default_workers()):
+                executor.submit(os.getpid)
         yield executor
 
 
@@ -267,9 +289,10 @@ def _start_local_cluster(distributed: Any, workers: int) -> Any:
 
 @contextmanager
 def _workers_deaf_to_ctrl_c() -> Iterator[None]:
-    """Start local Dask workers ignoring SIGINT, so a Ctrl-C in the terminal (sent to the
-    whole process group) stops the sweep process alone, which closes the cluster; otherwise
-    every worker process prints its own KeyboardInterrupt traceback. An ignored SIGINT is
+    """Start worker processes (local Dask workers, process-pool workers) ignoring SIGINT, so
+    a Ctrl-C in the terminal (sent to the whole process group) stops the sweep process,
+    which closes the cluster or pool; otherwise every worker process prints its own
+    KeyboardInterrupt traceback. An ignored SIGINT is
     the one setting a spawned process inherits (a handler or a blocked mask is reset at
     exec); the sweep process ignores it too while its workers start (a few seconds)."""
     if threading.current_thread() is not threading.main_thread():

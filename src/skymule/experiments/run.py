@@ -52,6 +52,7 @@ from skymule.experiments.sweep import (
     expansion,
     sweep_plan,
 )
+from skymule.metrics.summary import per_sensor_column
 from skymule.radio.channel import mission_fading_db
 from skymule.units import BITS_PER_MBIT
 from skymule.world import Mission, mission_faults
@@ -95,7 +96,7 @@ def _flat_summary(summary: dict[str, Any]) -> dict[str, Any]:
     row: dict[str, Any] = {}
     for key, value in summary.items():
         if isinstance(value, dict):
-            row.update({f"{key}.{name}": v for name, v in value.items()})
+            row.update({per_sensor_column(key, name): v for name, v in value.items()})
         elif isinstance(value, list | tuple):
             row[key] = ",".join(str(v) for v in value)
         else:

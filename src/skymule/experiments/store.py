@@ -3,7 +3,8 @@
 Layout of a sweep folder ``DIR``::
 
     DIR/sweep.json                       which sweep file it holds (sha256) and the id scheme
-    DIR/.lock                            while a sweep runs: its pid, host and start time
+    DIR/.lock                            the operating system's lock while a sweep runs
+    DIR/.lock.holder                     while a sweep runs: its pid, host and start time
     DIR/results/part-*.parquet ...       one part per finished chunk (unique tmp + os.replace)
     DIR/results.parquet                  every mission of the sweep exactly once, in order
     DIR/summary.csv                      per policy and swept value: missions, mean and 95% CI
@@ -30,6 +31,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import filelock
 import numpy as np
 import pandas as pd
 import pyarrow as pa
@@ -38,6 +40,7 @@ import pyarrow.parquet as pq
 
 from skymule.errors import SkymuleError
 from skymule.io import atomic
+from skymule.io.textfiles import parse_json
 from skymule.metrics.summary import HEADLINE_METRICS
 
 PARTS = "results"
@@ -45,6 +48,7 @@ RESULTS = "results.parquet"
 SUMMARY = "summary.csv"
 METADATA = "sweep.json"
 LOCK = ".lock"
+HOLDER = ".lock.holder"
 SUMMARY_METRICS = HEADLINE_METRICS
 ID_SCHEME = 2
 """Version of the mission-id scheme (1: sha256 of each resolved scenario's JSON, no sweep.json;
@@ -64,84 +68,56 @@ def read_part(path: Path, columns: list[str] | None = None) -> pa.Table:
 # --- one sweep per folder: the lock and the sweep file it belongs to ----------------------
 
 
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # someone else's live process
-        return True
-    return True
-
-
 @dataclass(frozen=True)
 class Holder:
-    """Who holds a folder's lock."""
+    """Who holds a folder's lock (written beside it, for the message a second sweep gets)."""
 
     pid: int
     host: str
     started: str
 
-    def stale(self) -> bool:
-        """A lock left by a dead process on this host (another host's pid cannot be checked)."""
-        return self.host == socket.gethostname() and not _pid_alive(self.pid)
 
-
-def _read_holder(path: Path) -> Holder | None:
+def _read_holder(path: Path) -> Holder:
     try:
-        data = json.loads(path.read_text())
+        data = parse_json(path.read_text())
         return Holder(int(data["pid"]), str(data["host"]), str(data["started"]))
-    except FileNotFoundError:
-        return None
     except (OSError, ValueError, KeyError, TypeError):
-        return Holder(-1, "?", "?")  # half-written or foreign: treated as held, never stolen
+        return Holder(-1, "?", "?")  # not written yet, or foreign
 
 
 @contextlib.contextmanager
 def locked(out: Path) -> Iterator[None]:
-    """Hold ``out``'s lock while the block runs; a second sweep on it gets one clear line."""
+    """Hold ``out``'s lock while the block runs; a second sweep on it gets one clear line.
+
+    The lock is the operating system's (``filelock``): it goes with the process that holds it,
+    so a sweep that died leaves no lock to clean up. Its holder (pid, host, start time) is
+    written to :data:`HOLDER` while it runs."""
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise SkymuleError(f"--out {out}: cannot create the folder ({exc.strerror})") from None
-    path = out / LOCK
-    me = {
-        "pid": os.getpid(),
-        "host": socket.gethostname(),
-        "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-    }
-    for _ in range(3):
-        try:
-            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
-        except FileExistsError:
-            holder = _read_holder(path)
-            if holder is None:
-                continue  # released meanwhile
-            if not holder.stale():
-                raise SkymuleError(
-                    f"--out {out}: another sweep is using this folder (pid {holder.pid} on "
-                    f"{holder.host}, started {holder.started}); wait for it, or delete "
-                    f"{path} if that process is gone"
-                ) from None
-            # a dead process's lock: move it aside (only one contender's rename succeeds)
-            with contextlib.suppress(FileNotFoundError):
-                os.rename(path, path.with_name(f"{LOCK}.stale-{uuid.uuid4().hex}"))
-            for stale in out.glob(f"{LOCK}.stale-*"):
-                stale.unlink(missing_ok=True)
-            continue
-        except OSError as exc:
-            raise SkymuleError(f"--out {out}: cannot write {path} ({exc.strerror})") from None
-        with os.fdopen(fd, "w") as handle:
-            json.dump(me, handle)
-        break
-    else:
-        raise SkymuleError(f"--out {out}: cannot take the lock {path}; try again")
+    lock = filelock.FileLock(out / LOCK)
     try:
+        lock.acquire(timeout=0)
+    except filelock.Timeout:
+        holder = _read_holder(out / HOLDER)
+        raise SkymuleError(
+            f"--out {out}: another sweep is using this folder (pid {holder.pid} on "
+            f"{holder.host}, started {holder.started}); wait for it to finish"
+        ) from None
+    except OSError as exc:
+        raise SkymuleError(f"--out {out}: cannot lock {out / LOCK} ({exc.strerror})") from None
+    try:
+        me = {
+            "pid": os.getpid(),
+            "host": socket.gethostname(),
+            "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        }
+        atomic.write_text(out / HOLDER, json.dumps(me))
         yield
     finally:
-        holder = _read_holder(path)
-        if holder is not None and holder.pid == me["pid"] and holder.host == me["host"]:
-            path.unlink(missing_ok=True)
+        (out / HOLDER).unlink(missing_ok=True)
+        lock.release()
 
 
 def claim(out: Path, digest: str, source: str) -> None:
@@ -149,7 +125,7 @@ def claim(out: Path, digest: str, source: str) -> None:
     meta = out / METADATA
     if meta.exists():
         try:
-            data = json.loads(meta.read_text())
+            data = parse_json(meta.read_text())
             held, scheme, held_source = data["sweep_sha256"], data["id_scheme"], data["source"]
         except (OSError, ValueError, KeyError, TypeError):
             raise SkymuleError(f"--out {out}: {meta} is damaged; use a new --out folder") from None

@@ -36,7 +36,6 @@ from __future__ import annotations
 import hashlib
 import math
 import re
-import tomllib
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -56,7 +55,7 @@ from skymule.experiments.fields import (
     place_sensors,
     stars,
 )
-from skymule.io.textfiles import read_text
+from skymule.io.textfiles import parse_toml, read_text
 from skymule.policies.registry import is_plugin
 from skymule.scenario import Scenario, load_scenario, policy_shares, scenario_from_dict
 
@@ -315,8 +314,8 @@ def load_sweep(path: str | Path) -> SweepSpec:
     """Read and validate a sweep file."""
     file = Path(path)
     try:
-        data = tomllib.loads(read_text(file, "sweep file"))
-    except tomllib.TOMLDecodeError as exc:
+        data = parse_toml(read_text(file, "sweep file"))
+    except ValueError as exc:  # tomllib.TOMLDecodeError, or nested too deeply
         raise SkymuleError(f"{file}: not valid TOML ({exc})") from None
     return parse_sweep(data, str(file), file.parent)
 

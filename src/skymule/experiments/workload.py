@@ -4,7 +4,7 @@ that finishes it sooner: ``skymule sweep --executor auto`` (the default).
 A ``process`` pool pays for starting its workers (each imports skymule and loads the compiled
 engine: ~2 s) and then divides the work by the number of workers. It finishes sooner than
 ``inprocess`` only when the work W (seconds in one process) exceeds
-``WORKER_START_S * n / (n - 1)``: ~4 s on two cores. The README's 1,000-mission example is
+``WORKER_START_S * n / (n - 1)``: ~4 s on two cores. The docs/sweeps.md example is
 ~0.4 s of work and ran 2-4x slower under ``process``; a 100,000-mission sweep is ~40 s and runs
 ~1.9x faster (``benchmarks/bench_sweep.py``).
 

@@ -41,11 +41,6 @@ _HOVER_DETOUR_MARGINS = 4.0
 #: Number of times :func:`hover_point` halves the clearance before giving up on it.
 _HOVER_HALVINGS = 10
 
-#: ``math.hypot`` over arrays: :meth:`Navigator.steps` measures segments with ``math.hypot``
-#: (as skymule's first, scalar engine did; it differs from ``np.hypot`` in the last bit for
-#: about 1 pair in 200), so that every position, and every result, stays what it was.
-math_hypot = np.frompyfunc(math.hypot, 2, 1)
-
 #: :meth:`Navigator.shortest_paths` tests the start's view of this many vertices one at a time
 #: (smallest total first) before testing all of them at once for the rows left.
 _LAZY_RANKS = 3
@@ -442,7 +437,7 @@ class Navigator:
                 break
             a, b = points[rows, seg], points[rows, seg + 1]
             dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
-            length = math_hypot(dx, dy).astype(float)
+            length = np.hypot(dx, dy)
             short = left[rows] < length
             at = rows[short]
             t = left[at] / length[short]

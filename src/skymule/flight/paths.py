@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from skymule.errors import ScenarioError
-from skymule.sim.contract import slots_to_cover
+from skymule.rules.contract import slots_to_cover
 
 
 @dataclass(frozen=True)

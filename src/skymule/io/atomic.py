@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import shutil
 import signal
 import threading
@@ -108,11 +109,54 @@ def ctrl_c_deferred() -> Iterator[None]:
         raise KeyboardInterrupt
 
 
+_TEMPORARY = re.compile(r"\.(?P<what>.+)\.(?P<pid>\d+)\.[0-9a-f]{12}\.tmp")
+"""The names :func:`temporary_path` and :func:`staging_folder` give: ``.<what>.<pid>.<hex>.tmp``."""
+
+
+def _pid_alive(pid: int) -> bool:
+    """True when process ``pid`` runs on this host (or may: no permission to ask)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError, OSError):
+        return True
+    return True
+
+
+def remove_stale_temporaries(folder: Path) -> list[Path]:
+    """Remove the temporary files and staging folders in ``folder`` that a process killed
+    mid-write left (SIGKILL runs no clean-up): those whose writer's pid no longer runs on
+    this host. A live writer's, this process's and unknown names are kept; returns what was
+    removed."""
+    removed: list[Path] = []
+    try:
+        entries = list(folder.iterdir())
+    except OSError:
+        return removed
+    for entry in entries:
+        match = _TEMPORARY.fullmatch(entry.name)
+        if match is None:
+            continue
+        pid = int(match["pid"])
+        if pid == os.getpid() or _pid_alive(pid):
+            continue
+        if entry.is_dir() and not entry.is_symlink():
+            shutil.rmtree(entry, ignore_errors=True)
+        else:
+            entry.unlink(missing_ok=True)
+        removed.append(entry)
+    return removed
+
+
 @contextlib.contextmanager
 def staging_folder(folder: Path, what: str = "staged") -> Iterator[Path]:
     """A hidden empty folder inside ``folder`` to write several files into; removed with what
-    is left in it when the block ends (move the files out with :func:`commit_staged`)."""
+    is left in it when the block ends (move the files out with :func:`commit_staged`).
+    Staging folders and temporary files that killed processes left in ``folder`` are removed
+    first (:func:`remove_stale_temporaries`)."""
     folder.mkdir(parents=True, exist_ok=True)
+    remove_stale_temporaries(folder)
     stage = folder / f".{what}.{os.getpid()}.{uuid.uuid4().hex[:12]}.tmp"
     stage.mkdir()
     try:

@@ -32,9 +32,9 @@ import numpy as np
 
 from skymule.errors import SkymuleError
 from skymule.io import atomic
+from skymule.io.run_folder import RunData, hover_segments, load_run
 from skymule.io.runs import is_run_dir
 from skymule.registry import Registry
-from skymule.report.inputs import RunData, hover_segments, load_run
 
 KML_NS = "http://www.opengis.net/kml/2.2"
 #: MAVLink MAV_CMD_NAV_WAYPOINT; param1 = hold time [s].

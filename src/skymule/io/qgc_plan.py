@@ -16,7 +16,6 @@ one :class:`~skymule.errors.SkymuleError` line naming the file and the field.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +27,7 @@ from shapely.ops import unary_union
 
 from skymule.errors import SkymuleError
 from skymule.geo import LocalFrame, load_geofence, polygon_from_lonlat
+from skymule.io.textfiles import parse_json
 
 if TYPE_CHECKING:
     from skymule.scenario import Scenario
@@ -142,7 +142,7 @@ def _fences(data: dict[str, Any], path: Path) -> tuple[np.ndarray, ...]:
 def read_qgc_plan(path: Path) -> QgcPlan:
     """Read a QGroundControl ``.plan`` (one-line error for a missing or malformed file)."""
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = parse_json(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise SkymuleError(f"{path}: no such .plan file") from None
     except OSError as exc:

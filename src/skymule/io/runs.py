@@ -29,7 +29,7 @@ from skymule.io.runschema import (
     validate_scenario_json,
     validate_summary,
 )
-from skymule.io.textfiles import read_text
+from skymule.io.textfiles import parse_json, read_text
 from skymule.metrics.flights import NO_SENSOR, MissionLog
 from skymule.metrics.summary import power_w, speed_mps, step_lengths_m
 from skymule.units import BITS_PER_MBIT
@@ -85,6 +85,22 @@ def write_run(
     atomic.write_text(out_dir / SUMMARY_FILE, json.dumps(summary, indent=2))
 
 
+COMPARISON_FILE = "comparison.csv"
+"""The index of a compare folder, written after every run folder in it."""
+
+
+def check_complete_comparison(folder: Path) -> None:
+    """Refuse, in one line, a compare folder whose index (``comparison.csv``) is missing: a
+    compare interrupted before its last write, whose run folders may be only some of the
+    policies it was asked for."""
+    if not (folder / COMPARISON_FILE).is_file():
+        raise SkymuleError(
+            f"{folder}: an incomplete compare folder (run folders but no {COMPARISON_FILE}, "
+            "which compare writes last: it was interrupted); run the compare again with this "
+            "--out, or report one run folder inside it"
+        )
+
+
 def is_run_dir(path: Path) -> bool:
     return (path / SUMMARY_FILE).is_file() and (path / SLOTS_FILE).is_file()
 
@@ -92,7 +108,7 @@ def is_run_dir(path: Path) -> bool:
 def _read_json(path: Path) -> Any:
     text = read_text(path, "run file")
     try:
-        return json.loads(text)
+        return parse_json(text)
     except ValueError as exc:
         raise SkymuleError(
             f"{path}: not valid JSON ({exc}); rewrite the run with `skymule run`"

@@ -16,7 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from skymule.sim.contract import NO_SENSOR
+from skymule.rules.contract import NO_SENSOR
+from skymule.rules.defaults import AADM_WINDOW_S
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,6 +121,12 @@ class Flights:
         """B, the number of flights."""
         return int(self.n_run.shape[0])
 
+    def score_windows_s(self) -> np.ndarray:
+        """(B,) the download window the AADM score counts in [s] (the default where unset)."""
+        if self.aadm_window_s is None:
+            return np.full(self.size, AADM_WINDOW_S)
+        return np.asarray(self.aadm_window_s, float)
+
     def mission(self, b: int) -> MissionLog:
         """Flight b as a :class:`MissionLog` (views, no copies)."""
         return MissionLog(self, b)
@@ -184,6 +191,7 @@ class MissionLog:
 
     @property
     def n_slots(self) -> int:
+        """T': how many slots the flight ran."""
         return int(self.flights.n_run[self.index])
 
     def _slots(self, values: np.ndarray | None) -> np.ndarray | None:
@@ -263,8 +271,7 @@ class MissionLog:
 
     @property
     def aadm_window_s(self) -> float:
-        window = self.flights.aadm_window_s
-        return 500.0 if window is None else float(window[self.index])
+        return float(self.flights.score_windows_s()[self.index])
 
     @property
     def target(self) -> np.ndarray | None:
@@ -312,7 +319,7 @@ def flight_record(
     hover_points_m: np.ndarray | None = None,
     visit_radius_m: float = 50.0,
     target: np.ndarray | None = None,
-    aadm_window_s: float = 500.0,
+    aadm_window_s: float = AADM_WINDOW_S,
     **extra: Any,
 ) -> Flights:
     """The record of one flight (B = 1) from its per-slot arrays: its path is its own track,

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from skymule.sim.contract import NO_SENSOR, served_bits
+from skymule.rules.contract import NO_SENSOR, served_bits
 from skymule.units import BITS_PER_MBIT
 
 BLOCK_SAMPLES = 10

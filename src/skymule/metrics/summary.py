@@ -15,10 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from skymule.aadm.score import AADM_WINDOW_S, AadmScore, aadm_scores
 from skymule.energy import propulsion_power_w
 from skymule.metrics.flights import NO_SENSOR, Flights, MissionLog, unique_rows
 from skymule.metrics.visits import first_visit_slots, order_from_first
+from skymule.rules.score import AadmScore, aadm_scores
 from skymule.units import BITS_PER_MBIT
 
 HEADLINE_METRICS = (
@@ -32,8 +32,16 @@ HEADLINE_METRICS = (
 )
 """The summary fields shown in tables and aggregated over sweeps."""
 
+
 #: The AERPAW testbed requires landing within this distance of the launch point [m] (a check
 #: beside the AADM score, which has no landing term).
+def per_sensor_column(key: str, sensor: str) -> str:
+    """The flat column of one sensor's entry of a per-sensor summary dict, the same in every
+    table skymule writes (sweep ``results.parquet``, ``comparison.csv``): the summary.json
+    path, ``per_sensor_downloaded_mbit.LW1``."""
+    return f"{key}.{sensor}"
+
+
 LANDING_TOLERANCE_M = 5.0
 
 
@@ -201,7 +209,7 @@ def summaries(flights: Flights) -> Summaries:
             flights.buffers_bit.sum(axis=1),
             n_run,
             slot_s,
-            AADM_WINDOW_S if flights.aadm_window_s is None else flights.aadm_window_s,
+            flights.score_windows_s(),
         ),
     )
 

@@ -27,7 +27,7 @@ from skymule.policies.base import (
     Observation,
     Policy,
 )
-from skymule.sim.contract import NO_SENSOR
+from skymule.rules.contract import NO_SENSOR
 
 
 def check_serve(serve: int | None, n_sensors: int, who: str) -> int:

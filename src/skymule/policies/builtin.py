@@ -2,7 +2,7 @@
 
 Each decides for B missions at once (``batched = True``; a single run is a batch of one) from
 :class:`~skymule.policies.base.BatchObservation` arrays, by the rules of ``docs/contract.md``
-whose one implementation is :mod:`skymule.sim.contract`:
+whose one implementation is :mod:`skymule.rules.contract`:
 
 * **Greedy** serves argmax SNR among servable sensors (ties: the lowest index) and never
   hovers; on an autonomous trajectory it also tours the hover points nearest-first (Alg. 1);
@@ -32,8 +32,9 @@ import numpy as np
 
 from skymule.policies.base import BatchAction, BatchObservation, MissionContext, stacked
 from skymule.policies.tours import GreedyTours, HGADTours, TourGeometry
-from skymule.sim import contract
-from skymule.sim.contract import NO_SENSOR
+from skymule.rules import contract
+from skymule.rules.contract import NO_SENSOR
+from skymule.rules.defaults import HOVER_THRESHOLD, MAX_HOVER_S
 
 Priority = Literal["initial", "remaining"]
 
@@ -122,8 +123,8 @@ class HGAD:
 
     def __init__(
         self,
-        hover_threshold: float | Sequence[float] | np.ndarray = 1.0,
-        max_hover_s: float | Sequence[float] | np.ndarray = 60.0,
+        hover_threshold: float | Sequence[float] | np.ndarray = HOVER_THRESHOLD,
+        max_hover_s: float | Sequence[float] | np.ndarray = MAX_HOVER_S,
         priority: Priority | Sequence[Priority] = "initial",
     ) -> None:
         self.hover_threshold = hover_threshold
@@ -226,8 +227,8 @@ class RobustHGAD(HGAD):
 
     def __init__(
         self,
-        hover_threshold: float | Sequence[float] | np.ndarray = 1.0,
-        max_hover_s: float | Sequence[float] | np.ndarray = 60.0,
+        hover_threshold: float | Sequence[float] | np.ndarray = HOVER_THRESHOLD,
+        max_hover_s: float | Sequence[float] | np.ndarray = MAX_HOVER_S,
         fail_slots: int | Sequence[int] | np.ndarray = 3,
         window_slots: int = 2,
         arrive_m: float | Sequence[float] | np.ndarray = 10.0,

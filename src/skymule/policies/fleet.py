@@ -23,7 +23,7 @@ from skymule.errors import SkymuleError
 from skymule.policies.base import Action, MissionContext, Observation
 from skymule.policies.planner import Planner
 from skymule.policies.touring import held_karp, leg_slots
-from skymule.sim.contract import slots_to_cover
+from skymule.rules.contract import slots_to_cover
 
 #: Largest number of assignments :func:`partition` enumerates (K^n); beyond, a greedy split.
 MAX_ASSIGNMENTS = 200_000

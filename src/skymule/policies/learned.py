@@ -33,6 +33,7 @@ import numpy as np
 
 from skymule.errors import SkymuleError
 from skymule.io.atomic import atomic_path
+from skymule.io.npzcheck import NpzError, npz_members
 from skymule.policies.base import BatchAction, BatchObservation, MissionContext
 from skymule.policies.options import (
     FRACTIONS,
@@ -250,6 +251,48 @@ def _bad(path: Path, what: str) -> SkymuleError:
     return SkymuleError(f"learned policy weights {path}: {what}")
 
 
+MAX_WEIGHTS_BYTES = 64 * 2**20
+"""Largest weights file, and largest sum of its arrays, :func:`load_net` reads [bytes]
+(64 MiB; the shipped model is 22 kB, and a hidden width of 1024 needs about 17 MB)."""
+
+
+def _check_declared(path: Path) -> None:
+    """Refuse a weights file from its zip directory and array headers alone (issue 32):
+    too big, other names than the model's, dtypes other than floats (a string for
+    ``format`` and ``features``), or shapes that do not fit together."""
+    try:
+        members = npz_members(path, MAX_WEIGHTS_BYTES)
+    except NpzError as exc:
+        raise _bad(path, f"not a readable .npz of plain arrays ({exc})") from None
+    expected = {*WEIGHT_NAMES, "format", "features"}
+    missing, extra = sorted(expected - set(members)), sorted(set(members) - expected)
+    if missing or extra:
+        parts = [
+            f"missing {', '.join(missing)}" if missing else "",
+            f"unexpected {', '.join(extra)}" if extra else "",
+        ]
+        raise _bad(
+            path, "; ".join(p for p in parts if p) + f"; allowed: {', '.join(sorted(expected))}"
+        )
+    tag, features = members["format"], members["features"]
+    if tag.dtype.kind != "U" or tag.shape != ():
+        raise _bad(path, f"format is {tag.dtype} of shape {tag.shape}; allowed: {FORMAT}")
+    if features.dtype.kind != "U" or features.shape != (len(FEATURE_NAMES),):
+        raise _bad(
+            path, "trained on other features than this skymule computes; retrain it with "
+            "benchmarks/train_learned.py"
+        )  # fmt: skip
+    hidden, width = members["encoder_b"].shape, members["hidden_b"].shape
+    if len(hidden) != 1 or len(width) != 1 or not hidden[0] or not width[0]:
+        raise _bad(path, "encoder_b and hidden_b must be non-empty 1-d arrays")
+    for name, shape in expected_shapes(hidden[0], width[0]).items():
+        declared = members[name]
+        if declared.dtype.kind != "f":
+            raise _bad(path, f"{name} has dtype {declared.dtype}; allowed: floats")
+        if declared.shape != shape:
+            raise _bad(path, f"{name} has shape {declared.shape}; expected {shape}")
+
+
 def load_net(path: str | Path) -> OptionNet:
     """The model in the weights file ``path``: every name, shape and value checked (one-line
     SkymuleError naming the file and what is wrong). The file is read as plain arrays: no
@@ -257,6 +300,7 @@ def load_net(path: str | Path) -> OptionNet:
     path = Path(path)
     if not path.is_file():
         raise _bad(path, "no such file (give learned:path/to/weights.npz)")
+    _check_declared(path)  # names, dtypes, shapes and size from the headers, nothing read yet
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {name: data[name] for name in data.files}
@@ -289,7 +333,7 @@ def load_net(path: str | Path) -> OptionNet:
     shapes = expected_shapes(encoder_b.size, hidden_b.size)
     for name, shape in shapes.items():
         value = arrays[name]
-        if value.dtype.kind not in "fi":
+        if value.dtype.kind != "f":
             raise _bad(path, f"{name} has dtype {value.dtype}; allowed: floats")
         if value.shape != shape:
             raise _bad(path, f"{name} has shape {value.shape}; expected {shape}")

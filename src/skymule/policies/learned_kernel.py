@@ -18,12 +18,13 @@ from functools import cache
 
 import numpy as np
 
+from skymule.policies.options import FRACTIONS as OPTION_FRACTIONS
+from skymule.rules.contract import ROUND_OFF, served_bits
+from skymule.rules.defaults import MAX_HOVER_S
 from skymule.sim import compiled
 
-#: Must match :mod:`skymule.policies.options` (checked by the tests).
-FRACTIONS = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
-HGAD_HOVER_S = 60.0
-ROUND_OFF = 1e-9
+#: :data:`skymule.policies.options.FRACTIONS` as an array (numba reads module globals).
+FRACTIONS = np.array(OPTION_FRACTIONS)
 
 
 def score_rows(
@@ -106,7 +107,7 @@ def score_rows(
             pending = usable[r, k] and (not visited[r, k] or not any_pending)
             if pending and remaining[r, k] > target_data:
                 target, target_data = k, remaining[r, k]
-        hgad_slots = math.ceil(HGAD_HOVER_S / dt - ROUND_OFF)
+        hgad_slots = math.ceil(MAX_HOVER_S / dt - ROUND_OFF)
         for k in range(n):
             need = 0.0
             if peak[r, k] > 0:
@@ -151,7 +152,7 @@ def score_rows(
                 s = stay[k, j]
                 hovers = j == n_frac or fractions[j] > 0
                 allowed[k, j] = ok and ((s >= 1) if hovers else not near[r, k])
-                bits = min(remaining[r, k], peak[r, k] * s * dt)
+                bits = served_bits(peak[r, k] * s, remaining[r, k], dt)
                 fraction = fractions[j] if j < n_frac else s / full
                 after = left - travel[r, k] - s - (onward + back[r, k])
                 rest = min(total - bits, best * max(after, 0.0))
@@ -265,4 +266,8 @@ def score_kernel() -> Callable[..., None]:
     """:func:`score_rows`, compiled by numba when it is installed (else plain Python)."""
     if not compiled.available():
         return score_rows
-    return compiled.jit(score_rows, (any_pending_or_usable, tanh), (any_pending_or_usable, tanh))
+    return compiled.jit(
+        score_rows,
+        (any_pending_or_usable, served_bits, tanh),
+        (any_pending_or_usable, tanh),
+    )

@@ -54,7 +54,7 @@ from skymule.bounds.fixed import fixed_path_bound
 from skymule.bounds.result import BoundResult
 from skymule.errors import SkymuleError
 from skymule.policies.base import Action, MissionContext, Observation
-from skymule.sim.contract import served_bits
+from skymule.rules.contract import served_bits
 
 NO_SENSOR = -1
 """``SlotSchedule.serve`` value for a slot in which nobody is served."""
@@ -280,7 +280,7 @@ def _raw_bits(serve: np.ndarray, slot_bit: np.ndarray) -> np.ndarray:
 
 
 def shift_boundaries(
-    serve: np.ndarray, slot_bit: np.ndarray, buffers_bit: np.ndarray
+    serve: np.ndarray, slot_rate_bps: np.ndarray, slot_s: float, buffers_bit: np.ndarray
 ) -> np.ndarray:
     """Give block-edge slots to a neighbouring sensor with data left, where that costs nothing.
 
@@ -291,12 +291,14 @@ def shift_boundaries(
 
     Args:
         serve: ``(T,)`` sensor per slot or NO_SENSOR.
-        slot_bit: ``(T, N)`` bits sensor ``i`` could deliver in slot ``t``, ``R dt`` (bit).
+        slot_rate_bps: ``(T, N)`` planned rate of sensor ``i`` in slot ``t`` (bit/s).
+        slot_s: slot length dt (s).
         buffers_bit: ``(N,)`` initial buffers (bit).
 
     Returns:
         A new ``(T,)`` serve array.
     """
+    slot_bit = slot_rate_bps * slot_s
     serve = serve.copy()
     buf = np.asarray(buffers_bit, float)
     t_all = np.arange(serve.size)
@@ -313,7 +315,8 @@ def shift_boundaries(
             ok = (src >= 0) & (src < serve.size)
             nbr[ok] = serve[src[ok]]
             valid = free & (nbr != NO_SENSOR) & (nbr != serve)
-            gain = np.where(valid, np.minimum(slot_bit[t_all, nbr], short[nbr]), 0.0)
+            gain = served_bits(slot_rate_bps[t_all, nbr], short[nbr], slot_s)
+            gain = np.where(valid, gain, 0.0)
             t = int(np.argmax(gain))
             if gain[t] > best_gain:
                 best_gain, best_t, best_i = float(gain[t]), t, int(nbr[t])
@@ -428,7 +431,7 @@ def merge_alternations(
 
 
 def drop_empty_slots(
-    serve: np.ndarray, slot_bit: np.ndarray, buffers_bit: np.ndarray
+    serve: np.ndarray, slot_rate_bps: np.ndarray, slot_s: float, buffers_bit: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Simulate ``y = min(R dt, Q)``; a slot planned for an empty buffer goes elsewhere.
 
@@ -439,7 +442,7 @@ def drop_empty_slots(
     remaining = np.asarray(buffers_bit, float).copy()
     previous = NO_SENSOR
     for t in range(serve.size):
-        bits = np.minimum(slot_bit[t], remaining)
+        bits = served_bits(slot_rate_bps[t], remaining, slot_s)
         i = int(serve[t])
         if i == NO_SENSOR or bits[i] <= 0:
             keep = previous != NO_SENSOR and bits[previous] > 0
@@ -471,11 +474,11 @@ def plan_schedule(
     # a slot moves on only when it is the last one at its sample (and not at the end)
     moves = np.zeros(n_slots, dtype=bool)
     moves[np.cumsum(counts)[:last] - 1] = True
-    slot_bit = rate[sample] * slot_s
+    slot_rate = rate[sample]
     serve = assign_slots(rate, buffers_bit, slot_s, sample, served_s)
-    serve = merge_alternations(serve, slot_bit, buffers_bit)
-    serve = shift_boundaries(serve, slot_bit, buffers_bit)
-    serve, remaining = drop_empty_slots(serve, slot_bit, buffers_bit)
+    serve = merge_alternations(serve, slot_rate * slot_s, buffers_bit)
+    serve = shift_boundaries(serve, slot_rate, slot_s, buffers_bit)
+    serve, remaining = drop_empty_slots(serve, slot_rate, slot_s, buffers_bit)
     return SlotSchedule(
         serve=serve,
         hover=~moves,
@@ -486,7 +489,13 @@ def plan_schedule(
 
 
 def most_bits_choice(observation: Observation, slot_s: float) -> int | None:
-    """Sensor with data delivering the most bits now, ``min(R dt, Q)``; None if none does."""
+    """Sensor with data delivering the most bits now, ``min(R dt, Q)``; None if none does.
+
+    Deliberately not HGAD's choice (:func:`skymule.rules.contract.hgad_choice`, the best
+    rate): off its plan, the schedule takes the most bits this slot, so a nearly empty buffer
+    on the best link loses to a full one on a slightly worse link
+    (``tests/test_optimal_fixed.py::test_off_plan_choice_takes_the_most_bits_not_hgads``).
+    """
     bits = served_bits(observation.rate_bps, observation.remaining_bit, slot_s)
     if not np.any(bits > 0):
         return None

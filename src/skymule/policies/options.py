@@ -13,7 +13,7 @@ The hover durations offered for sensor k are the fractions :data:`FRACTIONS` of
 ``cap_k = min(need_k, spare_k)`` slots, where ``need_k = ceil(Q_k / (R*_k dt))`` empties the
 buffer at its hover rate R*_k (the peak rate of the context) and ``spare_k`` is the time left
 after the leg there and (with return home) the leg home, and HGAD's hover min(cap_k,
-:data:`HGAD_HOVER_S`). So a decision picks one of ``N * N_DURATIONS + 1`` options. Sensors
+``rules.defaults.MAX_HOVER_S``). So a decision picks one of ``N * N_DURATIONS + 1`` options. Sensors
 without data or without a usable hover point, hovers that do not fit in the time left and a
 "pass" of the point the UAV is at are masked out; a pass may head for a point it cannot reach
 before it must turn home (the engine's return home takes over on the way, as for HGAD).
@@ -41,16 +41,14 @@ import numpy as np
 
 from skymule.policies.base import BatchAction, BatchObservation, MissionContext
 from skymule.policies.tours import TourGeometry
-from skymule.sim import contract
-from skymule.sim.contract import NO_SENSOR
+from skymule.rules import contract
+from skymule.rules.contract import NO_SENSOR
+from skymule.rules.defaults import MAX_HOVER_S
 
 #: Hover durations offered per sensor, as fractions of min(slots to empty, spare slots);
 #: 0 is "serve while passing". One more duration follows them: HGAD's hover,
-#: min(slots to empty, HGAD_HOVER_S, spare slots).
+#: min(slots to empty, MAX_HOVER_S, spare slots).
 FRACTIONS = (0.0, 0.25, 0.5, 0.75, 1.0)
-
-#: HGAD's longest hover [s] (its default ``max_hover_s``).
-HGAD_HOVER_S = 60.0
 
 #: Durations offered per sensor: the fractions, then HGAD's.
 N_DURATIONS = len(FRACTIONS) + 1
@@ -155,7 +153,7 @@ class Decision:
         cap = np.clip(np.minimum(need, spare), 0, None)
         fractions = np.asarray(FRACTIONS)
         stay = np.ceil(fractions[None, None, :] * cap[..., None] - contract.ROUND_OFF)
-        hgad = np.minimum(cap, contract.slots_to_cover(HGAD_HOVER_S, self.slot_s)[:, None])
+        hgad = np.minimum(cap, contract.slots_to_cover(MAX_HOVER_S, self.slot_s)[:, None])
         stay = np.maximum(np.concatenate([stay, hgad[..., None]], axis=2), 0.0)
         # a pass may head for a point it cannot reach in time (the engine's return home takes
         # over on the way, as it does for HGAD); a hover must fit
@@ -209,7 +207,10 @@ def option_features(decision: Decision) -> tuple[np.ndarray, np.ndarray, np.ndar
     )
     sensor = np.where(usable[..., None], sensor, 0.0)
     stay, allowed = d.stays()
-    bits = np.minimum(d.remaining[..., None], d.peak[..., None] * stay * d.slot_s[:, None, None])
+    # y = min(R dt, Q) over ``stay`` slots at the peak rate
+    bits = contract.served_bits(
+        d.peak[..., None] * stay, d.remaining[..., None], d.slot_s[:, None, None]
+    )
     best = peak_max[..., None] * d.slot_s[:, None, None]  # best hover bits per slot
     spent = np.maximum(d.travel[..., None] + stay, 1.0)
     cap = np.maximum(stay[..., len(FRACTIONS) - 1], 1.0)  # the full fraction's stay

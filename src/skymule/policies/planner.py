@@ -61,7 +61,14 @@ from skymule.policies.touring import (
     leg_slots,
     two_opt_order,
 )
-from skymule.sim.contract import seen_snr_db, served_bits, slots_to_cover
+from skymule.rules.contract import (
+    NO_SENSOR,
+    rate_choice,
+    seen_snr_db,
+    servable,
+    served_bits,
+    slots_to_cover,
+)
 from skymule.sim.plans import plans_kernel
 
 __all__ = [
@@ -406,6 +413,8 @@ class Planner:
             leg_each, leg_together = legs[(a, b)]
             each += leg_each
             together += leg_together
+        # what the legs' slots could carry, capped by the buffers: min(sum R dt, Q), an
+        # optimistic route total (each sensor as if alone), not a slot's served bits
         en_route = np.minimum(remaining, each)
         if en_route.sum() > together > 0:
             en_route *= together / en_route.sum()
@@ -585,7 +594,10 @@ class Planner:
         return self._context.slot_s
 
     def _en_route(self, observation: Observation) -> int | None:
-        """Highest seen rate among sensors with data (None if no link)."""
-        rates = np.where(observation.remaining_bit > 0, self._seen_rate_bps(observation), -1.0)
-        best = int(np.argmax(rates))
-        return best if rates[best] > 0 else None
+        """Highest seen rate among sensors with data, ties to the lowest index (None if no
+        link): :func:`~skymule.rules.contract.rate_choice`, the rule the look-ahead scored the
+        plan with (not HGAD's SNR tie-break: the look-ahead predicts rates only)."""
+        rate = self._seen_rate_bps(observation)[:, None]
+        has_data = servable(rate, observation.remaining_bit[:, None])
+        best = int(rate_choice(rate, has_data)[0])
+        return None if best == NO_SENSOR else best

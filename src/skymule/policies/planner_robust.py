@@ -49,7 +49,7 @@ import numpy as np
 
 from skymule.policies.base import Action, MissionContext, Observation
 from skymule.policies.planner import XY, Planner
-from skymule.sim.contract import slots_to_cover
+from skymule.rules.contract import slots_to_cover
 
 #: Slowed slots the wind estimate keeps (the latest).
 WIND_SAMPLES = 200

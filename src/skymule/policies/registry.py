@@ -26,6 +26,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from skymule.errors import SkymuleError
 from skymule.registry import Registry
+from skymule.rules.defaults import HOVER_THRESHOLD, MAX_HOVER_S
 from skymule.trust import check_trusted
 
 
@@ -48,9 +49,9 @@ class NoParams(BaseModel):
 
 
 class HGADParams(NoParams):
-    hover_threshold: Annotated[float, Field(gt=0, le=1)] = 1.0
+    hover_threshold: Annotated[float, Field(gt=0, le=1)] = HOVER_THRESHOLD
     """Fraction of the peak rate that triggers a hover."""
-    max_hover_s: Annotated[float, Field(gt=0)] = 60.0
+    max_hover_s: Annotated[float, Field(gt=0)] = MAX_HOVER_S
     """Longest hover [s]."""
 
 

@@ -22,6 +22,7 @@ import numpy as np
 import skymule.envs.observation as enc
 from skymule.errors import SkymuleError
 from skymule.policies.base import Action, MissionContext, Observation
+from skymule.rules.home import time_left_s
 from skymule.scenario import PolicySpec
 from skymule.trust import check_trusted
 
@@ -46,9 +47,11 @@ def load_model(path: Path) -> Any:
         ) from None
     try:
         return PPO.load(str(path), device="cpu")
-    except Exception as exc:  # a damaged or foreign zip: say which file
+    except Exception as exc:  # a damaged or foreign zip: say which file, in one line
+        lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+        reason = lines[0] if lines else type(exc).__name__
         raise SkymuleError(
-            f"policy 'rl:{path}': not a stable-baselines3 PPO model ({exc})"
+            f"policy 'rl:{path}': not a stable-baselines3 PPO model ({reason:.200})"
         ) from None
 
 
@@ -83,7 +86,7 @@ class RLPolicy:
         context = self._context
         if context is None:
             raise SkymuleError(f"policy {self.name!r}: act() before reset()")
-        time_left = (context.n_slots - observation.slot) * context.slot_s
+        time_left = time_left_s(context.n_slots, observation.slot, context.slot_s)
         vector = enc.encode(
             np.asarray(observation.position_m[:2], float)[None],
             np.array([time_left]),

@@ -14,7 +14,7 @@ import itertools
 import numpy as np
 
 from skymule.faults.motion import wind_triangle_ground_speed_mps
-from skymule.sim.contract import served_bits, slots_to_cover
+from skymule.rules.contract import served_bits, slots_to_cover
 
 #: Positions closer than this [m] count as the same point.
 SAME_POINT_M = 1e-6

@@ -35,7 +35,7 @@ tower: it waits for the next round), and a reported position within ``arrive_m``
 point counts as arrived (GPS error: the reported position never equals it), the hover then
 still flying to the point.
 
-Arrays are sensor-major, (N, B) for N sensors and B missions, like :mod:`skymule.sim.contract`.
+Arrays are sensor-major, (N, B) for N sensors and B missions, like :mod:`skymule.rules.contract`.
 Each tour's :meth:`act` returns three (B,) arrays: the sensor served, the goal (a sensor whose
 hover point the UAV flies toward, :data:`STAY` to hold its position, or ``N`` for home) and the
 logged target (NO_SENSOR: none).
@@ -50,8 +50,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from skymule.policies.base import MissionContext
-from skymule.sim import contract
-from skymule.sim.contract import NO_SENSOR
+from skymule.rules import contract
+from skymule.rules.contract import NO_SENSOR
 
 if TYPE_CHECKING:  # the geometry is imported when a tour starts, not with the registry
     from skymule.flight.navigation import Navigator
@@ -281,10 +281,8 @@ class HGADTours:
         here = position[todo]
         away = (here[:, 0] != point[:, 0]) | (here[:, 1] != point[:, 1])
         if self._robust:
-            from skymule.flight.navigation import math_hypot
-
             dx, dy = here[:, 0] - point[:, 0], here[:, 1] - point[:, 1]
-            away &= math_hypot(dx, dy).astype(float) > self._arrive_m[todo]
+            away &= np.hypot(dx, dy) > self._arrive_m[todo]
         return away
 
     def act(

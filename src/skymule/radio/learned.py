@@ -1,73 +1,95 @@
-"""A learned radio map: an ensemble of small neural networks on physical link features.
+"""A learned radio map: a baseline corrected by an ensemble of small networks, kept honest.
 
-Per sensor, the network sees where the UAV is *as the link sees it* (Zeng et al.'s and the
-AERPAW radio-map studies' choice of inputs, rather than raw x/y):
+Per sensor, the learned twin predicts SNR at a UAV position as
 
-* log10 of the 3-D UAV-antenna distance (the path-loss trend is linear in it),
-* the elevation angle seen from the antenna (antenna pattern, ground clearance),
-* the azimuth seen from the antenna, as its sine and cosine (pattern, obstacles behind which
-  the UAV is blocked lie in a sector of azimuth beyond some distance),
-* the UAV's height,
-* and, with a prior (a digital twin), the twin's own SNR prediction at that point.
+    baseline + trust * network correction        (+ the kriged residual, radiomap.py)
 
-The target is the *residual* of the measurement over a base prediction: the prior's SNR when
-there is one (so a few minutes of real flight calibrate the twin: the network learns where
-and by how much the twin is wrong), else the fitted log-distance trend (so far from the data
-the map falls back to physics, not to whatever a network extrapolates).
+* **Baseline.** With a prior (a digital twin), the prior's SNR *as an offset* plus a bias
+  linear in log-distance, c0 + c1 log10(d): the calibration the seen flight supports
+  (Bayesian linear regression, a Gaussian prior of ``SLOPE_PRIOR_DB`` on the slope, so a seen
+  part that spans little distance gives a bias close to constant and a slope whose posterior
+  variance grows away from the seen distances; Bishop, *Pattern Recognition and Machine
+  Learning*, 2006, eq. 3.53-3.59). Without a prior, the same regression on SNR itself: the
+  log-distance trend.
+* **Network correction.** An ensemble of ``ENSEMBLE_SIZE`` multilayer perceptrons
+  (scikit-learn's ``MLPRegressor``: one tanh layer, L-BFGS, L2 decay, seeded) learns the
+  residual over the baseline from where the UAV is *as the link sees it* (Zeng et al.'s and
+  the AERPAW radio-map studies' inputs, not raw x/y): log10 distance, elevation, the azimuth's
+  sine and cosine, height, and the prior's SNR only when it is not redundant with
+  log-distance (|r| < ``PRIOR_REDUNDANT_R``). Deep-ensemble spread (Lakshminarayanan et al.,
+  NeurIPS 2017) is its model uncertainty.
+* **Extrapolation guard.** Inputs are standardised on the seen spread, floored per feature
+  (``FEATURE_FLOORS``: a seen altitude spread of 0.12 m does not make 30 m "250 SD"), and
+  clipped to the seen range before the networks see them: a network is never evaluated
+  outside what it was fitted on. How far a point lies outside the seen range (the largest
+  excess over the features, in floored SDs) sets a trust t = exp(-excess^2 / 2 w^2), w =
+  ``GUARD_WIDTH_SD``: the correction is t times the networks', and the predictive variance
+  is that of the mixture "network with weight t, baseline with weight 1 - t": t var_members +
+  (1 - t) v_fallback + t (1 - t) m^2, v_fallback the mean squared correction on the seen data
+  (what the networks explained there, unexplained where they are not trusted).
 
-The network is a multilayer perceptron (tanh hidden layers, linear output) fitted by L-BFGS
-(scipy) on the mean squared error plus an L2 penalty on the weights, inputs and target
-standardised. ``ENSEMBLE_SIZE`` networks from independent seeded initialisations form a deep
-ensemble (Lakshminarayanan, Pritzel & Blundell, NeurIPS 2017): their mean is the prediction,
-their spread the model (epistemic) uncertainty, which the map adds to the kriging posterior
-variance of what is left (:meth:`skymule.radio.radiomap.SensorMap.sigma_db`). Everything is
-seeded: the same data give the same weights.
+Which of these the map keeps (network, prior + correction, or log-distance) is chosen by the
+blocked cross-validation of :func:`skymule.radio.radiomap.fit_sensor_map`, shared with every
+method: the fitted map IS the simpler model when the networks do not beat it.
 
-Weights are plain arrays (written to the map JSON as numbers, read back without running any
-code from the file).
+Everything is plain numbers (written to the map JSON, read back without running code from the
+file); the networks are evaluated here in numpy from their weights.
 """
 
 from __future__ import annotations
 
-import itertools
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import scipy.optimize
 from threadpoolctl import threadpool_limits
 
 from skymule.radio.pathloss import MIN_DISTANCE_M
 
 HIDDEN_UNITS = (32,)
-"""Hidden layer widths of each network (one layer of 32: measured against 16, 32 x 32 and
-16 x 16 on a time split, it extrapolated best to directions the seen part never flew)."""
+"""Hidden layer widths of each network."""
 
 ENSEMBLE_SIZE = 5
-"""Networks in the ensemble."""
+"""Networks in the fitted ensemble."""
+
+CV_MEMBERS = 3
+"""Networks per ensemble inside cross-validation (the fold fits only score the candidate)."""
 
 L2_PENALTY = 1.0
-"""Weight decay: penalty on the mean squared weight, relative to the standardised MSE (the
-default when there is too little data to choose one from ``PENALTIES``)."""
-
-PENALTIES = (0.3, 1.0, 3.0, 10.0)
-"""Weight decays :func:`choose_penalty` tries. Strong decay is what keeps a network sane
-where the seen flight never went: on the time split of tests/test_sim2real.py a decay of
-1e-3 predicted the unseen 60% at 5.7 dB RMSE, 1.0 at 1.3 dB (noise 1 dB)."""
-
-SELECTION_MEMBERS = 2
-"""Networks per candidate decay when choosing one."""
-
-MIN_VALIDATION = 10
-"""Fewest validation (and training) samples to choose a decay; else ``L2_PENALTY``."""
+"""Weight decay, relative to the standardised mean squared error per sample and weight (the
+scale of the hand-written fit this replaced; ``alpha`` = this x samples / weights)."""
 
 MAX_ITERATIONS = 300
 """L-BFGS iterations per network."""
 
 FEATURES = ("log10_distance", "elevation_rad", "sin_azimuth", "cos_azimuth", "height_m")
-"""Input features without a prior; ``prior_db`` is appended when the map has one."""
+"""Input features without a prior; ``prior_db`` is appended when the prior is not redundant."""
 
 PRIOR_FEATURE = "prior_db"
+
+FEATURE_FLOORS = {
+    "log10_distance": 0.05,
+    "elevation_rad": 0.035,
+    "sin_azimuth": 0.1,
+    "cos_azimuth": 0.1,
+    "height_m": 2.0,
+    PRIOR_FEATURE: 1.0,
+}
+"""Smallest scale of each feature for standardisation and the guard (12% in distance, 2 deg
+of elevation, 0.1 in sine/cosine, 2 m of height, 1 dB of prior)."""
+
+GUARD_WIDTH_SD = 1.0
+"""Width of the trust's fall-off beyond the seen range, in floored SDs (2 SD out: t = 0.14)."""
+
+PRIOR_REDUNDANT_R = 0.95
+"""The prior's SNR is an input only when |corr(prior, log10 d)| on the seen data is below."""
+
+SLOPE_PRIOR_DB = 10.0
+"""Prior SD of the correction's slope [dB per decade of distance] when there is a prior."""
+
+TREND_PRIOR_DB = 1000.0
+"""Prior SD of the coefficients without a prior (the log-distance trend: least squares)."""
 
 
 def link_features(
@@ -94,6 +116,88 @@ def link_features(
     return np.column_stack(columns)
 
 
+# ---------------------------------------------------------------------------
+# The baseline's correction: a bias linear in log-distance
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class Correction:
+    """c0 + c1 log10(d) [dB] with its posterior: mean ``coef`` (2,), ``covariance`` (2, 2).
+
+    ``low``, ``high``: the seen range of log10 d. A correction over an offset (a prior or a
+    line) is held at its edge value beyond it (``clip``): outside the distances it was fitted
+    on it does not extrapolate its slope, the offset's shape carries on, and its variance
+    (evaluated where asked) grows with the slope's uncertainty.
+    """
+
+    coef: np.ndarray
+    covariance: np.ndarray
+    low: float = -np.inf
+    high: float = np.inf
+
+    def mean_db(self, log10_distance: np.ndarray) -> np.ndarray:
+        x = np.clip(np.asarray(log10_distance, float), self.low, self.high)
+        return self.coef[0] + self.coef[1] * x
+
+    def variance_db2(self, log10_distance: np.ndarray) -> np.ndarray:
+        """(P,) posterior variance of the correction (phi^T S phi, phi = (1, log10 d))."""
+        x = np.asarray(log10_distance, float)
+        s = self.covariance
+        return np.maximum(s[0, 0] + 2.0 * s[0, 1] * x + s[1, 1] * x * x, 0.0)
+
+    def to_dict(self) -> dict[str, Any]:
+        bounds = [None if not np.isfinite(v) else v for v in (self.low, self.high)]
+        return {
+            "coef": self.coef.tolist(),
+            "covariance": self.covariance.tolist(),
+            "range_log10_m": bounds,
+        }
+
+    @staticmethod
+    def from_dict(data: dict[str, Any]) -> Correction:
+        coef = np.asarray(data["coef"], float)
+        covariance = np.asarray(data["covariance"], float)
+        if coef.shape != (2,) or covariance.shape != (2, 2):
+            raise ValueError("a correction has 2 coefficients and a 2 x 2 covariance")
+        low, high = data.get("range_log10_m") or (None, None)
+        return Correction(
+            coef,
+            covariance,
+            -np.inf if low is None else float(low),
+            np.inf if high is None else float(high),
+        )
+
+
+def fit_correction(
+    log10_distance: np.ndarray, residual_db: np.ndarray, slope_prior_db: float, clip: bool
+) -> Correction:
+    """Bayesian linear regression of residuals [dB] (P,) on (1, log10 d) (Bishop eq. 3.53-3.54).
+
+    Gaussian prior N(0, diag(TREND_PRIOR_DB^2, slope_prior_db^2)) on (c0, c1), with log10 d
+    centred on its seen mean so the prior shrinks the slope, not the level; noise variance
+    from the least-squares residual.
+    """
+    x = np.asarray(log10_distance, float)
+    y = np.asarray(residual_db, float)
+    centre = float(x.mean())
+    design = np.column_stack([np.ones_like(x), x - centre])
+    ls, *_ = np.linalg.lstsq(design, y, rcond=None)
+    noise = max(float(np.mean((design @ ls - y) ** 2)), 1e-6)
+    precision = design.T @ design / noise + np.diag([TREND_PRIOR_DB**-2, slope_prior_db**-2])
+    covariance = np.linalg.inv(precision)
+    mean = covariance @ design.T @ y / noise
+    # back from the centred (1, x - centre) to (1, x)
+    to_raw = np.array([[1.0, -centre], [0.0, 1.0]])
+    bounds = (float(x.min()), float(x.max())) if clip else (-np.inf, np.inf)
+    return Correction(to_raw @ mean, to_raw @ covariance @ to_raw.T, *bounds)
+
+
+# ---------------------------------------------------------------------------
+# The networks
+# ---------------------------------------------------------------------------
+
+
 @dataclass(frozen=True, eq=False)
 class Network:
     """One perceptron: ``layers`` of (weights (in, out), bias (out,)); tanh between layers."""
@@ -111,40 +215,66 @@ class Network:
 
 @dataclass(frozen=True, eq=False)
 class Ensemble:
-    """A fitted ensemble on standardised features: residual [dB] and its spread at points.
+    """Guarded networks on standardised features: a residual [dB], its spread and trust.
 
     Attributes:
         features: names of the input columns (:func:`link_features`' order).
-        input_mean, input_scale: (F,) standardisation of the inputs.
+        input_mean, input_scale: (F,) standardisation of the inputs (scale floored).
+        low, high: (F,) the seen range of each feature (inputs are clipped to it).
         target_mean, target_scale: standardisation of the residual [dB].
+        fallback_db2: mean squared correction on the seen data [dB^2] (the variance the
+            map adds where the networks are not trusted).
         networks: the members.
     """
 
     features: tuple[str, ...]
     input_mean: np.ndarray
     input_scale: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
     target_mean: float
     target_scale: float
+    fallback_db2: float
     networks: tuple[Network, ...]
 
+    def trust(self, features: np.ndarray) -> np.ndarray:
+        """(P,) in (0, 1]: 1 inside the seen range, falling off outside (``GUARD_WIDTH_SD``)."""
+        below = (self.low - features) / self.input_scale
+        above = (features - self.high) / self.input_scale
+        excess = np.maximum(np.maximum(below, above), 0.0).max(axis=1)
+        trust: np.ndarray = np.exp(-0.5 * (excess / GUARD_WIDTH_SD) ** 2)
+        return trust
+
     def members_db(self, features: np.ndarray) -> np.ndarray:
-        """(M, P) each member's residual [dB] at feature rows (P, F)."""
-        inputs = (features - self.input_mean) / self.input_scale
+        """(M, P) each member's residual [dB] at feature rows (P, F), inputs clipped to the
+        seen range (no trust applied)."""
+        inputs = (np.clip(features, self.low, self.high) - self.input_mean) / self.input_scale
         return np.stack(
             [self.target_mean + self.target_scale * net.predict(inputs) for net in self.networks]
         )
 
     def mean_db(self, features: np.ndarray) -> np.ndarray:
-        """(P,) ensemble mean residual [dB]."""
-        return self.members_db(features).mean(axis=0)
+        """(P,) trusted correction [dB]: trust x the members' mean."""
+        return self.trust(features) * self.members_db(features).mean(axis=0)
+
+    def variance_db2(self, features: np.ndarray) -> np.ndarray:
+        """(P,) variance [dB^2] of the mixture: networks (weight t), baseline (1 - t)."""
+        members = self.members_db(features)
+        t = self.trust(features)
+        m = members.mean(axis=0)
+        variance: np.ndarray = t * members.var(axis=0) + (1 - t) * self.fallback_db2
+        return variance + t * (1 - t) * m * m
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "features": list(self.features),
             "input_mean": self.input_mean.tolist(),
             "input_scale": self.input_scale.tolist(),
+            "low": self.low.tolist(),
+            "high": self.high.tolist(),
             "target_mean": self.target_mean,
             "target_scale": self.target_scale,
+            "fallback_db2": self.fallback_db2,
             "networks": [
                 [{"weights": w.tolist(), "bias": b.tolist()} for w, b in net.layers]
                 for net in self.networks
@@ -163,13 +293,15 @@ class Ensemble:
             )
             for net in data["networks"]
         )
-        features = tuple(str(f) for f in data["features"])
         ensemble = Ensemble(
-            features=features,
+            features=tuple(str(f) for f in data["features"]),
             input_mean=np.asarray(data["input_mean"], float),
             input_scale=np.asarray(data["input_scale"], float),
+            low=np.asarray(data["low"], float),
+            high=np.asarray(data["high"], float),
             target_mean=float(data["target_mean"]),
             target_scale=float(data["target_scale"]),
+            fallback_db2=float(data["fallback_db2"]),
             networks=nets,
         )
         _check_shapes(ensemble)
@@ -178,12 +310,15 @@ class Ensemble:
 
 def _check_shapes(ensemble: Ensemble) -> None:
     n_features = len(ensemble.features)
-    if ensemble.input_mean.shape != (n_features,) or ensemble.input_scale.shape != (n_features,):
-        raise ValueError(f"input standardisation does not have {n_features} features")
+    for name in ("input_mean", "input_scale", "low", "high"):
+        if getattr(ensemble, name).shape != (n_features,):
+            raise ValueError(f"{name} does not have {n_features} features")
+    if not np.all(ensemble.input_scale > 0):
+        raise ValueError("input_scale must be positive")
     if not ensemble.networks:
         raise ValueError("no networks")
     for net in ensemble.networks:
-        width = len(ensemble.features)
+        width = n_features
         for weights, bias in net.layers:
             if weights.ndim != 2 or weights.shape[0] != width or bias.shape != weights.shape[1:]:
                 raise ValueError(f"layer of shape {weights.shape} after width {width}")
@@ -192,99 +327,33 @@ def _check_shapes(ensemble: Ensemble) -> None:
             raise ValueError("a network must end in one output")
 
 
-def _shapes(n_inputs: int, hidden: tuple[int, ...]) -> list[tuple[int, int]]:
-    sizes = [n_inputs, *hidden, 1]
-    return list(itertools.pairwise(sizes))
-
-
-def _unpack(
-    theta: np.ndarray, shapes: list[tuple[int, int]]
-) -> list[tuple[np.ndarray, np.ndarray]]:
-    layers, start = [], 0
-    for n_in, n_out in shapes:
-        weights = theta[start : start + n_in * n_out].reshape(n_in, n_out)
-        start += n_in * n_out
-        layers.append((weights, theta[start : start + n_out]))
-        start += n_out
-    return layers
-
-
-def _loss_and_gradient(
-    theta: np.ndarray,
-    inputs: np.ndarray,
-    target: np.ndarray,
-    shapes: list[tuple[int, int]],
-    penalty: float,
-) -> tuple[float, np.ndarray]:
-    """Mean squared error + penalty * mean squared weight, and its gradient (backpropagation)."""
-    layers = _unpack(theta, shapes)
-    activations = [inputs]
-    for weights, bias in layers[:-1]:
-        activations.append(np.tanh(activations[-1] @ weights + bias))
-    weights_out, bias_out = layers[-1]
-    error = (activations[-1] @ weights_out + bias_out)[:, 0] - target
-    n = target.shape[0]
-    n_weights = sum(a * b for a, b in shapes)
-    loss = float(error @ error) / n
-    loss += penalty * sum(float((w * w).sum()) for w, _ in layers) / n_weights
-    grads: list[np.ndarray] = []
-    delta = (2.0 / n) * error[:, None]
-    for index in range(len(layers) - 1, -1, -1):
-        weights, _ = layers[index]
-        grad_w = activations[index].T @ delta + (2.0 * penalty / n_weights) * weights
-        grads[:0] = [grad_w.ravel(), delta.sum(axis=0)]
-        if index:
-            delta = (delta @ weights.T) * (1.0 - activations[index] ** 2)
-    return loss, np.concatenate(grads)
-
-
 def fit_network(
     inputs: np.ndarray,
     target: np.ndarray,
-    rng: np.random.Generator,
+    seed: int,
     *,
     hidden: tuple[int, ...] = HIDDEN_UNITS,
     penalty: float = L2_PENALTY,
     max_iterations: int = MAX_ITERATIONS,
 ) -> Network:
-    """One network fitted by L-BFGS to standardised ``inputs`` (P, F) and ``target`` (P,).
+    """One network fitted by scikit-learn's MLPRegressor (tanh, L-BFGS) to standardised
+    ``inputs`` (P, F) and ``target`` (P,); its weights copied out as plain arrays."""
+    from sklearn.neural_network import MLPRegressor
 
-    Glorot-uniform initial weights from ``rng``, zero biases.
-    """
-    shapes = _shapes(inputs.shape[1], hidden)
-    parts = []
-    for n_in, n_out in shapes:
-        limit = np.sqrt(6.0 / (n_in + n_out))
-        parts += [rng.uniform(-limit, limit, n_in * n_out), np.zeros(n_out)]
-    result = scipy.optimize.minimize(
-        _loss_and_gradient,
-        np.concatenate(parts),
-        args=(inputs, target, shapes, penalty),
-        jac=True,
-        method="L-BFGS-B",
-        options={"maxiter": max_iterations},
+    n_weights = sum(a * b for a, b in zip((inputs.shape[1], *hidden), (*hidden, 1), strict=True))
+    model = MLPRegressor(
+        hidden_layer_sizes=hidden,
+        activation="tanh",
+        solver="lbfgs",
+        alpha=penalty * len(target) / n_weights,
+        max_iter=max_iterations,
+        random_state=seed,
     )
-    layers = _unpack(np.asarray(result.x, float), shapes)
-    return Network(tuple((w.copy(), b.copy()) for w, b in layers))
-
-
-def choose_penalty(
-    features: np.ndarray, residual_db: np.ndarray, validation: np.ndarray, *, seed: int = 0
-) -> float:
-    """The decay of ``PENALTIES`` whose networks, fitted without the ``validation`` samples
-    (a mask: the last stretch of each flight, a split in time), predict them best."""
-    if validation.sum() < MIN_VALIDATION or (~validation).sum() < MIN_VALIDATION:
-        return L2_PENALTY
-    names = tuple(f"f{i}" for i in range(features.shape[1]))
-    errors = []
-    for penalty in PENALTIES:
-        ensemble = fit_ensemble(
-            features[~validation], residual_db[~validation], names,
-            seed=seed, members=SELECTION_MEMBERS, penalty=penalty,
-        )  # fmt: skip
-        error = ensemble.mean_db(features[validation]) - residual_db[validation]
-        errors.append(float(np.mean(error**2)))
-    return PENALTIES[int(np.argmin(errors))]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # stopping at max_iter is the budget, not a failure
+        model.fit(inputs, target)
+    layers = zip(model.coefs_, model.intercepts_, strict=True)
+    return Network(tuple((np.array(w, float), np.array(b, float)) for w, b in layers))
 
 
 def fit_ensemble(
@@ -298,30 +367,177 @@ def fit_ensemble(
     penalty: float = L2_PENALTY,
     max_iterations: int = MAX_ITERATIONS,
 ) -> Ensemble:
-    """An ensemble fitted to residuals [dB] (P,) at feature rows (P, F) named ``names``.
+    """A guarded ensemble fitted to residuals [dB] (P,) at feature rows (P, F) named ``names``.
 
-    Member k starts from ``numpy.random.default_rng([seed, k])``: the same data and seed give
-    the same weights.
+    Member k is seeded by ``seed * 1000 + k``: the same data and seed give the same weights.
     """
+    floors = np.array([FEATURE_FLOORS.get(n, 1e-9) for n in names])
     mean = features.mean(axis=0)
-    scale = features.std(axis=0)
-    scale = np.where(scale > 1e-9, scale, 1.0)  # a constant feature (e.g. one height) stays 0
+    scale = np.maximum(features.std(axis=0), floors)
     target_mean = float(residual_db.mean())
     target_scale = float(residual_db.std()) or 1.0
     inputs = (features - mean) / scale
     target = (residual_db - target_mean) / target_scale
     # one BLAS thread: these products are small (a few thousand rows x 32), and two threads
-    # on two cores shared with other work ran the fit 5x slower (CPU time) than one here
+    # on two cores shared with other work ran the fit several times slower (CPU time)
     with threadpool_limits(limits=1, user_api="blas"):
         networks = tuple(
             fit_network(
                 inputs,
                 target,
-                np.random.default_rng([seed, k]),
+                seed * 1000 + k,
                 hidden=hidden,
                 penalty=penalty,
                 max_iterations=max_iterations,
             )
             for k in range(members)
         )
-    return Ensemble(names, mean, scale, target_mean, target_scale, networks)
+    outputs = np.stack([target_mean + target_scale * n.predict(inputs) for n in networks])
+    fallback = float(np.mean(outputs.mean(axis=0) ** 2))
+    low, high = features.min(axis=0), features.max(axis=0)
+    return Ensemble(names, mean, scale, low, high, target_mean, target_scale, fallback, networks)
+
+
+# ---------------------------------------------------------------------------
+# The learned model of one sensor
+# ---------------------------------------------------------------------------
+
+CHOICES = ("network", "prior + correction", "log-distance", "free space")
+"""What a learned map can be: baseline + networks, or a fallback: the prior + its linear
+correction, the log-distance trend, or free space (the link budget's line, nothing fitted)."""
+
+
+@dataclass(frozen=True, eq=False)
+class LearnedModel:
+    """One sensor's learned base: (prior, if ``uses_prior``) + correction (+ networks).
+
+    ``choice`` is one of :data:`CHOICES` (what blocked cross-validation kept); ``line``
+    (A, n) a log-distance line A - 10 n log10 d [dB] added too (free space when the fit had
+    it as its baseline: what ``log-distance`` and the networks without a prior correct).
+    """
+
+    choice: str
+    uses_prior: bool
+    correction: Correction
+    ensemble: Ensemble | None = None
+    line: tuple[float, float] | None = None
+
+    @property
+    def features(self) -> tuple[str, ...]:
+        return () if self.ensemble is None else self.ensemble.features
+
+    def needs_prior(self) -> bool:
+        return self.uses_prior or PRIOR_FEATURE in self.features
+
+    def _inputs(
+        self, positions_m: np.ndarray, sensor_m: np.ndarray, prior_db: np.ndarray | None
+    ) -> np.ndarray:
+        wants = PRIOR_FEATURE in self.features
+        return link_features(positions_m, sensor_m, prior_db if wants else None)
+
+    def mean_db(
+        self, positions_m: np.ndarray, sensor_m: np.ndarray, prior_db: np.ndarray | None
+    ) -> np.ndarray:
+        """(P,) the learned base [dB] at positions (P, 3)."""
+        features = self._inputs(positions_m, sensor_m, prior_db)
+        out = self.correction.mean_db(features[:, 0])
+        if self.line is not None:
+            out = out + self.line[0] - 10.0 * self.line[1] * features[:, 0]
+        if self.uses_prior:
+            assert prior_db is not None
+            out = out + np.asarray(prior_db, float)
+        if self.ensemble is not None:
+            out = out + self.ensemble.mean_db(features)
+        return out
+
+    def variance_db2(
+        self, positions_m: np.ndarray, sensor_m: np.ndarray, prior_db: np.ndarray | None
+    ) -> np.ndarray:
+        """(P,) the base's own variance [dB^2]: the correction's and the guarded networks'."""
+        features = self._inputs(positions_m, sensor_m, prior_db)
+        out = self.correction.variance_db2(features[:, 0])
+        if self.ensemble is not None:
+            out = out + self.ensemble.variance_db2(features)
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "choice": self.choice,
+            "uses_prior": self.uses_prior,
+            "correction": self.correction.to_dict(),
+            "networks": None if self.ensemble is None else self.ensemble.to_dict(),
+            "line": None if self.line is None else list(self.line),
+        }
+
+    @staticmethod
+    def from_dict(data: dict[str, Any]) -> LearnedModel:
+        """The model :meth:`to_dict` wrote (KeyError/TypeError/ValueError if malformed)."""
+        if "choice" not in data:
+            raise ValueError(
+                "a learned map from an older skymule: refit it with 'skymule fit-radiomap "
+                "--method neural'"
+            )
+        choice = str(data["choice"])
+        if choice not in CHOICES:
+            raise ValueError(f"choice {choice!r} is not one of {', '.join(CHOICES)}")
+        networks = data.get("networks")
+        line = data.get("line")
+        return LearnedModel(
+            choice,
+            bool(data["uses_prior"]),
+            Correction.from_dict(data["correction"]),
+            Ensemble.from_dict(networks) if networks else None,
+            None if line is None else (float(line[0]), float(line[1])),
+        )
+
+
+def prior_is_redundant(prior_db: np.ndarray, log10_distance: np.ndarray) -> bool:
+    """True when the prior's SNR is (almost) a function of log-distance on the seen data."""
+    if np.std(prior_db) < 1e-9 or np.std(log10_distance) < 1e-9:
+        return True
+    r = float(np.corrcoef(prior_db, log10_distance)[0, 1])
+    return abs(r) >= PRIOR_REDUNDANT_R
+
+
+def fit_learned(
+    positions_m: np.ndarray,
+    snr_db: np.ndarray,
+    sensor_m: np.ndarray,
+    prior_db: np.ndarray | None,
+    choice: str,
+    *,
+    seed: int = 0,
+    members: int = ENSEMBLE_SIZE,
+    line: tuple[float, float] | None = None,
+) -> LearnedModel:
+    """The learned base of ``choice`` (:data:`CHOICES`) fitted to samples (P, 3), (P,).
+
+    The offset is the prior (``prior + correction``, and ``network`` with a prior), else
+    ``line`` (A, n) when given (free space: ``free space`` is the line alone; ``log-distance``
+    is the line plus a free linear correction, the same fit as the trend where the samples
+    are, free space's slope beyond), else nothing (``log-distance``: the trend by least
+    squares). A correction over an offset is held constant beyond the seen distances.
+    """
+    uses_prior = prior_db is not None and choice in ("network", "prior + correction")
+    features = link_features(positions_m, sensor_m)
+    x = features[:, 0]
+    kept_line = None if uses_prior else line
+    if choice == "free space":
+        if line is None:
+            raise ValueError("the free-space fallback needs the free-space line")
+        return LearnedModel(choice, False, Correction(np.zeros(2), np.zeros((2, 2))), None, line)
+    offset = np.asarray(prior_db, float) if uses_prior and prior_db is not None else 0.0
+    if kept_line is not None:
+        offset = kept_line[0] - 10.0 * kept_line[1] * x
+    slope_prior = SLOPE_PRIOR_DB if uses_prior else TREND_PRIOR_DB
+    clip = uses_prior or kept_line is not None
+    correction = fit_correction(x, snr_db - offset, slope_prior, clip)
+    if choice != "network":
+        return LearnedModel(choice, uses_prior, correction, None, kept_line)
+    residual = snr_db - offset - correction.mean_db(x)
+    names: tuple[str, ...] = FEATURES
+    if prior_db is not None and not prior_is_redundant(prior_db, x):
+        features = np.column_stack([features, prior_db])
+        names = (*FEATURES, PRIOR_FEATURE)
+    ensemble = fit_ensemble(features, residual, names, seed=seed, members=members)
+    return LearnedModel(choice, uses_prior, correction, ensemble, kept_line)

@@ -21,19 +21,22 @@ Per sensor i, with d the 3-D UAV-antenna distance [m] and SNR measured at UAV po
 Methods (``fit-radiomap --method``): ``kriging`` (1-3 above, the default), ``log-distance``
 (the trend alone), ``gp`` (the same model with the residual field's parameters chosen by
 maximum marginal likelihood, Rasmussen & Williams eq. 5.8, instead of the variogram) and
-``neural`` (:mod:`skymule.radio.learned`: an ensemble of small networks on link features
-learns the residual over the trend or over a prior, a digital twin; the networks' residual is
-then kriged as above). With a prior, the map holds the prior too (a fitted map, or a path-loss
-model and link budget) and predicts prior + learned residual. Every map gives a predictive
-standard deviation per point (:meth:`RadioMapSource.sigma_db`): the kriging posterior
-variance sigma^2 + tau^2 - k^T (K + tau^2 I)^{-1} k (R&W eq. 2.26; the trend's residual
-variance for ``log-distance``) plus the ensemble's spread for ``neural``.
+``neural`` (:mod:`skymule.radio.learned`: the prior, a digital twin, as an offset with a bias
+linear in log-distance, plus guarded networks on link features; or, when blocked
+cross-validation says the networks do not beat them, the simpler model alone: prior +
+correction, log-distance or free space; what is left is kriged as above). With a prior, the
+map holds the prior too (a fitted map, or a path-loss model and link budget). Every map gives
+a predictive standard deviation per point (:meth:`RadioMapSource.sigma_db`): the kriging
+posterior variance sigma^2 + tau^2 - k^T (K + tau^2 I)^{-1} k (R&W eq. 2.26; the trend's
+residual variance for ``log-distance``) plus the learned base's for ``neural``, scaled so the
+cross-validation's 95% intervals hold 95% of its held-out samples.
 
 Missing samples (NaN; -99 in digital-twin exports) and deep drops (below ``drop_below_db``,
 real but unpredictable link losses) are excluded and counted. At most ``MAX_KRIGING_POINTS``
 samples per sensor (evenly thinned in time) enter the kriging system. Fit quality: in-sample
-RMSE and K-fold cross-validated RMSE with each fold one contiguous segment of every trace
-(trend and kriging weights refitted without the held-out segment; variogram parameters kept).
+RMSE and one blocked cross-validation for every method (:func:`blocked_folds`): each fold
+holds out one contiguous segment of every trace and trains on the samples farther than
+``CV_BUFFER_M`` from it, so it scores extrapolation to a region the rest does not cover.
 """
 
 from __future__ import annotations
@@ -47,10 +50,12 @@ from typing import Any, Literal, Protocol
 
 import numpy as np
 import scipy.linalg
+from threadpoolctl import threadpool_limits
 
 from skymule.errors import ScenarioError, SkymuleError
 from skymule.geo import LocalFrame
 from skymule.io import atomic
+from skymule.io.textfiles import parse_json
 from skymule.radio.kriging import (
     MAX_KRIGING_POINTS,
     Variogram,
@@ -62,13 +67,12 @@ from skymule.radio.kriging import (
     thin_indices,
 )
 from skymule.radio.learned import (
-    FEATURES,
-    PRIOR_FEATURE,
-    Ensemble,
-    choose_penalty,
-    fit_ensemble,
-    link_features,
+    CV_MEMBERS,
+    ENSEMBLE_SIZE,
+    LearnedModel,
+    fit_learned,
 )
+from skymule.radio.mapcheck import map_problem
 from skymule.radio.pathloss import MIN_DISTANCE_M
 
 DEEP_DROP_DB = -40.0
@@ -80,6 +84,22 @@ MIN_FIT_SAMPLES = 20
 
 CV_FOLDS = 5
 """Cross-validation folds (contiguous segments of each trace)."""
+
+CV_BUFFER_M = 50.0
+"""Blocked cross-validation: samples within this distance [m] of a held-out segment are left
+out of its training set too, so each fold predicts a region the rest does not cover."""
+
+SELECTION_MARGIN_DB = 0.1
+"""``neural`` keeps a more flexible model (networks > log-distance > prior + correction > free
+space) only when its cross-validated RMSE beats the simpler one's by more than this [dB] (and
+by more than one standard error: :func:`_choose`)."""
+
+CV_KRIGING_POINTS = 400
+"""Samples per fold in the kriging system of cross-validation (thinned evenly): a held-out
+block lies beyond most of the field's reach, and the folds cost 5 x the candidates' fits."""
+
+COVERAGE_Z = 1.959964
+"""Half-width of the central 95% interval of a standard normal."""
 
 
 MAP_FORMAT = "skymule-radiomap"
@@ -105,8 +125,10 @@ class SensorMap:
         train_m: (S, 3) kriging sample positions [m].
         weights: (S,) kriging weights (K + tau^2 I)^{-1} r [dB].
         stats: fit quality and sample counts (see :func:`fit_sensor_map`).
-        ensemble: ``neural``: the networks whose mean residual is added to the base (the
-            prior's SNR, or the trend without a prior) before kriging; None otherwise.
+        ensemble: ``neural``: the learned base the residual is kriged over (the prior and
+            its correction, the networks, or the trend: :class:`LearnedModel`); None
+            otherwise. ``stats["sigma_scale"]`` (when present) scales the predictive SD so
+            the blocked cross-validation's 95% intervals cover 95% of held-out samples.
     """
 
     name: str
@@ -117,27 +139,25 @@ class SensorMap:
     train_m: np.ndarray
     weights: np.ndarray
     stats: dict[str, float] = field(default_factory=dict)
-    ensemble: Ensemble | None = None
+    ensemble: LearnedModel | None = None
 
     def trend_db(self, positions_m: np.ndarray) -> np.ndarray:
         """(P,) log-distance trend [dB] at positions (P, 3)."""
         return trend_db(positions_m, self.position_m, self.intercept_db, self.exponent)
 
-    def _features(self, positions: np.ndarray, prior_db: np.ndarray | None) -> np.ndarray:
+    def _learned(self, prior_db: np.ndarray | None) -> LearnedModel:
         assert self.ensemble is not None
-        wants_prior = PRIOR_FEATURE in self.ensemble.features
-        if wants_prior and prior_db is None:
+        if self.ensemble.needs_prior() and prior_db is None:
             raise SkymuleError(f"radio map of {self.name}: the learned map needs its prior")
-        return link_features(positions, self.position_m, prior_db if wants_prior else None)
+        return self.ensemble
 
     def base_db(self, positions_m: np.ndarray, prior_db: np.ndarray | None = None) -> np.ndarray:
         """(P,) what the kriged residual is added to [dB]: the trend, or for ``neural`` the
-        prior (the trend without one) plus the ensemble's mean residual."""
+        learned base (:meth:`LearnedModel.mean_db`)."""
         positions = np.atleast_2d(np.asarray(positions_m, float))
         if self.ensemble is None:
             return self.trend_db(positions)
-        base = self.trend_db(positions) if prior_db is None else np.asarray(prior_db, float)
-        return base + self.ensemble.mean_db(self._features(positions, prior_db))
+        return self._learned(prior_db).mean_db(positions, self.position_m, prior_db)
 
     def snr_db(self, positions_m: np.ndarray, prior_db: np.ndarray | None = None) -> np.ndarray:
         """(P,) predicted SNR [dB] at positions (P, 3): base + kriged residual.
@@ -162,7 +182,7 @@ class SensorMap:
         """(P,) predictive standard deviation [dB] at positions (P, 3).
 
         The kriging posterior variance sigma^2 + tau^2 - k^T (K + tau^2 I)^{-1} k, plus for
-        ``neural`` the variance of the ensemble's members.
+        ``neural`` the learned base's variance; times ``stats["sigma_scale"]`` if fitted.
         """
         positions = np.atleast_2d(np.asarray(positions_m, float))
         vario = self.variogram
@@ -175,9 +195,9 @@ class SensorMap:
                 variance[start : start + step] -= np.einsum("ps,sp->p", k, solved)
         variance = np.maximum(variance, vario.nugget_db2)
         if self.ensemble is not None:
-            members = self.ensemble.members_db(self._features(positions, prior_db))
-            variance = variance + members.var(axis=0)
-        return np.sqrt(variance)
+            learned = self._learned(prior_db)
+            variance = variance + learned.variance_db2(positions, self.position_m, prior_db)
+        return float(self.stats.get("sigma_scale", 1.0)) * np.sqrt(variance)
 
 
 def distance_m(positions_m: np.ndarray, sensor_m: np.ndarray) -> np.ndarray:
@@ -228,48 +248,131 @@ class FitOptions:
     seed: int = 0
 
 
+def _free_space_line(
+    positions: np.ndarray, sensor_m: np.ndarray, baseline_db: np.ndarray | None
+) -> tuple[float, float] | None:
+    """(A, n) when the baseline is exactly a log-distance law at these samples (free space is:
+    A - 20 log10 d), so a map can be it; None otherwise."""
+    if baseline_db is None:
+        return None
+    distance = distance_m(positions, sensor_m)
+    intercept, exponent = fit_trend(distance, baseline_db)
+    line = trend_db(positions, sensor_m, intercept, exponent)
+    return (intercept, exponent) if _rmse(line - baseline_db) < 0.01 else None
+
+
+def _candidates(method: str, prior_db: np.ndarray | None, free_space: bool) -> tuple[str, ...]:
+    """What blocked cross-validation compares for ``method`` (``neural``: the networks and
+    their fallbacks, :data:`skymule.radio.learned.CHOICES`), from the most flexible to the
+    simplest (free space fits nothing; the prior + correction fits a shrunk bias)."""
+    if method != "neural":
+        return (method,)
+    simpler = ("log-distance", "prior + correction") if prior_db is not None else ("log-distance",)
+    return ("network", *simpler, *(("free space",) if free_space else ()))
+
+
 def _fit_core(
     name: str,
     positions: np.ndarray,
     snr: np.ndarray,
-    segment: np.ndarray,
     sensor_m: np.ndarray,
     variogram: Variogram | None,
-    options: FitOptions,
+    method: str,
     prior_db: np.ndarray | None,
+    *,
+    choice: str = "network",
+    seed: int = 0,
+    members: int = ENSEMBLE_SIZE,
+    free_space: tuple[float, float] | None = None,
+    max_points: int = MAX_KRIGING_POINTS,
 ) -> SensorMap:
     """The map of one sensor fitted to valid samples (``variogram`` kept when given).
 
-    ``neural`` chooses its weight decay on the last segment of each trace (``segment``).
+    ``neural``: the learned base of ``choice``, then the kriged residual; ``free space`` is
+    the line ``free_space`` (A, n) alone (a zero-mean field kriged over a biased line would
+    pull predictions toward the bias near the data and drop it far away).
     """
     intercept, exponent = fit_trend(distance_m(positions, sensor_m), snr)
-    trend = trend_db(positions, sensor_m, intercept, exponent)
     ensemble = None
-    base = trend
-    stats: dict[str, float] = {}
-    if options.method == "neural":
-        features = link_features(positions, sensor_m, prior_db)
-        names = (*FEATURES, PRIOR_FEATURE) if prior_db is not None else FEATURES
-        start = trend if prior_db is None else prior_db
-        validation = segment == segment.max()
-        penalty = choose_penalty(features, snr - start, validation, seed=options.seed)
-        ensemble = fit_ensemble(features, snr - start, names, seed=options.seed, penalty=penalty)
-        base = start + ensemble.mean_db(features)
-        stats["l2_penalty"] = penalty
+    if method == "neural":
+        ensemble = fit_learned(
+            positions, snr, sensor_m, prior_db, choice, seed=seed, members=members,
+            line=free_space,
+        )  # fmt: skip
+        base = ensemble.mean_db(positions, sensor_m, prior_db)
+    else:
+        base = trend_db(positions, sensor_m, intercept, exponent)
     residual = snr - base
-    if options.method == "log-distance":
+    if method == "log-distance" or choice == "free space":  # nothing kriged: the line alone
         no_field = Variogram(0.0, 1.0, float(np.mean(residual**2)))
         empty = np.zeros((0, 3))
-        return SensorMap(name, sensor_m, intercept, exponent, no_field, empty, np.zeros(0))
-    keep = thin_indices(len(snr), MAX_KRIGING_POINTS)
+        return SensorMap(
+            name, sensor_m, intercept, exponent, no_field, empty, np.zeros(0), {}, ensemble
+        )
+    keep = thin_indices(len(snr), max_points)
     if variogram is None:
         variogram = fit_variogram(positions[keep], residual[keep])
-        if options.method == "gp":
+        if method == "gp":
             variogram = fit_variogram_ml(positions[keep], residual[keep], variogram)
     weights = kriging_weights(positions[keep], residual[keep], variogram)
     return SensorMap(
-        name, sensor_m, intercept, exponent, variogram, positions[keep], weights, stats, ensemble
+        name, sensor_m, intercept, exponent, variogram, positions[keep], weights, {}, ensemble
     )
+
+
+def blocked_folds(
+    positions_m: np.ndarray, segment: np.ndarray, buffer_m: float = CV_BUFFER_M
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(test, train) masks of the blocked cross-validation shared by every method.
+
+    Fold k holds out segment k of every trace (a contiguous stretch of flight); its training
+    set is every other sample farther than ``buffer_m`` from all held-out ones, so the fold
+    predicts a region the rest does not cover (buffered block CV: Roberts et al., Ecography
+    40, 2017). Folds left with too few training samples are skipped.
+    """
+    import scipy.spatial
+
+    folds = []
+    for fold in np.unique(segment):
+        test = segment == fold
+        if test.all():
+            continue
+        train = ~test
+        gap, _ = scipy.spatial.cKDTree(positions_m[test]).query(positions_m[train])
+        train[train] = gap > buffer_m
+        if train.sum() >= MIN_FIT_SAMPLES // 2:
+            folds.append((test, train))
+    return folds
+
+
+def _choose(candidates: tuple[str, ...], fold_errors: dict[str, list[np.ndarray]]) -> str:
+    """The candidate kept, from the simplest up (``candidates`` run from the most flexible to
+    the simplest): a more flexible one replaces the current choice only if its blocked
+    cross-validated RMSE is lower by more than SELECTION_MARGIN_DB *and* its mean squared
+    error per fold is lower by more than one standard error of the paired fold differences
+    (the one-standard-error rule, Hastie, Tibshirani & Friedman, *The Elements of
+    Statistical Learning*, 2nd ed., sec. 7.10)."""
+    scored = [c for c in reversed(candidates) if fold_errors.get(c)]
+    if not scored:
+        return candidates[-1]
+    chosen = scored[0]
+    for challenger in scored[1:]:
+        ours, theirs = fold_errors[chosen], fold_errors[challenger]
+        gain = np.array([np.mean(a**2) - np.mean(b**2) for a, b in zip(ours, theirs, strict=True)])
+        se = float(gain.std(ddof=1) / np.sqrt(gain.size)) if gain.size > 1 else 0.0
+        margin = _rmse(np.concatenate(ours)) - _rmse(np.concatenate(theirs))
+        if margin > SELECTION_MARGIN_DB and gain.mean() > se:
+            chosen = challenger
+    return chosen
+
+
+def sigma_scale(z: np.ndarray) -> float:
+    """Factor on the predictive SD making the central 95% interval hold 95% of the held-out
+    standardised errors ``z`` (error / sigma) of cross-validation (1 without any)."""
+    z = np.abs(z[np.isfinite(z)])
+    if z.size < MIN_FIT_SAMPLES:
+        return 1.0
+    return float(np.clip(np.quantile(z, 0.95) / COVERAGE_Z, 0.5, 20.0))
 
 
 def fit_sensor_map(
@@ -285,11 +388,17 @@ def fit_sensor_map(
 ) -> SensorMap:
     """Fit one sensor's map; ``stats`` holds counts, RMSE and cross-validated RMSE [dB].
 
-    ``baseline_snr_db`` (S,) is a reference model's SNR at the samples (e.g. free space); its
-    RMSE on the held-out segments is reported as ``cv_rmse_baseline_db``. ``prior_snr_db``
-    (S,) is the prior's SNR at the samples (``neural`` with a prior). Cross-validation holds
-    out each segment in turn; ``neural`` holds out the last segment of every trace only (a
-    split in time; refitting the networks for every fold would multiply the fit time).
+    Every method is cross-validated the same way (:func:`blocked_folds`): ``cv_rmse_map_db``
+    is the map's RMSE on held-out blocks, next to ``cv_rmse_trend_db`` (log-distance fitted
+    on the same training sets), ``cv_rmse_baseline_db`` (``baseline_snr_db`` (S,), a
+    reference model's SNR at the samples, e.g. free space) and ``cv_rmse_prior_db`` (the raw
+    prior). ``cv_coverage_95`` is the share of held-out samples inside the map's 95%
+    interval once ``sigma_scale`` (fitted on the same errors) is applied.
+
+    ``neural`` (``prior_snr_db`` (S,): the prior's SNR at the samples, optional) compares
+    its networks with the simpler models on these folds (``cv_rmse_<choice>_db``) and keeps
+    the networks only if they win (:func:`_choose`); the map's ``ensemble.choice`` says
+    which model it is.
     """
     ok, n_missing, n_deep = valid_mask(samples.snr_db, drop_below_db)
     n_used = int(ok.sum())
@@ -301,35 +410,65 @@ def fit_sensor_map(
         )
     positions, snr, segment = samples.positions_m[ok], samples.snr_db[ok], samples.segment[ok]
     prior = None if prior_snr_db is None else np.asarray(prior_snr_db, float)[ok]
+    base_db = None if baseline_snr_db is None else np.asarray(baseline_snr_db, float)[ok]
     sensor = np.asarray(sensor_m, float)
-    fitted = _fit_core(name, positions, snr, segment, sensor, None, options, prior)
-    errors: dict[str, list[np.ndarray]] = {"map": [], "trend": [], "baseline": []}
-    folds = np.unique(segment)
-    for fold in folds[-1:] if options.method == "neural" else folds:
-        test = segment == fold
-        if test.all() or (~test).sum() < MIN_FIT_SAMPLES // 2:
-            continue
-        train_prior = None if prior is None else prior[~test]
-        held = _fit_core(
-            name, positions[~test], snr[~test], segment[~test], sensor, fitted.variogram,
-            options, train_prior,
-        )  # fmt: skip
-        errors["trend"].append(held.trend_db(positions[test]) - snr[test])
-        test_prior = None if prior is None else prior[test]
-        errors["map"].append(held.snr_db(positions[test], test_prior) - snr[test])
-        if baseline_snr_db is not None:
-            errors["baseline"].append(baseline_snr_db[ok][test] - snr[test])
+    method = options.method
+    line = _free_space_line(positions, sensor, base_db) if method == "neural" else None
+    candidates = _candidates(method, prior, line is not None)
+    # gp keeps its maximum-likelihood parameters across folds (refitting them is the cost)
+    kept = (
+        _fit_core(name, positions, snr, sensor, None, method, prior).variogram
+        if method == "gp"
+        else None
+    )
+    errors: dict[str, list[np.ndarray]] = {k: [] for k in ("trend", "baseline", "prior")}
+    errors.update({c: [] for c in candidates})
+    z: dict[str, list[np.ndarray]] = {c: [] for c in candidates}
+    with threadpool_limits(limits=1, user_api="blas"):  # small systems: one thread
+        for test, train in blocked_folds(positions, segment):
+            train_prior = None if prior is None else prior[train]
+            test_prior = None if prior is None else prior[test]
+            for choice in candidates:
+                held = _fit_core(
+                    name, positions[train], snr[train], sensor, kept, method, train_prior,
+                    choice=choice, seed=options.seed, members=CV_MEMBERS, free_space=line,
+                    max_points=CV_KRIGING_POINTS,
+                )  # fmt: skip
+                error = held.snr_db(positions[test], test_prior) - snr[test]
+                errors[choice].append(error)
+                z[choice].append(error / held.sigma_db(positions[test], test_prior))
+            trend = fit_trend(distance_m(positions[train], sensor), snr[train])
+            errors["trend"].append(trend_db(positions[test], sensor, *trend) - snr[test])
+            if base_db is not None:
+                errors["baseline"].append(base_db[test] - snr[test])
+            if prior is not None:
+                errors["prior"].append(prior[test] - snr[test])
+    cv = {k: _rmse(np.concatenate(v)) if v else float("nan") for k, v in errors.items()}
+    chosen = _choose(candidates, errors)
+    fitted = _fit_core(
+        name, positions, snr, sensor, kept, method, prior,
+        choice=chosen, seed=options.seed, free_space=line,
+    )  # fmt: skip
+    scale = sigma_scale(np.concatenate(z[chosen])) if z[chosen] else 1.0
     stats = {
-        **fitted.stats,
         "n_used": float(n_used),
         "n_missing": float(n_missing),
         "n_deep_drops": float(n_deep),
         "rmse_db": _rmse(fitted.snr_db(positions, prior) - snr),
         "rmse_trend_db": _rmse(fitted.trend_db(positions) - snr),
+        "cv_folds": float(len(errors["trend"])),
+        "sigma_scale": scale,
     }
-    for key, values in errors.items():
-        if values:
-            stats[f"cv_rmse_{key}_db"] = _rmse(np.concatenate(values))
+    if z[chosen]:
+        inside = np.abs(np.concatenate(z[chosen])) <= COVERAGE_Z * scale
+        stats["cv_coverage_95"] = float(inside.mean())
+    stats["cv_rmse_map_db"] = cv[chosen]
+    for key in ("trend", "baseline", "prior"):
+        if np.isfinite(cv[key]):
+            stats[f"cv_rmse_{key}_db"] = cv[key]
+    if method == "neural":
+        for choice in candidates:
+            stats[f"cv_rmse_{choice.replace(' + ', '_').replace(' ', '_')}_db"] = cv[choice]
     return replace(fitted, stats=stats)
 
 
@@ -471,7 +610,7 @@ def _map_from_dict(data: dict[str, Any]) -> RadioMap:
             train_m=np.asarray(s["train_m"], float).reshape(-1, 3),
             weights=np.asarray(s["weights"], float),
             stats={k: float(v) for k, v in s.get("stats", {}).items()},
-            ensemble=Ensemble.from_dict(s["ensemble"]) if s.get("ensemble") else None,
+            ensemble=LearnedModel.from_dict(s["ensemble"]) if s.get("ensemble") else None,
         )
         for s in data["sensors"]
     )
@@ -499,10 +638,10 @@ def _map_from_dict(data: dict[str, Any]) -> RadioMap:
 def read_radiomap(path: Path) -> RadioMap:
     """Read a map written by :meth:`RadioMap.write` (one-line SkymuleError if it is not one)."""
     try:
-        data = json.loads(Path(path).read_text())
+        data = parse_json(Path(path).read_text())
     except FileNotFoundError:
         raise SkymuleError(f"{path}: radio map file not found") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (OSError, ValueError) as exc:
         raise SkymuleError(f"{path}: not a radio map JSON file ({exc})") from None
     if not isinstance(data, dict) or data.get("format") != MAP_FORMAT:
         raise SkymuleError(
@@ -516,9 +655,13 @@ def read_radiomap(path: Path) -> RadioMap:
             f"{MAP_VERSION} (refit it with 'skymule fit-radiomap')"
         )
     try:
-        return _map_from_dict(data)
-    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+        radio_map = _map_from_dict(data)
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError, RecursionError) as exc:
         raise SkymuleError(f"{path}: radio map is incomplete or malformed ({exc!r})") from None
+    problem = map_problem(radio_map)  # values checked before any is used (issue 32)
+    if problem:
+        raise SkymuleError(f"{path}: radio map {problem}")
+    return radio_map
 
 
 @dataclass(frozen=True, eq=False)

@@ -18,7 +18,7 @@ import numpy as np
 from skymule.errors import SkymuleError
 from skymule.limits import MAX_EFFICIENCY_BPS_HZ
 from skymule.registry import Registry
-from skymule.sim.contract import seen_snr_db
+from skymule.rules.contract import seen_snr_db
 
 #: AERPAW AADM controller's LTE CQI table: (SNR threshold dB, efficiency b/s/Hz), the rate is
 #: that of the highest threshold the SNR reaches; below -6.7 dB there is no link.

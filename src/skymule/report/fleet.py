@@ -16,6 +16,7 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.patches import Polygon as PolygonPatch
 
+from skymule.io.textfiles import parse_json
 from skymule.report.style import (
     DEFAULT_DPI,
     FENCE_STYLE,
@@ -161,10 +162,9 @@ def plot_fleet_run(
 ) -> list[Path]:
     """The trajectory figure of a fleet run (one colour per UAV), in the style and print size
     of every other figure (one 3.5-in panel, legend below, the scenario in words above)."""
-    import json
 
     scenario_file = run_dir / "scenario.json"
-    scenario_json = json.loads(scenario_file.read_text()) if scenario_file.is_file() else {}
+    scenario_json = parse_json(scenario_file.read_text()) if scenario_file.is_file() else {}
     with paper_style():
         fig, (ax,) = panel_figure(1, 4.2)
         label = str(summary.get("policy", ""))

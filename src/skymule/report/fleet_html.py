@@ -28,16 +28,23 @@ from skymule.report.html import (
     FIGURES_DIR,
     REPORT_FILE,
     PanelSpec,
+    bound_caption,
     figure_html,
     format_cell,
     gap_table,
+    invalid_bound_note,
     page_html,
     render_bars,
     render_panels,
     sensor_table,
     table_html,
 )
-from skymule.report.inputs import COMPARISON_FILE, comparison_bound, read_comparison
+from skymule.report.inputs import (
+    COMPARISON_FILE,
+    bound_warnings,
+    comparison_bound,
+    read_comparison,
+)
 from skymule.report.panels import draw_remaining
 from skymule.report.style import (
     PANEL_WIDTH_IN,
@@ -220,16 +227,19 @@ def build_fleet_report(folder: Path, pdf: bool = True, out: Path | None = None) 
     ]
     if kind == "compare":
         bound = comparison_bound(read_comparison(folder / COMPARISON_FILE))
-        bars = render_bars(runs, figures, pdf, bound)
+        warned = bound_warnings(folder) if bound is not None else ()
+        bars = render_bars(runs, figures, pdf, bound, bound_valid=not warned)
         caption = "Data downloaded per policy (all UAVs), stacked by sensor; dashed: total buffer"
-        if bound is not None:
-            caption += "; solid: the K-UAV upper bound on what any policies can download"
+        caption += bound_caption(
+            bound, warned, "the K-UAV upper bound on what any policies can download"
+        )
         sections.append(
             (
                 "comparison",
                 "Policy comparison",
-                figure_html("policies", bars, caption + ".", PANEL_WIDTH_IN)
-                + (gap_table(runs, bound) if bound is not None else ""),
+                invalid_bound_note(warned)
+                + figure_html("policies", bars, caption + ".", PANEL_WIDTH_IN)
+                + (gap_table(runs, bound, valid=not warned) if bound is not None else ""),
             )
         )
     for panel in FLEET_PANELS:

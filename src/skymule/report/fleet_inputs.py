@@ -11,7 +11,6 @@ equal to its summary's. A damaged folder is one line naming the file and what is
 from __future__ import annotations
 
 import csv
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -20,8 +19,15 @@ import numpy as np
 import pandas as pd
 
 from skymule.errors import SkymuleError
-from skymule.io.runs import SLOTS_FILE, SUMMARY_FILE, is_run_dir, read_run
+from skymule.io.runs import (
+    SLOTS_FILE,
+    SUMMARY_FILE,
+    check_complete_comparison,
+    is_run_dir,
+    read_run,
+)
 from skymule.io.runschema import validate_summary
+from skymule.io.textfiles import parse_json
 from skymule.report.inputs import RunData, run_data
 
 #: Slack between a UAV's download summed over slots.csv and its summary.json entry [Mbit]:
@@ -77,7 +83,7 @@ def _header(slots_path: Path) -> list[str]:
 def _summary_uavs(summary_path: Path) -> Any:
     """``summary.json``'s ``uavs`` entry, or None (also when unreadable: read_run says why)."""
     try:
-        data = json.loads(summary_path.read_text(encoding="utf-8"))
+        data = parse_json(summary_path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, ValueError):
         return None
     return data.get("uavs") if isinstance(data, dict) else None
@@ -240,4 +246,5 @@ def load_fleet_input(path: Path) -> tuple[str, tuple[FleetRun, ...]]:
     if is_run_dir(path):
         return "run", (load_fleet_run(path),)
     children = sorted(p for p in path.iterdir() if is_run_dir(p))
+    check_complete_comparison(path)
     return "compare", tuple(load_fleet_run(child, child.name) for child in children)

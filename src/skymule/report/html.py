@@ -20,13 +20,13 @@ from typing import Any, Generic, TypeVar
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from skymule.aadm.rules import AADM_WINDOW_S
 from skymule.io import atomic
 from skymule.report.figures import draw_cumulative_download, draw_snr_cdf
 from skymule.report.inputs import (
     ReportInput,
     RunData,
     ScoreBreakdown,
+    bound_warnings,
     comparison_bound,
     load_input,
     score_breakdown,
@@ -50,6 +50,7 @@ from skymule.report.style import (
     save_figure,
     scenario_description,
 )
+from skymule.rules.defaults import AADM_WINDOW_S
 
 REPORT_FILE = "report.html"
 FIGURES_DIR = "figures"
@@ -129,6 +130,7 @@ figcaption{font-size:.85rem;color:#555}pre{background:#f6f6f6;padding:.6rem;font
 max-height:24rem;overflow:auto}.views{display:flex;flex-wrap:wrap;gap:1rem}
 .view{border:1px solid #ddd;padding:.4rem}.tip{font-size:.8rem;min-height:2.4em;max-width:560px}
 svg.traj{background:#fff;cursor:crosshair;touch-action:none}.note{color:#a33}
+.warning{color:#a00;border-left:3px solid #a00;padding-left:.5rem}
 """
 
 SUMMARY_FIELDS: tuple[tuple[str, str, str], ...] = (
@@ -199,13 +201,14 @@ def sensor_table(runs: tuple[RunData, ...]) -> str:
 
 
 def score_table(runs: tuple[RunData, ...], scores: list[ScoreBreakdown]) -> str:
+    window = run_window_s(runs)
     rows = [
         ["S2 = 100 x downloaded / total", *(f"{s.download_points:.1f}" for s in scores)],
         [
             "all data by [s]",
             *("-" if s.completed_at_s is None else f"{s.completed_at_s:.0f}" for s in scores),
         ],
-        ["S1 = 500 - t1 if all downloaded", *(f"{s.time_bonus:.1f}" for s in scores)],
+        [f"S1 = {window:g} - t1 if all downloaded", *(f"{s.time_bonus:.1f}" for s in scores)],
         [
             "end distance to home [m] (testbed: land within 5 m)",
             *(f"{s.end_distance_m:.1f}" for s in scores),
@@ -222,8 +225,33 @@ def score_table(runs: tuple[RunData, ...], scores: list[ScoreBreakdown]) -> str:
     return table_html(["AADM score", *(r.label for r in runs)], rows, "score-table")
 
 
-def gap_table(runs: tuple[RunData, ...], bound_mbit: float) -> str:
-    """Each policy's download against the upper bound on any policy (``compare``'s gap)."""
+def bound_caption(bound: float | None, warnings: Sequence[str], what: str) -> str:
+    """The figure caption's words for the bound line: ``what`` when valid; when its
+    condition fails, that it is invalid here and why (``bound.json``'s warnings)."""
+    if bound is None:
+        return ""
+    if not warnings:
+        return f"; solid: {what}"
+    return (
+        f"; red dotted: a bound that is NOT valid here, it may be below what a policy can "
+        f"download ({'; '.join(warnings)})"
+    )
+
+
+def invalid_bound_note(warnings: Sequence[str]) -> str:
+    """A visible paragraph saying the bound and its gaps are not valid here (or "")."""
+    if not warnings:
+        return ""
+    text = "; ".join(warnings)
+    return (
+        f'<p class="warning"><strong>The bound is not valid for this mission:</strong> '
+        f"{html.escape(text)}. Gaps against it are not gaps to the optimum.</p>"
+    )
+
+
+def gap_table(runs: tuple[RunData, ...], bound_mbit: float, valid: bool = True) -> str:
+    """Each policy's download against the upper bound on any policy (``compare``'s gap);
+    ``valid`` False labels the bound columns as invalid."""
     rows = []
     for run in runs:
         down = float(run.summary.get("total_downloaded_mbit", 0.0))
@@ -232,6 +260,11 @@ def gap_table(runs: tuple[RunData, ...], bound_mbit: float) -> str:
         cells = [f"{down:.1f}", f"{bound_mbit:.1f}", f"{gap:.1f}", share]
         rows.append([html.escape(run.label), *cells])
     header = ["policy", "downloaded [Mbit]", "upper bound [Mbit]", "gap [Mbit]", "gap [%]"]
+    if not valid:
+        header = [
+            "policy", "downloaded [Mbit]", "bound, INVALID here [Mbit]", "gap to it [Mbit]",
+            "gap to it [%]",
+        ]  # fmt: skip
     return table_html(header, rows, "gap-table")
 
 
@@ -315,13 +348,22 @@ def render_panel(
 
 
 def render_bars(
-    runs: tuple[RunData, ...], folder: Path, pdf: bool = True, bound_mbit: float | None = None
+    runs: tuple[RunData, ...],
+    folder: Path,
+    pdf: bool = True,
+    bound_mbit: float | None = None,
+    bound_valid: bool = True,
 ) -> Path:
     with paper_style():
         fig, (ax,) = panel_figure(1, 2.9)
-        draw_policy_bars(ax, runs, bound_mbit=bound_mbit)
+        draw_policy_bars(ax, runs, bound_mbit=bound_mbit, bound_valid=bound_valid)
         finish_figure(fig, figure_title(runs))
         return save_figure(fig, folder, "policies", report_formats(pdf), REPORT_DPI)["png"]
+
+
+def run_window_s(runs: tuple[RunData, ...]) -> float:
+    """The AADM download window of the first run [s] (its scenario's, else the default)."""
+    return float(runs[0].scenario.get("mission", {}).get("aadm_window_s") or AADM_WINDOW_S)
 
 
 def render_score(
@@ -329,8 +371,7 @@ def render_score(
 ) -> Path:
     with paper_style():
         fig, (ax,) = panel_figure(1, 2.9)
-        window = runs[0].scenario.get("mission", {}).get("aadm_window_s") or AADM_WINDOW_S
-        draw_score(ax, [r.label for r in runs], scores, float(window))
+        draw_score(ax, [r.label for r in runs], scores, run_window_s(runs))
         finish_figure(fig, "AADM score breakdown", columns=1)
         return save_figure(fig, folder, "score", report_formats(pdf), REPORT_DPI)["png"]
 
@@ -394,20 +435,23 @@ def build_run_report(folder: Path, pdf: bool = True, out: Path | None = None) ->
     ]
     if report.kind == "compare":
         bound = comparison_bound(report.comparison)
+        warned = bound_warnings(report.path) if bound is not None else ()
         caption = "Data downloaded per policy, stacked by sensor; dashed: total buffer"
-        if bound is not None:
-            caption += "; solid: the upper bound on what any policy can download (skymule bound)"
+        caption += bound_caption(
+            bound, warned, "the upper bound on what any policy can download (skymule bound)"
+        )
         sections.append(
             (
                 "comparison",
                 "Policy comparison",
-                figure_html(
+                invalid_bound_note(warned)
+                + figure_html(
                     "policies",
-                    render_bars(runs, figures, pdf, bound),
+                    render_bars(runs, figures, pdf, bound, bound_valid=not warned),
                     caption + ".",
                     PANEL_WIDTH_IN,
                 )
-                + (gap_table(runs, bound) if bound is not None else ""),
+                + (gap_table(runs, bound, valid=not warned) if bound is not None else ""),
             )
         )
     for spec in PER_RUN_PANELS:

@@ -1,7 +1,7 @@
 """What a report reads: one run folder or a compare folder, from files only.
 
-Also the few things derived from a run's slot table that several views share (hover
-segments, the AADM score breakdown). They are read off ``slots.csv`` and ``summary.json``,
+A run folder is :mod:`skymule.io.run_folder`'s (re-exported here); this module adds compare
+folders and the AADM score breakdown. They are read off ``slots.csv`` and ``summary.json``,
 never recomputed by simulating.
 """
 
@@ -9,39 +9,24 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from skymule.aadm.score import aadm_score_one
 from skymule.errors import SkymuleError
-from skymule.io.runs import is_run_dir, read_run, read_run_scenario, sensor_names_of
-from skymule.report.site import SiteGeometry, site_geometry
+from skymule.io.run_folder import HoverSegment as HoverSegment
+from skymule.io.run_folder import RunData as RunData
+from skymule.io.run_folder import hover_segments as hover_segments
+from skymule.io.run_folder import load_run as load_run
+from skymule.io.run_folder import read_scenario as read_scenario
+from skymule.io.run_folder import run_data as run_data
+from skymule.io.runs import check_complete_comparison, is_run_dir
+from skymule.io.textfiles import parse_json
+from skymule.rules.score import aadm_score_one
 
 COMPARISON_FILE = "comparison.csv"
 
 #: AADM challenge scoring (see ``shared/data/README.md``): mission horizon [s], landing
-
-
-@dataclass(frozen=True)
-class RunData:
-    """One run folder's files."""
-
-    path: Path
-    label: str
-    summary: dict[str, Any]
-    slots: pd.DataFrame
-    scenario: dict[str, Any]
-    site: SiteGeometry
-
-    @property
-    def sensor_names(self) -> list[str]:
-        return sensor_names_of(self.slots)
-
-    @property
-    def slot_s(self) -> float:
-        return float(self.summary.get("slot_s", 1.0))
 
 
 @dataclass(frozen=True)
@@ -52,37 +37,6 @@ class ReportInput:
     kind: str  # "run" or "compare"
     runs: tuple[RunData, ...]
     comparison: pd.DataFrame | None
-
-
-def read_scenario(run_dir: Path) -> dict[str, Any]:
-    """The run's ``scenario.json`` (validated as a scenario), or ``{}`` when it has none."""
-    return read_run_scenario(run_dir)
-
-
-def load_run(run_dir: Path, label: str | None = None) -> RunData:
-    """Read a run folder, validated (one clear line if it is not one or is damaged)."""
-    summary, slots = read_run(run_dir)
-    if "uav" in slots.columns:  # several UAVs: these panels are one UAV's (docs/fleet.md)
-        raise SkymuleError(
-            f"{run_dir}: a run of several UAVs (slots.csv has a uav column); this reader covers "
-            "one UAV: `skymule report` gives the fleet report (skymule.report.fleet_inputs)"
-        )
-    return run_data(run_dir, summary, slots, label)
-
-
-def run_data(
-    run_dir: Path, summary: dict[str, Any], slots: pd.DataFrame, label: str | None
-) -> RunData:
-    """:class:`RunData` of a run folder whose summary and slots are read and checked."""
-    scenario = read_run_scenario(run_dir)
-    return RunData(
-        path=run_dir,
-        label=label or str(summary.get("policy", run_dir.name)),
-        summary=summary,
-        slots=slots,
-        scenario=scenario,
-        site=site_geometry(scenario, run_dir),
-    )
 
 
 def load_input(path: Path) -> ReportInput:
@@ -96,6 +50,7 @@ def load_input(path: Path) -> ReportInput:
             "(no run folders inside); make one with `skymule run SCENARIO --out DIR` or "
             "`skymule compare SCENARIO --out DIR`"
         )
+    check_complete_comparison(path)
     runs = tuple(load_run(child, child.name) for child in children)
     table_path = path / COMPARISON_FILE
     return ReportInput(path, "compare", runs, read_comparison(table_path))
@@ -114,6 +69,27 @@ def read_comparison(table_path: Path) -> pd.DataFrame | None:
         ) from None
 
 
+BOUND_FILE = "bound.json"
+"""The bound record ``compare`` writes next to ``comparison.csv`` (with its warnings)."""
+
+
+def bound_warnings(folder: Path) -> tuple[str, ...]:
+    """The conditions of the bound in ``folder/bound.json`` that fail for this mission (one
+    line each; a bound with any is not a valid upper bound and is drawn as such), or ``()``
+    without a bound file. A bound file that cannot be read is itself the warning."""
+    path = folder / BOUND_FILE
+    if not path.is_file():
+        return ()
+    try:
+        data = parse_json(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        return (f"{path} cannot be read ({exc}): the bound is unchecked",)
+    warnings = data.get("warnings", []) if isinstance(data, dict) else None
+    if not isinstance(warnings, list) or not all(isinstance(w, str) for w in warnings):
+        return (f"{path}: 'warnings' is not a list of lines: the bound is unchecked",)
+    return tuple(warnings)
+
+
 def comparison_bound(comparison: pd.DataFrame | None) -> float | None:
     """The upper bound [Mbit] ``compare`` put in comparison.csv (one scenario, one bound),
     or None (no bound, a source comparison with one per source, or no comparison.csv)."""
@@ -121,47 +97,6 @@ def comparison_bound(comparison: pd.DataFrame | None) -> float | None:
         return None
     values = comparison["upper_bound_mbit"].dropna().unique()
     return float(values[0]) if len(values) == 1 else None
-
-
-@dataclass(frozen=True)
-class HoverSegment:
-    """Consecutive hovering slots serving one sensor at one place."""
-
-    sensor: str
-    start_s: float
-    duration_s: float
-    x_m: float
-    y_m: float
-    z_m: float
-    downloaded_mbit: float
-
-
-def hover_segments(slots: pd.DataFrame, slot_s: float) -> list[HoverSegment]:
-    """Hover segments of a slot table (``hovering`` column; none if it is absent)."""
-    if "hovering" not in slots or slots.empty:
-        return []
-    hovering = slots["hovering"].to_numpy(int) > 0
-    served = slots["served"].to_numpy(str)
-    key = np.where(hovering, served, "\0")
-    boundaries = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    ends = np.r_[boundaries[1:], len(key)]
-    segments = []
-    z = slots["z_m"].to_numpy(float) if "z_m" in slots else np.zeros(len(slots))
-    for start, end in zip(boundaries, ends, strict=True):
-        if not hovering[start]:
-            continue
-        segments.append(
-            HoverSegment(
-                sensor=str(served[start]),
-                start_s=float(slots["t_s"].iloc[start]),
-                duration_s=float((end - start) * slot_s),
-                x_m=float(slots["x_m"].iloc[start]),
-                y_m=float(slots["y_m"].iloc[start]),
-                z_m=float(z[start]),
-                downloaded_mbit=float(slots["downloaded_mbit"].iloc[start:end].sum()),
-            )
-        )
-    return segments
 
 
 @dataclass(frozen=True)

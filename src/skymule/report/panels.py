@@ -15,7 +15,6 @@ from matplotlib.axes import Axes
 from matplotlib.collections import LineCollection
 from matplotlib.patches import Polygon as PolygonPatch
 
-from skymule.aadm.rules import AADM_WINDOW_S
 from skymule.report.inputs import RunData, ScoreBreakdown, hover_segments
 from skymule.report.style import (
     FENCE_STYLE,
@@ -27,6 +26,7 @@ from skymule.report.style import (
     label_height,
     sensor_colours,
 )
+from skymule.rules.defaults import AADM_WINDOW_S
 
 
 def served_colours(run: RunData) -> list[str]:
@@ -146,13 +146,23 @@ def draw_snr_time(ax: Axes, run: RunData, title: str = "") -> Axes:
 #: The upper bound on any policy's download: black and solid, unlike the grey dashed buffer.
 BOUND_STYLE: dict[str, Any] = {"color": "black", "ls": "-", "lw": 1.0}
 
+#: A bound whose method's condition fails for this mission (``bound.json``'s warnings): it
+#: may be below what a policy can download, so it is drawn red and dotted, never solid.
+INVALID_BOUND_STYLE: dict[str, Any] = {"color": "tab:red", "ls": ":", "lw": 1.2}
+INVALID_BOUND_LABEL = "bound (invalid here: condition fails)"
+
 
 def draw_policy_bars(
-    ax: Axes, runs: Sequence[RunData], title: str = "", bound_mbit: float | None = None
+    ax: Axes,
+    runs: Sequence[RunData],
+    title: str = "",
+    bound_mbit: float | None = None,
+    bound_valid: bool = True,
 ) -> Axes:
     """Downloaded data per run, stacked by sensor, against the total buffer (grey dashed)
-    and, when ``compare`` computed one, the upper bound on any policy (black). Each total is
-    written above the bar, or above the lines when they would cross it."""
+    and, when ``compare`` computed one, the upper bound on any policy (black; red and dotted,
+    labelled invalid, when ``bound_valid`` is False). Each total is written above the bar, or
+    above the lines when they would cross it."""
     names = list(dict.fromkeys(n for run in runs for n in run.sensor_names))
     colours = sensor_colours(names)
     positions = np.arange(len(runs))
@@ -171,8 +181,10 @@ def draw_policy_bars(
             f"{height:.0f}", (x_pos, label_height(height, [buffer, bound_mbit], top)),
             xytext=(0, 2), textcoords="offset points", ha="center", va="bottom", fontsize=7,
         )  # fmt: skip
-    if bound_mbit is not None:
+    if bound_mbit is not None and bound_valid:
         ax.axhline(bound_mbit, label="upper bound", **BOUND_STYLE)
+    elif bound_mbit is not None:
+        ax.axhline(bound_mbit, label=INVALID_BOUND_LABEL, **INVALID_BOUND_STYLE)
     ax.set_ylim(0, 1.15 * top if top > 0 else 1.0)  # room for the value labels
     ax.set_xticks(positions, [r.label for r in runs])
     ax.set_ylabel("downloaded [Mbit]")

@@ -36,9 +36,9 @@ def plot_run(
 
         return plot_fleet_run(run_dir, summary, slots, formats=formats, dpi=dpi)
     from skymule.io.runs import SCENARIO_FILE
+    from skymule.io.site import site_geometry
     from skymule.report.html import PER_RUN_PANELS, render_panel
     from skymule.report.inputs import RunData, read_scenario
-    from skymule.report.site import site_geometry
 
     scenario = read_scenario(run_dir)
     run = RunData(

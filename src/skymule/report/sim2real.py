@@ -18,7 +18,6 @@ them); never simulates. The tables are the terminal's (the same cells, decimals 
 from __future__ import annotations
 
 import html
-import json
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +26,7 @@ import pandas as pd
 
 from skymule.errors import SkymuleError
 from skymule.io import atomic
+from skymule.io.textfiles import parse_json
 from skymule.report.html import (
     FIGURES_DIR,
     REPORT_DPI,
@@ -212,7 +212,7 @@ def sim2real_section(folder: Path, pdf: bool = True, out: Path | None = None) ->
     ``out/figures`` (default: ``folder/figures``)."""
     figures = (out or folder) / FIGURES_DIR
     try:
-        result = json.loads((folder / RESULT_JSON).read_text())
+        result = parse_json((folder / RESULT_JSON).read_text())
         samples = pd.read_csv(folder / SAMPLES_CSV)
     except (OSError, ValueError) as exc:
         raise SkymuleError(f"{folder}: cannot read the sim2real files ({exc})") from None

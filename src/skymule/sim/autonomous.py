@@ -37,7 +37,9 @@ from skymule.errors import SkymuleError
 from skymule.flight.navigation import Navigator
 from skymule.metrics.flights import Flights
 from skymule.policies.base import BatchAction, BatchObservation, BatchPolicy, MissionContext
-from skymule.sim import contract
+from skymule.rules import contract
+from skymule.rules.contract import NO_SENSOR
+from skymule.rules.home import FEASIBILITY_SLACK_M, home_budget
 from skymule.sim.batch_faults import BatchFaults, add_gps_error, apply_faults, stack_faults
 from skymule.sim.batch_paths import Paths, Sight, path_queries
 from skymule.sim.batch_signal import BatchSignal
@@ -49,8 +51,7 @@ from skymule.sim.columns import (
     frozen,
     window_slots,
 )
-from skymule.sim.contract import NO_SENSOR
-from skymule.sim.faulted_motion import FEASIBILITY_SLACK_M, FaultedUav, check_wind
+from skymule.sim.faulted_motion import FaultedUav, check_wind
 from skymule.world import Mission
 
 #: Margin [m] by which a bound on the distance home must clear the budget before the exact
@@ -153,7 +154,7 @@ class HomeRule:
         ``flying_home``: (R,) the goal is home; ``home_move``: (R, 2) the step home where
         already computed, else NaN (filled in place where needed)."""
         step = self._step[rows]
-        budget = (self._n_slots[rows] - slot - 1) * step + FEASIBILITY_SLACK_M
+        budget = home_budget(self._n_slots[rows], slot, step, FEASIBILITY_SLACK_M)
         bound, exact = self._bound[rows], self._exact[rows]
         overridden = np.zeros(rows.size, bool)
         same_move = flying_home & ((moved[:, 0] != here[:, 0]) | (moved[:, 1] != here[:, 1]))

@@ -29,7 +29,6 @@ from skymule.flight.navigation import Navigator, goal_sights, step_lengths, vert
 from skymule.sim import compiled
 from skymule.sim import path_kernels as pk
 from skymule.sim import visibility_kernels as vk
-from skymule.sim.summary_kernels import block_sum
 
 #: Longest route [vertices] the kernels sum as ``np.sum`` does (numpy's summation block, 128
 #: values, minus the start and goal segments): larger fences keep the numpy path.
@@ -91,10 +90,6 @@ def _kernels() -> dict[str, Callable[..., Any]]:
     """The kernels of :mod:`~skymule.sim.path_kernels` compiled, once per process (cached on
     disk by :func:`skymule.sim.compiled.jit`)."""
     helpers = (
-        pk._exact_square,
-        pk._exact_product,
-        pk.python_hypot,
-        block_sum,
         pk._path_point,
         pk._path_size,
         vk._point_segment_distance2,

@@ -17,7 +17,7 @@ import numpy as np
 from skymule.errors import SkymuleError
 from skymule.metrics.flights import Flights
 from skymule.policies.base import BatchAction
-from skymule.sim.contract import NO_SENSOR
+from skymule.rules.contract import NO_SENSOR
 from skymule.world import Mission
 
 

@@ -7,7 +7,7 @@ one slot at a time and pays numpy's per-call overhead in every slot; here one mi
 all its slots in registers before the next (``docs/speed-notes.md``).
 
 The rules are not re-stated here: the loop calls the one-mission kernels of
-:mod:`skymule.sim.kernels` and :func:`skymule.sim.contract.served_bits`, registered with
+:mod:`skymule.sim.kernels` and :func:`skymule.rules.contract.served_bits`, registered with
 numba so the same Python functions run compiled. Fault draws (outages, burst loss, SNR
 errors, missed polls) are applied per mission and slot as the numpy loop applies them
 (:func:`skymule.sim.kernels.fault_view`). Missions with per-slot fading, and SNR errors on a
@@ -36,8 +36,9 @@ from typing import Any
 import numpy as np
 
 from skymule.errors import SkymuleError
-from skymule.sim import contract, kernels, summary_kernels
-from skymule.sim.contract import NO_SENSOR
+from skymule.rules import contract
+from skymule.rules.contract import NO_SENSOR
+from skymule.sim import kernels, summary_kernels
 from skymule.sim.kernels import KernelFaults
 
 ENGINES = ("auto", "numpy", "compiled")
@@ -80,7 +81,7 @@ def no_totals(n_sensors: int) -> tuple[summary_kernels.SummaryTables, summary_ke
         near=np.zeros((0, n_sensors), np.int64),
         group=np.zeros(0, np.int64),
         aadm_threshold_bit=np.zeros(0),
-        aadm_window_s=np.zeros(0),
+        aadm_window_slots=np.zeros(0),
         aadm_per_slot=False,
         width=0,
     )
@@ -149,8 +150,6 @@ def slot_loop(
     hovering_row = np.empty(t_max, np.bool_)
     sample_row = np.empty(t_max, np.int64)
     scratch = np.empty((2, t_max))
-    stack = np.empty((128, 3), np.int64)
-    partial = np.empty(128)
     memo = np.full(4, -1.0)
     seen_rate = np.empty(n_sensors)
     seen_snr = np.empty(n_sensors)
@@ -245,7 +244,7 @@ def slot_loop(
         if want_totals:
             summary_kernels.mission_totals(
                 b, served_row, downloaded_row, hovering_row, sample_row, run, dt, tables,
-                scratch, stack, partial, memo, totals,
+                scratch, memo, totals,
             )  # fmt: skip
     if not keep_logs:
         return
@@ -332,8 +331,6 @@ def compiled_loop() -> Callable[..., None]:
             contract.served_bits,
             *choose,
             kernels.step_rate,
-            summary_kernels.block_sum,
-            summary_kernels.pairwise_sum,
             summary_kernels.slots_before,
             summary_kernels.mission_totals,
         ),
@@ -348,8 +345,6 @@ def compiled_reduce() -> Callable[..., None]:
     return jit(
         summary_kernels.reduce_rows,
         (
-            summary_kernels.block_sum,
-            summary_kernels.pairwise_sum,
             summary_kernels.slots_before,
             summary_kernels.mission_totals,
             summary_kernels.first_target_arrivals,

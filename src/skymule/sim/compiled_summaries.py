@@ -6,7 +6,8 @@ slots as soon as the mission ends (:func:`skymule.sim.summary_kernels.mission_to
 the (B, T) logs that ``metrics.summaries`` reads back are never written; what is left is
 per-mission arithmetic, shared with the reference through
 :func:`skymule.metrics.summaries_from_totals`. The result equals
-``metrics.summaries(batch_flights(...))`` (the numpy path) value for value.
+``metrics.summaries(batch_flights(...))`` (the numpy path) to a relative 1e-12 (its sums run
+in another order), counts and flags exactly.
 """
 
 from __future__ import annotations
@@ -16,10 +17,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 import skymule.metrics.summary as metrics
-from skymule.aadm.score import AADM_WINDOW_S, COMPLETE_RTOL, aadm_from_progress
 from skymule.metrics import visits
 from skymule.metrics.flights import Flights
-from skymule.sim import compiled, contract, summary_kernels
+from skymule.rules import contract
+from skymule.rules.score import COMPLETE_RTOL, aadm_from_progress
+from skymule.sim import compiled, summary_kernels
 from skymule.sim.columns import mission_geometry
 
 if TYPE_CHECKING:
@@ -55,7 +57,8 @@ def summary_tables(
     # aadm_scores pads arrays with no slot to one; it masks slots per mission only when some
     # window closes before the last slot of the padded arrays
     width = max(width, 1)
-    per_slot = bool((contract.window_slots(window_s, slot_s) < width).any())
+    inside = contract.window_slots(window_s, slot_s)
+    per_slot = bool((inside < width).any())
     return summary_kernels.SummaryTables(
         steps_m=steps,
         power_w=power,
@@ -63,7 +66,7 @@ def summary_tables(
         near=near,
         group=group,
         aadm_threshold_bit=buffers_bit.sum(axis=1) * (1.0 - COMPLETE_RTOL),
-        aadm_window_s=window_s,
+        aadm_window_slots=np.broadcast_to(inside, window_s.shape).astype(float),
         aadm_per_slot=per_slot,
         width=width,
     )
@@ -201,11 +204,7 @@ def flights_summaries(flights: Flights, use_numba: bool = True) -> metrics.Summa
     batched autonomous engine's), whose first visits follow the targets.
     """
     n_missions, n_sensors = flights.buffers_bit.shape
-    window = (
-        np.full(n_missions, AADM_WINDOW_S)
-        if flights.aadm_window_s is None
-        else np.asarray(flights.aadm_window_s, float)
-    )
+    window = flights.score_windows_s()
     targets = target_tables(flights)
     near_rows = None if flights.target is None else np.flatnonzero(~targets.by_target)
     tables = summary_tables(

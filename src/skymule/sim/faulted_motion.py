@@ -27,10 +27,8 @@ import numpy as np
 
 from skymule.errors import ScenarioError
 from skymule.faults.motion import Battery, fly_for, leg_speeds_mps, path_time_s
+from skymule.rules.home import FEASIBILITY_SLACK_M, home_budget
 from skymule.world import Mission
-
-#: Slack [m] in the return-home feasibility test (floating-point round-off only).
-FEASIBILITY_SLACK_M = 1e-6
 
 XY = tuple[float, float]
 
@@ -87,9 +85,9 @@ class FaultedUav:
         """True when home is still reachable from ``xy`` (the position after slot ``slot``) by
         the mission's end, at the speed cap and the ground speed the wind allows on each leg."""
         mission = self.mission
-        budget_s = (mission.n_slots - slot - 1) * mission.slot_s
         slack_s = FEASIBILITY_SLACK_M / mission.max_speed_mps
-        return path_time_s(*self.way(xy, self.home, mission.max_speed_mps)) <= budget_s + slack_s
+        budget_s = home_budget(mission.n_slots, slot, mission.slot_s, slack_s)
+        return path_time_s(*self.way(xy, self.home, mission.max_speed_mps)) <= budget_s
 
     def home_speeds(self, battery: Battery) -> tuple[float, ...]:
         """The speeds the engine may fly home at: the return speed (capped) and, with

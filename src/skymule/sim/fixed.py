@@ -31,7 +31,9 @@ from skymule.flight.paths import Track
 from skymule.metrics.flights import Flights
 from skymule.policies.base import BatchAction, BatchObservation, BatchPolicy, MissionContext
 from skymule.radio.rates import rate_bps
-from skymule.sim import compiled, contract
+from skymule.rules import contract
+from skymule.rules.contract import NO_SENSOR
+from skymule.sim import compiled
 from skymule.sim.batch_fading import apply_fading, stack_fading
 from skymule.sim.batch_faults import BatchFaults, add_gps_error, apply_faults, stack_faults
 from skymule.sim.columns import (
@@ -43,7 +45,6 @@ from skymule.sim.columns import (
     frozen,
     window_slots,
 )
-from skymule.sim.contract import NO_SENSOR
 from skymule.world import Mission
 
 

@@ -1,6 +1,6 @@
 """The slot contract for one mission at a time: scalar kernels a compiler can take as they are.
 
-:mod:`skymule.sim.contract` states each rule once, vectorised over missions (sensor-major
+:mod:`skymule.rules.contract` states each rule once, vectorised over missions (sensor-major
 (N, B) arrays). A compiled loop runs one mission at a time in registers, so it needs the same
 rules as plain functions of one mission's (N,) arrays and scalars. They are here, written in
 the subset of Python and numpy that numba compiles (loops, scalar arithmetic, 1-D indexing);
@@ -10,9 +10,9 @@ how the tests check each kernel against its vectorised original on random inputs
 The kernels compute what the vectorised functions compute (the same masks, the same maximum,
 the same "first index equal to the maximum", in one pass over the sensors), so ties, empty
 buffers, -inf and NaN resolve the same way: ``tests/test_compiled.py`` checks every kernel
-against :mod:`~skymule.sim.contract` and the compiled batch against the numpy batch, value for
+against :mod:`~skymule.rules.contract` and the compiled batch against the numpy batch, value for
 value. ``served_bits`` is not
-repeated: the compiled core compiles :func:`skymule.sim.contract.served_bits` itself.
+repeated: the compiled core compiles :func:`skymule.rules.contract.served_bits` itself.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from skymule.sim.contract import HOVER_EPS_S, NO_SENSOR
+from skymule.rules.contract import HOVER_EPS_S, NO_SENSOR
 
 
 def greedy_pick(snr_db: np.ndarray, rate_bps: np.ndarray, remaining_bit: np.ndarray) -> int:

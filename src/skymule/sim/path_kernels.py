@@ -3,91 +3,21 @@ rows, as plain loops numba can compile (the batched autonomous engine's ``compil
 
 Nothing here tests visibility: the geofence predicate (shapely ``covers``) stays in Python,
 between these kernels (:mod:`skymule.sim.batch_paths`). What is here is the rest of a
-shortest-path query, written so every float is the one the numpy methods compute:
+shortest-path query, written so every float is the one the numpy methods compute (up to the
+order of a sum):
 
 * the same operations in the same order (``(d_s + D) + d_g``, first index of the minimum,
   stable order of ties);
-* segment lengths of a step as :func:`math.hypot` (:func:`python_hypot`, a port of CPython's
-  ``vector_norm``, which :meth:`skymule.flight.navigation.Navigator.steps` uses), of a travel
-  distance as ``np.hypot`` (the C library's, which numba also calls);
-* path lengths summed as ``np.sum`` does (:func:`~skymule.sim.summary_kernels.block_sum`:
-  numpy's pairwise summation, routes being shorter than its block of 128).
+* segment lengths as ``np.hypot`` (the C library's, which numba also calls);
+* path lengths summed with ``np.sum`` (numba's sums in another order: the compiled twin
+  equals the numpy methods to a relative 1e-12, and bit for bit as plain Python).
 
 Nothing imports a compiler: the module runs as plain Python too (slowly).
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
-
-from skymule.sim.summary_kernels import block_sum
-
-#: Veltkamp's splitting constant 2**27 + 1 (Dekker 1971, eq. 5.5): splits a double into two
-#: halves whose products are exact.
-_SPLIT = 134217729.0
-
-
-def _exact_square(x: float) -> tuple[float, float]:
-    """x*x as hi + lo, exactly (Dekker's mul12, as CPython's ``dl_mul``)."""
-    t = x * _SPLIT
-    hi = t - (t - x)
-    lo = x - hi
-    p = hi * hi
-    q = hi * lo + lo * hi
-    z = p + q
-    return z, p - z + q + lo * lo
-
-
-def _exact_product(x: float, y: float) -> tuple[float, float]:
-    """x*y as hi + lo, exactly (Dekker's mul12, as CPython's ``dl_mul``)."""
-    t = x * _SPLIT
-    xh = t - (t - x)
-    xl = x - xh
-    t = y * _SPLIT
-    yh = t - (t - y)
-    yl = y - yh
-    p = xh * yh
-    q = xh * yl + xl * yh
-    z = p + q
-    return z, p - z + q + xl * yl
-
-
-def python_hypot(x: float, y: float) -> float:
-    """``math.hypot(x, y)`` of CPython 3.11, float for float.
-
-    A port of ``vector_norm`` in CPython's ``Modules/mathmodule.c`` for two finite
-    coordinates (scaled by a power of two, squared and summed without loss, one Newton
-    correction of the square root); the C library's ``hypot`` (``np.hypot``) differs in the
-    last bit for about one pair in 200. Subnormal inputs are not handled (they do not occur
-    in metres).
-    """
-    x, y = abs(x), abs(y)
-    big = max(x, y)
-    if math.isinf(x) or math.isinf(y):
-        return math.inf
-    if math.isnan(x) or math.isnan(y):
-        return math.nan
-    if big == 0.0:
-        return big
-    exponent = math.frexp(big)[1]
-    scale = math.ldexp(1.0, -exponent)
-    csum, frac1, frac2 = 1.0, 0.0, 0.0
-    for value in (x * scale, y * scale):
-        hi, lo = _exact_square(value)
-        total = csum + hi
-        frac2 += hi - (total - csum)  # the exact rest of csum + hi (|csum| >= |hi|)
-        csum = total
-        frac1 += lo
-    h = math.sqrt(csum - 1.0 + (frac1 + frac2))
-    hi, lo = _exact_product(-h, h)
-    total = csum + hi
-    frac2 += hi - (total - csum)
-    csum = total
-    frac1 += lo
-    h += (csum - 1.0 + (frac1 + frac2)) / (2.0 * h)
-    return h / scale
 
 
 def rank_vertices(
@@ -207,7 +137,7 @@ def advance_rows(
     """``moved`` (P, 2): each row's ``advance_along`` of its path by ``step_m`` (P,).
 
     ``bend[p]``: the row among the bending paths (index into ``first``/``last``), or -1 for a
-    straight path. Segment lengths as :func:`math.hypot` (:func:`python_hypot`).
+    straight path. Segment lengths as ``np.hypot``.
     """
     for row in range(start.shape[0]):
         n = _path_size(row, bend, first, last, count)
@@ -219,7 +149,7 @@ def advance_rows(
                 row, seg + 1, start, goal, bend, first, last, nodes, count, vertices
             )
             dx, dy = bx - ax, by - ay
-            length = python_hypot(dx, dy)
+            length = np.hypot(dx, dy)
             if left < length:
                 t = left / length
                 moved[row, 0] = ax + t * dx
@@ -241,8 +171,7 @@ def path_lengths(
     out: np.ndarray,
 ) -> None:
     """``out`` (P,): each row's path length, as ``Navigator.travel_distances`` (segment
-    lengths by ``np.hypot``, summed in numpy's order by
-    :func:`~skymule.sim.summary_kernels.block_sum`)."""
+    lengths by ``np.hypot``, summed by ``np.sum``)."""
     lengths = np.empty(nodes.shape[2] + 1)
     for row in range(start.shape[0]):
         n = _path_size(row, bend, first, last, count)
@@ -253,4 +182,4 @@ def path_lengths(
             )
             lengths[seg] = np.hypot(bx - ax, by - ay)
             ax, ay = bx, by
-        out[row] = block_sum(lengths, 0, n - 1)
+        out[row] = lengths[: n - 1].sum()

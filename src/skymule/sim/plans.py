@@ -3,7 +3,7 @@
 The planner (:mod:`skymule.policies.planner`) ranks candidate tours and tunes their hover
 times by simulating each on its predicted rates. :func:`simulate_plans` runs a batch of P
 plans; with numba installed (``pip install skymule[fast]``) it is compiled, else the same
-function runs as plain Python. Served bits come from :func:`skymule.sim.contract.served_bits`.
+function runs as plain Python. Served bits come from :func:`skymule.rules.contract.served_bits`.
 
 A plan visits hover points in ``order``, staying ``extra`` slots at each, then (with return
 home) flies home; every slot the UAV serves the sensor it is staying at while that one has
@@ -20,7 +20,8 @@ from functools import cache
 
 import numpy as np
 
-from skymule.sim import compiled, contract
+from skymule.rules import contract
+from skymule.sim import compiled
 
 
 def simulate_plans(
@@ -123,7 +124,9 @@ def serve(
     total: float,
     done: int,
 ) -> tuple[float, int]:
-    """One predicted slot: serve ``prefer`` while it has data, else the best rate with data.
+    """One predicted slot: serve ``prefer`` while it has data, else the best rate with data,
+    ties to the lowest index (:func:`skymule.rules.contract.rate_choice` for one flight, its
+    compiled twin: ``tests/test_plans.py::test_serve_picks_as_rate_choice``).
 
     Updates ``q``; returns the new (bits so far, done slot).
     """

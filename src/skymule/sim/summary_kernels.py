@@ -10,10 +10,9 @@ never write the (B, T) logs, and a pass over arrays already written (:func:`redu
 numpy loop's logs, or the batched autonomous engine's arrays, whose first visits follow the
 targets, :func:`first_target_arrivals`). Like :mod:`skymule.sim.kernels`, nothing here imports
 a compiler: the tests run these functions as plain Python too, and check the compiled summaries
-equal ``metrics.summaries`` value for value.
-
-Value for value means the same floating-point sums: numpy sums a row pairwise
-(:func:`pairwise_sum` repeats its order exactly) and the AADM score uses a running sum.
+equal ``metrics.summaries``: bit for bit as plain Python; compiled, to a relative 1e-12
+(numba sums a row in order, numpy pairwise). The AADM progress is the same running sum as
+numpy's ``cumsum``, so counts and first slots agree exactly.
 The lookup tables (distance and power per track sample, the first track sample near each
 sensor) come from the same functions ``metrics`` uses (``metrics.power_tables``,
 ``metrics.near_samples``); the distance to a hover point is ``np.hypot``, as in
@@ -26,18 +25,15 @@ from typing import NamedTuple
 
 import numpy as np
 
-from skymule.sim.contract import NO_SENSOR
-
-#: numpy's pairwise summation sums blocks of at most this many values with 8 accumulators.
-PAIRWISE_BLOCK = 128
+from skymule.rules.contract import NO_SENSOR
 
 
 class SlotTotals(NamedTuple):
     """Per-mission reductions of B missions' slots (arrays filled by :func:`mission_totals`).
 
     Attributes:
-        downloaded_bit: (B,) bits downloaded (pairwise sum over the slots run).
-        distance_m: (B,) distance flown (pairwise sum of the per-slot steps).
+        downloaded_bit: (B,) bits downloaded (sum over the slots run).
+        distance_m: (B,) distance flown (sum of the per-slot steps).
         power_sum_w: (B,) sum of the per-slot propulsion power [W] (energy / slot_s).
         handovers: (B,) changes of served sensor over the slots that served one.
         hover_slots: (B,) slots the UAV held its position in.
@@ -66,7 +62,8 @@ class SummaryTables(NamedTuple):
         near: (G, N) first track sample within the visit radius of each sensor (K: never).
         group: (B,) each mission's row in ``near``.
         aadm_threshold_bit: (B,) bits that count as everything (total x (1 - rtol)).
-        aadm_window_s: (B,) the AADM download window [s].
+        aadm_window_slots: (B,) slots counted by the AADM download window
+            (``rules.contract.window_slots``).
         aadm_per_slot: True when some window closes inside the batch's slots: only slots
             starting before their mission's window count (``aadm_scores``'s mask).
         width: T_max, the slots of the batch's padded arrays.
@@ -78,7 +75,7 @@ class SummaryTables(NamedTuple):
     near: np.ndarray
     group: np.ndarray
     aadm_threshold_bit: np.ndarray
-    aadm_window_s: np.ndarray
+    aadm_window_slots: np.ndarray
     aadm_per_slot: bool
     width: int
 
@@ -120,69 +117,6 @@ def new_totals(n_missions: int, n_sensors: int) -> SlotTotals:
     )
 
 
-def block_sum(values: np.ndarray, start: int, n: int) -> float:
-    """numpy's sum of ``values[start:start + n]`` for n <= :data:`PAIRWISE_BLOCK`.
-
-    Below 8 values a plain loop; else 8 running sums (every 8th value each), combined as
-    ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7)), then the rest one by one.
-    """
-    if n < 8:
-        total = 0.0
-        for i in range(start, start + n):
-            total += values[i]
-        return total
-    r0, r1, r2, r3 = values[start], values[start + 1], values[start + 2], values[start + 3]
-    r4, r5, r6, r7 = values[start + 4], values[start + 5], values[start + 6], values[start + 7]
-    end = start + n - n % 8
-    i = start + 8
-    while i < end:
-        r0 += values[i]
-        r1 += values[i + 1]
-        r2 += values[i + 2]
-        r3 += values[i + 3]
-        r4 += values[i + 4]
-        r5 += values[i + 5]
-        r6 += values[i + 6]
-        r7 += values[i + 7]
-        i += 8
-    total = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-    while i < start + n:
-        total += values[i]
-        i += 1
-    return total
-
-
-def pairwise_sum(values: np.ndarray, n: int, stack: np.ndarray, partial: np.ndarray) -> float:
-    """``values[:n].sum()`` bit for bit: numpy's pairwise summation, without recursion.
-
-    numpy splits n > 128 values into a first part of n // 2 rounded down to a multiple of 8
-    and the rest, sums each the same way and adds the two. Here the splits run off an explicit
-    stack (numba compiles no recursion through these plain functions). ``stack`` (S, 3) int
-    and ``partial`` (S,) float are scratch space; S = 128 covers any n below 2**60.
-    """
-    if n <= PAIRWISE_BLOCK:
-        return block_sum(values, 0, n)
-    stack[0, 0], stack[0, 1], stack[0, 2] = 0, n, 0  # start, count, both halves summed?
-    top, done = 1, 0
-    while top > 0:
-        top -= 1
-        start, count = stack[top, 0], stack[top, 1]
-        if stack[top, 2]:  # the two halves are the last two partial sums: add them
-            done -= 1
-            partial[done - 1] = partial[done - 1] + partial[done]
-        elif count <= PAIRWISE_BLOCK:
-            partial[done] = block_sum(values, start, count)
-            done += 1
-        else:
-            half = count // 2
-            half -= half % 8
-            stack[top, 2] = 1
-            stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2] = start + half, count - half, 0
-            stack[top + 2, 0], stack[top + 2, 1], stack[top + 2, 2] = start, half, 0
-            top += 3
-    return float(partial[0])
-
-
 def mission_totals(
     b: int,
     served: np.ndarray,
@@ -193,8 +127,6 @@ def mission_totals(
     slot_s: float,
     tables: SummaryTables,
     scratch: np.ndarray,
-    stack: np.ndarray,
-    partial: np.ndarray,
     memo: np.ndarray,
     totals: SlotTotals,
 ) -> None:
@@ -202,7 +134,7 @@ def mission_totals(
 
     As ``metrics.summaries`` (the reference) computes them from (B, T) arrays:
 
-    * bits, distance and power: pairwise sums over the slots run; a slot's step and power
+    * bits, distance and power: sums over the slots run; a slot's step and power
       are looked up at its track sample, or in the hover column when the UAV held position;
     * handovers: served sensor changes, NO_SENSOR slots skipped;
     * first visits: if the UAV hovered while serving, the first such slot per sensor, else
@@ -224,7 +156,7 @@ def mission_totals(
     hover_slots = 0
     hovered_serving = False
     threshold = tables.aadm_threshold_bit[b]
-    window = tables.aadm_window_s[b] - 1e-9
+    window = tables.aadm_window_slots[b]
     aadm = 0.0
     aadm_first = -1
     straight = True
@@ -240,27 +172,27 @@ def mission_totals(
             hovered_serving = hovered_serving or sensor != NO_SENSOR
         elif sample[t] != t:
             straight = False
-        counted = not tables.aadm_per_slot or t * slot_s < window
+        counted = not tables.aadm_per_slot or t < window
         got = downloaded[t] if counted else 0.0
         aadm = got if t == 0 else aadm + got
         if aadm_first < 0 and counted and aadm >= threshold:
             aadm_first = t
     if n_run < tables.width:  # numpy's running sum goes on over the zero padding
         aadm = aadm + 0.0
-    totals.downloaded_bit[b] = pairwise_sum(downloaded, n_run, stack, partial)
+    totals.downloaded_bit[b] = downloaded[:n_run].sum()
     if straight:
         if memo[0] != pair or memo[1] != n_run:
             memo[0], memo[1] = pair, n_run
-            memo[2] = pairwise_sum(tables.steps_m[pair], n_run, stack, partial)
-            memo[3] = pairwise_sum(tables.power_w[pair], n_run, stack, partial)
+            memo[2] = tables.steps_m[pair, :n_run].sum()
+            memo[3] = tables.power_w[pair, :n_run].sum()
         totals.distance_m[b], totals.power_sum_w[b] = memo[2], memo[3]
     else:
         for t in range(n_run):
             column = hover_column if hovering[t] else sample[t]
             scratch[0, t] = tables.steps_m[pair, column]
             scratch[1, t] = tables.power_w[pair, column]
-        totals.distance_m[b] = pairwise_sum(scratch[0], n_run, stack, partial)
-        totals.power_sum_w[b] = pairwise_sum(scratch[1], n_run, stack, partial)
+        totals.distance_m[b] = scratch[0, :n_run].sum()
+        totals.power_sum_w[b] = scratch[1, :n_run].sum()
     totals.handovers[b] = handovers
     totals.hover_slots[b] = hover_slots
     totals.aadm_bit[b] = aadm
@@ -339,13 +271,11 @@ def reduce_rows(
     :func:`first_target_arrivals` instead."""
     width = served.shape[1]
     scratch = np.empty((2, width))
-    stack = np.empty((128, 3), np.int64)
-    partial = np.empty(128)
     memo = np.full(4, -1.0)
     for b in range(served.shape[0]):
         mission_totals(
             b, served[b], downloaded[b], hovering[b], sample[b], n_run[b], slot_s[b], tables,
-            scratch, stack, partial, memo, totals,
+            scratch, memo, totals,
         )  # fmt: skip
         if targets.by_target[b]:
             first_target_arrivals(b, sample[b], n_run[b], targets, totals.first_visit[b])

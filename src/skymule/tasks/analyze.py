@@ -48,7 +48,7 @@ import numpy as np
 import pandas as pd
 
 from skymule.aadm import files as aadm_files
-from skymule.aadm.score import aadm_score_one, share_slot_from_altitude
+from skymule.aadm.score import share_slot_from_altitude
 from skymule.errors import SkymuleError
 from skymule.geo import load_site
 from skymule.io.runs import slots_frame, write_run
@@ -56,6 +56,8 @@ from skymule.io.traces import Trace, normalise_column, read_trace, read_volumes
 from skymule.metrics.flights import NO_SENSOR, MissionLog, flight_record
 from skymule.metrics.summary import summarize
 from skymule.policies import check_policies
+from skymule.rules.contract import served_bits
+from skymule.rules.score import aadm_score_one
 from skymule.scenario import Scenario, scenario_from_dict
 from skymule.units import BITS_PER_MBIT
 from skymule.world import Mission, build_mission
@@ -300,7 +302,8 @@ def flight_log(mission: Mission, downloads: DownloadLog) -> MissionLog:
     left = mission.buffers_bit.astype(float).copy()
     for t in range(n_slots):
         if served[t] != NO_SENSOR:
-            downloaded[t] = min(downloads.downloaded_bit[t], left[served[t]])
+            # y = min(R dt, Q), the logged bits standing for R dt
+            downloaded[t] = served_bits(downloads.downloaded_bit[t], left[served[t]], 1.0)
             left[served[t]] -= downloaded[t]
         remaining[t] = left
     positions = track.position_m[:n_slots]

@@ -28,10 +28,11 @@ import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 from skymule.errors import SkymuleError
 from skymule.io import atomic
+from skymule.metrics.summary import per_sensor_column
 from skymule.policies import check_policies
 from skymule.radio.pathloss import PATHLOSS_MODELS
 from skymule.registry import did_you_mean
@@ -105,10 +106,11 @@ class Comparison:
 
 
 def comparison_row(summary: dict[str, Any]) -> dict[str, Any]:
-    """A comparison.csv row: the summary's scalars + ``downloaded_mbit_<sensor>`` columns."""
+    """A comparison.csv row: the summary's scalars + ``per_sensor_downloaded_mbit.<sensor>``
+    columns (the names of a sweep's ``results.parquet``: :func:`per_sensor_column`)."""
     row = {k: v for k, v in summary.items() if not isinstance(v, dict | list)}
     for name, value in summary.get("per_sensor_downloaded_mbit", {}).items():
-        row[f"downloaded_mbit_{name}"] = value
+        row[per_sensor_column("per_sensor_downloaded_mbit", name)] = value
     return row
 
 
@@ -167,9 +169,30 @@ def _run_all(
 ) -> list[CompareRun]:
     shared = build_mission(scenario) if mission is None else mission
     variants = scenario.with_policies(policies)  # each policy gets its own parameters
+    results = [simulate(variant, mission=shared) for variant in variants]
     return [
-        CompareRun(source, name, simulate(variant, mission=shared))
-        for name, variant in zip(policies, variants, strict=True)
+        CompareRun(source, name, result)
+        for name, result in zip(policies, distinct_labels(results, policies), strict=True)
+    ]
+
+
+_Result = TypeVar("_Result")
+
+
+def distinct_labels(results: Sequence[_Result], asked: Sequence[str]) -> list[_Result]:
+    """``results`` (frozen dataclasses with a ``summary`` dict: one UAV's or a fleet's) with
+    each summary's ``policy`` (the policy's own ``name``) kept when it is one policy's, and
+    replaced by the name as asked when several policies share it: two plug-ins whose classes
+    share a ``name`` (``mostbits:MostBits,mostbits:MostBitsBatched``) are two rows and two
+    folders, not two identical ones."""
+    summaries = [cast(Any, r).summary for r in results]
+    labels = [str(s.get("policy", a)) for s, a in zip(summaries, asked, strict=True)]
+    shared = {label for label in labels if labels.count(label) > 1}
+    return [
+        cast(_Result, replace(cast(Any, r), summary={**s, "policy": a}))
+        if label in shared and a != label
+        else r
+        for r, s, a, label in zip(results, summaries, asked, labels, strict=True)
     ]
 
 
@@ -185,6 +208,7 @@ def compare_policies(
     ``bound=False`` skips the upper bound; ``mission`` reuses a mission built earlier.
     """
     names = check_policies(list(policies))
+    check_folders(names)
     shared = build_mission(scenario) if mission is None else mission
     runs = _run_all(scenario, names, None, shared)
     if not bound:
@@ -222,9 +246,36 @@ def parse_sources(text: str) -> list[str]:
     return specs
 
 
+def safe_folder_name(text: str, fallback: str, keep: str = "") -> str:
+    """One file-system-safe path component for user text (a policy or source spec): no
+    separator, never ``.``/``..``, so the folder stays inside ``--out`` whatever was asked
+    (``learned:../../../w.npz`` -> ``learned_.._.._.._w.npz``); ``keep``: other characters
+    left as they are."""
+    name = re.sub(rf"[^A-Za-z0-9._{re.escape(keep)}-]+", "_", text.strip()).strip("_")
+    return name if name.strip(".") else fallback
+
+
 def source_folder(spec: str) -> str:
     """A file-system-safe folder name for a source spec."""
-    return re.sub(r"[^A-Za-z0-9._-]+", "_", spec.strip()).strip("_") or "source"
+    return safe_folder_name(spec, "source")
+
+
+def policy_folder(policy: str) -> str:
+    """A file-system-safe folder name for a policy as asked (``mostbits:MostBits`` stays,
+    ``learned:dir/w.npz`` -> ``learned:dir_w.npz``)."""
+    return safe_folder_name(policy, "policy", keep=":")
+
+
+def check_folders(policies: Sequence[str]) -> None:
+    """Refuse two different policy names that would share one run folder (one line)."""
+    seen: dict[str, str] = {}
+    for name in policies:
+        folder = policy_folder(name)
+        if seen.setdefault(folder, name) != name:
+            raise SkymuleError(
+                f"--policies: {seen[folder]!r} and {name!r} would both be written to the "
+                f"folder {folder!r}; rename one of the files"
+            )
 
 
 def compare_sources(
@@ -232,6 +283,7 @@ def compare_sources(
 ) -> Comparison:
     """Every source x policy; the policies of one source share one mission."""
     names = check_policies(list(policies))
+    check_folders(names)
     variants = [(spec, source_variant(base, spec)) for spec in sources]  # validate all first
     runs: list[CompareRun] = []
     bounds: dict[str | None, MissionBound | None] = {}
@@ -249,14 +301,16 @@ def compare_sources(
 def run_folder(out: Path, run: CompareRun) -> Path:
     """Where a run of a comparison is written inside the compare folder ``out``."""
     if run.source is None:
-        return out / run.policy
-    return out / source_folder(run.source) / run.policy
+        return out / policy_folder(run.policy)
+    return out / source_folder(run.source) / policy_folder(run.policy)
 
 
 def write_compare(
     comparison: Comparison, out: Path, extra_rows: Sequence[dict[str, Any]] = ()
 ) -> list[Path]:
-    """Write the compare folder: one run folder per run, comparison.csv, bound.json.
+    """Write the compare folder: one run folder per run, bound.json, and comparison.csv last
+    (the index: a folder is a complete comparison once it has it,
+    :func:`skymule.io.runs.check_complete_comparison`).
 
     ``extra_rows`` are appended to comparison.csv (e.g. ``analyze``'s recorded ``flight``).
     With sources, also ``snr_cdf_by_source.png`` (SNR CDF of the first policy per source).
@@ -265,18 +319,20 @@ def write_compare(
     import pandas as pd
 
     out.mkdir(parents=True, exist_ok=True)
+    (out / COMPARISON_CSV).unlink(missing_ok=True)  # a rewrite cut short is incomplete too
     for run in comparison.runs:
         run.result.write(run_folder(out, run))
-    written = [out / COMPARISON_CSV]
-    table = pd.DataFrame([*comparison.rows(), *extra_rows])
-    atomic.write_with(written[0], lambda tmp: table.to_csv(tmp, index=False))
+    written = []
     if not comparison.by_source:
         upper = comparison.bounds.get(None)
         if upper is not None:
             written.append(write_bound(out, upper))
-        return written
-    written.append(_snr_cdf_figure(comparison, out))
-    return written
+    else:
+        written.append(_snr_cdf_figure(comparison, out))
+    # the index last: a folder without it is an interrupted compare, which readers refuse
+    table = pd.DataFrame([*comparison.rows(), *extra_rows])
+    index = atomic.write_with(out / COMPARISON_CSV, lambda tmp: table.to_csv(tmp, index=False))
+    return [index, *written]
 
 
 def _snr_cdf_figure(comparison: Comparison, out: Path) -> Path:

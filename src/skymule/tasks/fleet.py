@@ -29,11 +29,17 @@ from skymule.policies import batch_policy
 from skymule.policies.base import BatchPolicy, Policy
 from skymule.policies.batched import PerFleet, PerMission, policy_names
 from skymule.policies.fleet import COORDINATED, Coordinated
+from skymule.rules.contract import NO_SENSOR
 from skymule.scenario import Scenario
-from skymule.sim.contract import NO_SENSOR
 from skymule.sim.fleet import Fleet, build_fleet
 from skymule.sim.run import run_missions
-from skymule.tasks.compare import COMPARISON_CSV, with_gap, write_bound
+from skymule.tasks.compare import (
+    COMPARISON_CSV,
+    distinct_labels,
+    policy_folder,
+    with_gap,
+    write_bound,
+)
 from skymule.units import BITS_PER_MBIT
 
 FLEET_POLICIES = (COORDINATED,)
@@ -201,19 +207,20 @@ def compare_fleet(scenario: Scenario, policies: Sequence[str]) -> FleetCompariso
         bound, note = fleet_bound(fleet), ""
     except BoundError as exc:
         bound, note = None, str(exc)
-    results = tuple(simulate_fleet(scenario, name, fleet=fleet) for name in policies)
-    return FleetComparison(fleet, results, bound, note)
+    results = [simulate_fleet(scenario, name, fleet=fleet) for name in policies]
+    return FleetComparison(fleet, tuple(distinct_labels(results, policies)), bound, note)
 
 
 def write_fleet_compare(comparison: FleetComparison, out: Path) -> list[Path]:
     """Write one run folder per policy, comparison.csv and bound.json; the top-level files."""
+    (out / COMPARISON_CSV).unlink(missing_ok=True)  # a rewrite cut short is incomplete too
     for result in comparison.results:
-        result.write(out / result.summary["policy"])
+        result.write(out / policy_folder(result.summary["policy"]))
     written = [out / COMPARISON_CSV]
-    table = pd.DataFrame(comparison.rows())
-    atomic.write_with(written[0], lambda tmp: table.to_csv(tmp, index=False))
     if comparison.bound is not None:
         written.append(write_bound(out, comparison.bound))
+    table = pd.DataFrame(comparison.rows())  # the index last (io.runs.check_complete_comparison)
+    atomic.write_with(written[0], lambda tmp: table.to_csv(tmp, index=False))
     return written
 
 

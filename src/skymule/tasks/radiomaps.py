@@ -57,13 +57,23 @@ class RadioMapFit:
     fitted: RadioMap
     rows: list[dict[str, Any]]
     warnings: tuple[str, ...] = ()
-    """One line per sensor whose fit is degenerate (:func:`fit_warnings`)."""
+    """One line per sensor whose fit is degenerate, and one if no map beats the baseline on
+    held-out blocks (:func:`fit_warnings`)."""
+    note: str | None = None
+    """``neural``: one line saying which sensors fell back to a simpler model, and why."""
 
     COLUMNS = (
-        "sensor", "exponent", "intercept_db", "sigma_db", "range_m", "nugget_db", "n_used",
-        "n_missing", "n_deep_drops", "rmse_db", "cv_rmse_map_db", "cv_rmse_trend_db",
-        "cv_rmse_baseline_db",
+        "sensor", "model", "exponent", "intercept_db", "sigma_db", "range_m", "nugget_db",
+        "n_used", "n_missing", "n_deep_drops", "rmse_db", "cv_rmse_map_db", "cv_rmse_trend_db",
+        "cv_rmse_baseline_db", "cv_coverage_95",
     )  # fmt: skip
+    LEARNED_COLUMNS = ("cv_rmse_prior_db", "cv_rmse_network_db")
+    """Columns of ``neural`` fits (with a prior: its raw RMSE), printed after ``COLUMNS``."""
+
+    def columns(self) -> tuple[str, ...]:
+        """The table's columns: ``COLUMNS``, then the ``LEARNED_COLUMNS`` the rows have."""
+        extra = [c for c in self.LEARNED_COLUMNS if any(c in row for row in self.rows)]
+        return (*self.COLUMNS, *extra)
 
 
 def is_map_file(spec: str) -> bool:
@@ -179,6 +189,7 @@ def fit_radiomap_files(
     rows = [
         {
             "sensor": m.name,
+            "model": method if m.ensemble is None else m.ensemble.choice,
             "exponent": m.exponent,
             "intercept_db": m.intercept_db,
             "sigma_db": m.variogram.sill_db2**0.5,
@@ -188,8 +199,32 @@ def fit_radiomap_files(
         }
         for m in fitted.sensors
     ]
-    return RadioMapFit(fitted, rows, fit_warnings(rows, method))
+    return RadioMapFit(fitted, rows, fit_warnings(rows, method), fallback_note(rows, method))
 
+
+def fallback_note(rows: Sequence[dict[str, Any]], method: str) -> str | None:
+    """``neural``: one line naming the sensors whose map is a simpler model than the networks
+    (blocked cross-validation found the networks no better), with both RMSEs; None if every
+    sensor kept its networks (or for other methods)."""
+    if method != "neural":
+        return None
+    fell = [r for r in rows if r["model"] != "network"]
+    if not fell:
+        return None
+    parts = [
+        f"{r['sensor']} is {r['model']} ({r['cv_rmse_map_db']:.2f} dB vs the networks' "
+        f"{r['cv_rmse_network_db']:.2f} dB)"
+        for r in fell
+        if "cv_rmse_network_db" in r and "cv_rmse_map_db" in r
+    ]
+    return (
+        "fallback: the networks did not beat a simpler model on held-out blocks (blocked "
+        "cross-validation RMSE), so " + "; ".join(parts or [r["sensor"] for r in fell])
+    )
+
+
+NOT_WORSE_DB = 0.1
+"""A map within this of the baseline's cross-validated RMSE [dB] is not reported as worse."""
 
 KRIGED_OVER = {"kriging": "log-distance trend", "neural": "learned model"}
 """Methods that krige a residual, and what the map is where there is nothing to krige."""
@@ -199,13 +234,27 @@ def fit_warnings(rows: Sequence[dict[str, Any]], method: str = "kriging") -> tup
     """A line for each sensor whose kriged residual is degenerate: no spatial structure (the
     variogram fit ends at its shortest range or without a sill), so the map there is the
     method's trend alone, whatever its kriging parameters read. Methods that krige nothing
-    (``log-distance``; ``gp`` fits its own kernel) get none."""
+    (``log-distance``; ``gp`` fits its own kernel) get none. First, one line if the map's
+    blocked cross-validated RMSE is worse than the baseline's (free space) for any sensor."""
     from skymule.radio.kriging import NO_SILL_DB2, SHORTEST_RANGE_M
 
+    found = []
+    worse = [
+        r for r in rows
+        if r.get("cv_rmse_map_db", np.nan) > r.get("cv_rmse_baseline_db", np.inf) + NOT_WORSE_DB
+    ]  # fmt: skip
+    if worse:
+        found.append(
+            "on held-out blocks the map is worse than free space for "
+            + ", ".join(
+                f"{r['sensor']} ({r['cv_rmse_map_db']:.2f} vs {r['cv_rmse_baseline_db']:.2f} dB)"
+                for r in worse
+            )
+            + "; free space (a scenario with [radio] model = 'fspl') may be the better twin there"
+        )
     trend = KRIGED_OVER.get(method)
     if trend is None:
-        return ()
-    found = []
+        return tuple(found)
     for row in rows:
         name, sigma, range_m = row["sensor"], row["sigma_db"], row["range_m"]
         if sigma**2 <= NO_SILL_DB2 or range_m <= SHORTEST_RANGE_M:

@@ -30,7 +30,7 @@ import numpy as np
 from skymule.io.traces import aadm, dt
 from skymule.io.traces.aadm import AADM_REQUIRED, AADM_TIME_FORMAT, write_aadm_log
 from skymule.io.traces.dt import DT_MISSING, DT_REQUIRED, write_dt_export
-from skymule.io.traces.table import check_range, locate, numbers, read_table
+from skymule.io.traces.table import Table, check_range, locate, numbers, read_table
 from skymule.io.traces.timestamps import time_column
 from skymule.io.traces.trace import (
     ToLocal,
@@ -43,7 +43,7 @@ from skymule.io.traces.trace import (
     quote,
 )
 from skymule.io.traces.volumes import read_volumes
-from skymule.limits import MAX_ALTITUDE_M, MAX_COORDINATE_M
+from skymule.limits import MAX_ALTITUDE_M, MAX_COORDINATE_M, MAX_SNR_DB
 from skymule.registry import Registry
 
 __all__ = [
@@ -117,6 +117,22 @@ def _select_sensors(
     return chosen
 
 
+def _check_snr(
+    label: str, table: Table, snr_idx: Sequence[int], snr: np.ndarray, fmt: TraceFormat
+) -> None:
+    """Every SNR sample within +-MAX_SNR_DB dB (a digital-twin value <= -99 dB is its
+    missing-sample marker, so only the top is bounded there); one line naming the cell."""
+    low = -np.inf if fmt == "dt" else -MAX_SNR_DB
+    bad = (snr > MAX_SNR_DB) | (snr < low)
+    if bad.any():
+        r, j = (int(i) for i in np.argwhere(bad)[0])
+        raise TraceError(
+            f"{label}: row {table.lines[r]}, column {quote(table.header[snr_idx[j]])}: "
+            f"{quote(table.cells[r, snr_idx[j]])} dB is out of range (allowed: "
+            f"-{MAX_SNR_DB:g} to {MAX_SNR_DB:g} dB; a measured SNR is far inside it)"
+        )
+
+
 def read_trace(path: str | os.PathLike[str], *, sensors: Sequence[str] | None = None) -> Trace:
     """Read an AADM merged log or a digital-twin export, detected from its header.
 
@@ -149,6 +165,7 @@ def read_trace(path: str | os.PathLike[str], *, sensors: Sequence[str] | None = 
     snr = np.column_stack([numbers(label, table, i, missing_ok=True) for i in snr_idx]).reshape(
         len(time_s), len(snr_idx)
     )
+    _check_snr(label, table, snr_idx, snr, fmt)
     pos = {name: numbers(label, table, where[name], missing_ok=False) for name in required[1:]}
     columns = tuple(normalise_column(header[i]) for i in snr_idx)
     if fmt == "aadm":

@@ -16,6 +16,7 @@ import pandas as pd
 
 from skymule.io.traces.table import NUMBER_RE, Table, numbers
 from skymule.io.traces.trace import TraceError, TraceFormat, quote
+from skymule.limits import MAX_DURATION_S
 
 if TYPE_CHECKING:
     from pandas.api.typing import NaTType
@@ -88,6 +89,13 @@ def time_column(label: str, table: Table, col: int, fmt: TraceFormat) -> np.ndar
         t = t - t[0]
     else:
         t = _timestamps(label, table, col)
+    if not np.isfinite(t[-1]) or t[-1] > MAX_DURATION_S:  # before anything sized by it
+        r = len(t) - 1
+        raise TraceError(
+            f"{label}: row {table.lines[r]}, column {quote(table.header[col])}: "
+            f"{quote(cells[r])} is {t[-1]:.3g} s after the first row; a recording may last "
+            f"at most {MAX_DURATION_S:g} s (skymule's longest mission)"
+        )
     steps = np.diff(t)
     if (steps <= 0).any():
         r = int(np.argmax(steps <= 0)) + 1

@@ -22,8 +22,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from skymule.learning.es import Pool
-from skymule.learning.missions import TRAINING, Draw
+from learning.es import Pool
+from learning.missions import TRAINING, Draw
 from skymule.policies.learned import FG, FO, FS, OptionNet, initial_net
 from skymule.policies.options import N_DURATIONS, Decision, OptionRunner, option_features
 from skymule.sim.autonomous import AutonomousEngine
@@ -262,7 +262,7 @@ def train_ppo(
 
 
 def _es_like(config: PPOConfig) -> Any:
-    from skymule.learning.es import ESConfig
+    from learning.es import ESConfig
 
     return ESConfig(
         pool_per_count=config.pool_per_count,

@@ -10,6 +10,7 @@ calls their one-mission twins in :mod:`skymule.sim.kernels`, tested equal to the
 * :func:`served_bits` -- what a served sensor delivers in a slot, y = min(R dt, Q);
 * :func:`greedy_choice` -- argmax SNR among sensors with data (ties: lowest index);
 * :func:`hgad_choice` -- argmax rate among sensors with data (ties: higher SNR, lowest index);
+* :func:`rate_choice` -- argmax rate among sensors with data (ties: lowest index): the planner's;
 * :class:`HoverState`, :func:`hover_sensor_or`, :func:`hgad_update` -- HGAD's hover state
   machine on fixed trajectories (cooldown, trigger, budget);
 * :func:`fleet_served` -- several UAVs: each sensor serves at most one UAV per slot (the
@@ -175,6 +176,27 @@ def greedy_choice(snr_db: np.ndarray, has_data: np.ndarray) -> np.ndarray:
         (B,) sensor index, or NO_SENSOR where no sensor is servable.
     """
     masked = np.where(has_data, snr_db, -np.inf)
+    choice = first_true(masked == masked.max(axis=0))
+    choice[~has_data.any(axis=0)] = NO_SENSOR
+    return choice
+
+
+def rate_choice(rate_bps: np.ndarray, has_data: np.ndarray) -> np.ndarray:
+    """(B,) the best rate among servable sensors, ties to the lowest index (no SNR tie-break).
+
+    The planner's choice on its way between targets and in its look-ahead
+    (``policies/planner.py``, ``sim/plans.py``): the look-ahead predicts rates only, so the
+    flight takes the rule its plan was scored with. HGAD (:func:`hgad_choice`) breaks rate ties
+    by SNR instead (``tests/test_slot_contract.py::test_rate_choice_differs_from_hgad_on_ties``).
+
+    Args:
+        rate_bps: (N, B) rate to each sensor [bit/s].
+        has_data: (N, B) :func:`servable`: data left and a usable link.
+
+    Returns:
+        (B,) sensor index, or NO_SENSOR where no sensor is servable.
+    """
+    masked = np.where(has_data, rate_bps, -np.inf)
     choice = first_true(masked == masked.max(axis=0))
     choice[~has_data.any(axis=0)] = NO_SENSOR
     return choice

@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from skymule.learning.missions import TRAINING, Draw, draw_missions
+from learning.missions import TRAINING, Draw, draw_missions
 from skymule.policies.builtin import HGAD
 from skymule.policies.learned import LearnedPolicy, OptionNet, initial_net
 from skymule.sim.run import run_mission, run_missions

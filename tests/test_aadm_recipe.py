@@ -1,0 +1,115 @@
+"""docs/aadm.md's file-protocol recipe, run as written: three processes (controller, comm
+stand-in, file agent), with free ports instead of 8005/8006 and the clock run 10x faster
+(``--speed 10`` on the controller, ``--poll-s 0.1`` on both UAV-side processes: the same
+1 poll per testbed second as the defaults)."""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+from skymule.aadm import files
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+COMMAND = [sys.executable, "-c", "from skymule.cli import main; main()", "aadm"]
+
+SCENARIO = """
+name = "aadm-recipe"
+[mission]
+duration_s = 60
+[site]
+origin = { lat = 35.7274824, lon = -78.6962749 }
+geofence = "lake-wheeler"
+[[sensors]]
+name = "LW1"
+lat = 35.727451
+lon = -78.695974
+height_m = 10.0
+buffer_mbit = 15
+[[sensors]]
+name = "LW3"
+lat = 35.724933
+lon = -78.691912
+height_m = -0.23
+buffer_mbit = 10
+[trajectory]
+mode = "autonomous"
+altitude_m = 30.0
+max_speed_mps = 10.0
+[policy]
+name = "hgad"
+"""
+
+
+def _start(args: list[str], cwd: Path) -> subprocess.Popen[str]:
+    env = {**os.environ, "PYTHONPATH": str(SRC)}
+    return subprocess.Popen(
+        [*COMMAND, *args],
+        cwd=cwd,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def _stop(process: subprocess.Popen[str]) -> tuple[str, str]:
+    if process.poll() is None:
+        process.send_signal(signal.SIGTERM)
+    try:
+        return process.communicate(timeout=30)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+
+
+def test_the_docs_file_recipe_runs_as_written(tmp_path: Path) -> None:
+    (tmp_path / "recipe.toml").write_text(SCENARIO)
+    controller = _start(
+        [
+            *("controller", "recipe.toml", "--exit-on-disarm"),
+            *("--port", "0", "--telemetry-port", "0", "--speed", "10"),
+        ],
+        tmp_path,
+    )
+    comm = agent = None
+    try:
+        assert controller.stdout is not None
+        lines = [controller.stdout.readline() for _ in range(2)]
+        ports = [re.search(r":(\d+) \(", line) for line in lines]
+        assert all(ports), lines
+        poll_port, telemetry_port = (m.group(1) for m in ports if m)
+        comm = _start(
+            ["comm", "--files", "agent_dir", "--port", poll_port, "--poll-s", "0.1"], tmp_path
+        )
+        agent = subprocess.run(
+            [
+                *COMMAND,
+                *("agent", "recipe.toml", "--policy", "hgad", "--files", "agent_dir"),
+                *("--port", poll_port, "--telemetry-port", telemetry_port, "--poll-s", "0.1"),
+            ],
+            cwd=tmp_path,
+            env={**os.environ, "PYTHONPATH": str(SRC)},
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert agent.returncode == 0, agent.stderr
+        out, err = controller.communicate(timeout=30)  # --exit-on-disarm: the UAV landed
+    finally:
+        if comm is not None:
+            _stop(comm)
+        _stop(controller)
+    assert controller.returncode == 0, err
+    landed = re.search(r"landed (\S+) m from the launch point", agent.stdout)
+    assert landed and float(landed.group(1)) <= 0.5, agent.stdout
+    score = re.search(r"controller: T1: (\S+) seconds, S1:\S+, S2:100\.00", agent.stdout)
+    assert score, agent.stdout
+    assert "downloaded 25.0 Mbit" in out, out
+    assert "(INCOMPLETE" not in out
+    assert files.read_done_file(tmp_path / "agent_dir" / "tn.txt")

@@ -323,8 +323,8 @@ def evaluate(
 ) -> list[Row]:  # fmt: skip
     """Fit every map of METHODS on ``seen`` (+ the DT), score it on ``held``, with the
     reference rows; each policy's decision regret (its decisions on the map, executed on the
-    held-out trace, against its decisions there) from sim2real when ``policies`` (a held-out part that is
-    one stretch of flight)."""
+    held-out trace, against its decisions there) from sim2real when ``policies`` (a held-out
+    part that is one stretch of flight)."""
     maps, fit_s = {}, {}
     for label, method, prior in METHODS:
         out = folder / f"{split.split()[0]}-{label.replace(' ', '_').replace(',', '')}.json"

@@ -33,6 +33,7 @@ dictionaries where they run (:class:`Expansion`, which a worker receives once pe
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import math
 import re
@@ -509,13 +510,20 @@ class SweepPlan:
             return self.sample * self.paired_count
         return math.prod(self._sizes)
 
+    @functools.cached_property
+    def _drawn_axes(self) -> tuple[tuple[str, Distribution, int | None], ...]:
+        return tuple(
+            (axis.key, axis.dist, count)
+            for axis, count in zip(self.resolve.axes, self.resolve.counts, strict=True)
+            if axis.dist is not None
+        )
+
     def draws(self, rng: np.random.Generator) -> dict[str, Any]:
         """One combination's draws of every distribution axis."""
         values: dict[str, Any] = {}
-        for axis, count in zip(self.resolve.axes, self.resolve.counts, strict=True):
-            if axis.dist is not None:
-                drawn = axis.dist.draw(rng, count or 1)
-                values[axis.key] = drawn if count is not None else drawn[0]
+        for key, dist, count in self._drawn_axes:
+            drawn = dist.draw(rng, count or 1)
+            values[key] = drawn if count is not None else drawn[0]
         return values
 
     def planned(

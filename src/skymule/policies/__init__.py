@@ -21,6 +21,7 @@ checked, or run under another policy.
 from __future__ import annotations
 
 import importlib
+import json
 import inspect
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -168,6 +169,11 @@ def make_policy(spec: PolicySpec) -> Policy | BatchPolicy:
     return checked.check(target(spec) if _takes_argument(target) else target())
 
 
+def _content(params: dict[str, Any]) -> str:
+    """A ``[policy.params]`` table as text, equal for equal tables (key order aside)."""
+    return json.dumps(params, sort_keys=True, default=repr)
+
+
 def batch_policy(specs: Sequence[PolicySpec]) -> BatchPolicy:
     """One batched policy for B missions, mission b under ``specs[b]``.
 
@@ -178,16 +184,21 @@ def batch_policy(specs: Sequence[PolicySpec]) -> BatchPolicy:
     """
     groups: dict[Any, list[int]] = {}
     params: list[Any] = []
-    # sweeps repeat a few spec objects many times: (parameters, group key) once per object
-    cache: dict[int, tuple[Any, Any]] = {}
+    # sweeps repeat a few spec objects many times: each object's content read once, and
+    # each distinct content validated once (grouping is by content, never by object)
+    contents: dict[int, tuple[str, str]] = {}
+    cache: dict[tuple[str, str], tuple[Any, Any]] = {}
     for index, spec in enumerate(specs):
-        if id(spec) not in cache:
+        content = contents.get(id(spec))  # specs is held: an id is not reused meanwhile
+        if content is None:
+            content = contents[id(spec)] = (spec.name, _content(spec.params))
+        if content not in cache:
             learned = spec.name.startswith(LEARNED_PREFIX)
             validated = None if learned else spec.policy_params()
             batched = ":" not in spec.name and POLICIES.meta(spec.name, "batch", None) is not None
-            own = repr(validated) if validated is not None else id(spec)
-            cache[id(spec)] = (validated, spec.name if batched else (spec.name, own))
-        validated, key = cache[id(spec)]
+            own = repr(validated) if validated is not None else content[1]
+            cache[content] = (validated, spec.name if batched else (spec.name, own))
+        validated, key = cache[content]
         params.append(validated)
         groups.setdefault(key, []).append(index)
     parts: list[tuple[BatchPolicy, Any]] = []

@@ -4,8 +4,8 @@ not pay for starting worker processes), and the one-off numba compile is announc
 from __future__ import annotations
 
 import io
-import threading
 import sys
+import threading
 from dataclasses import replace
 from pathlib import Path
 

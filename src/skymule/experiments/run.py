@@ -168,9 +168,7 @@ def _buffers_bit(scenario: Scenario) -> np.ndarray:
     return np.array([s.buffer_mbit for s in scenario.sensors], float) * BITS_PER_MBIT
 
 
-def _per_mission(
-    built: Mission, scenario: Scenario, buffers: np.ndarray | None = None
-) -> Mission:
+def _per_mission(built: Mission, scenario: Scenario, buffers: np.ndarray | None = None) -> Mission:
     """The shared built mission with this mission's scenario, buffers and fading."""
     buffers = _buffers_bit(scenario) if buffers is None else buffers
     fading = built.fading_db
@@ -227,7 +225,8 @@ def run_range(
 def _validated_runs(resolve: Expansion, planned: Sequence[PlannedMission]) -> _Runs:
     """Each mission resolved and validated in full (its one-line error names it)."""
     geometric = [i for i, axis in enumerate(resolve.axes) if not _shares_geometry(axis)]
-    scenarios, keys = [], []
+    scenarios: list[Scenario] = []
+    keys: list[Hashable] = []
     for mission in planned:
         scenario = resolve.validate(mission)
         key: tuple[Any, ...] = tuple(repr(mission.values[i]) for i in geometric)

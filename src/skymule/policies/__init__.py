@@ -21,8 +21,8 @@ checked, or run under another policy.
 from __future__ import annotations
 
 import importlib
-import json
 import inspect
+import json
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any

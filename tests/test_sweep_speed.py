@@ -16,7 +16,8 @@ from skymule.errors import SkymuleError
 from skymule.experiments import executors
 from skymule.experiments import run as sweep_run
 from skymule.experiments.run import allowed_values, run_sweep
-from skymule.experiments.sweep import SweepSpec, load_sweep, parse_sweep, sweep_plan
+from skymule.experiments.seeding import PCG64Rows, entropy_words
+from skymule.experiments.sweep import SweepPlan, SweepSpec, load_sweep, parse_sweep, sweep_plan
 from skymule.limits import MAX_BUFFER_MBIT, waypoint_problem
 from skymule.tasks import simulate as single
 
@@ -163,3 +164,25 @@ def test_waypoint_limits_name_the_first_bad_waypoint_and_axis() -> None:
     both = good.copy()
     both[3, 1], both[3, 2] = -2e7, -1.0
     assert str(waypoint_problem(both)).startswith("waypoint 4: y_m = -20000000.0: at most 1e+07")
+
+
+@pytest.mark.parametrize("seed", [0, 7, 2**40 + 3])
+def test_generators_over_arrays_draw_what_numpy_draws(seed: int) -> None:
+    replicas = [0, 1, 2, 1000, 2**31, 2**32 - 1]
+    words = np.array([entropy_words(seed) + entropy_words(r) + [1] for r in replicas], np.uint32)
+    got = PCG64Rows(words).uniform(-3.5, 1500, 5)
+    want = [np.random.default_rng([seed, r, 1]).uniform(-3.5, 1500, 5) for r in replicas]
+    np.testing.assert_array_equal(got, np.array(want))  # bit for bit, not approximately
+
+
+def test_a_sampled_plan_draws_all_replicas_at_once_as_one_by_one(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    text = MIXED.format(n=40).replace(
+        'seed = { dist = "integers", low = 0, high = 1000 }',
+        '"sensors[1].x_m" = { dist = "uniform", low = -5, high = 5 }',
+    )
+    plan = sweep_plan(_spec(text))
+    together = list(plan.missions(3, 71))
+    monkeypatch.setattr(SweepPlan, "_uniform_draws", lambda self, replicas: None)
+    assert together == list(plan.missions(3, 71))

@@ -399,7 +399,7 @@ def param_columns(resolve: Expansion, values: Sequence[Sequence[Any]]) -> dict[s
 
 
 def _param_column(values: list[Any]) -> list[Any]:
-    if any(isinstance(v, list | dict) for v in values):
+    if any(issubclass(kind, list | dict) for kind in set(map(type, values))):
         return [_param_value(v) for v in values]
     return values
 
@@ -474,8 +474,9 @@ def _summary_columns(summaries: Sequence[dict[str, Any]]) -> dict[str, list[Any]
             for name in first[key]:
                 columns[f"{key}.{name}"] = [value[name] for value in values]
             continue
-        if any(isinstance(v, dict | list | tuple) for v in values):
-            if any(isinstance(v, dict) for v in values):
+        kinds = set(map(type, values))
+        if any(issubclass(k, dict | list | tuple) for k in kinds):  # one test per type
+            if any(issubclass(k, dict) for k in kinds):
                 return None
             values = [
                 ",".join(str(x) for x in v) if isinstance(v, list | tuple) else v for v in values

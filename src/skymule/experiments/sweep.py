@@ -57,6 +57,7 @@ from skymule.experiments.fields import (
     place_sensors,
     stars,
 )
+from skymule.experiments.seeding import PCG64Rows, entropy_words
 from skymule.io.textfiles import read_text
 from skymule.policies.registry import is_plugin
 from skymule.scenario import Scenario, load_scenario, policy_shares, scenario_from_dict
@@ -571,7 +572,9 @@ class SweepPlan:
         paired = [a for a in discrete if a.paired]
         unpaired = [a for a in discrete if not a.paired]
         per = self.paired_count
-        for replica in range(start // per, (stop - 1) // per + 1):
+        replicas = range(start // per, (stop - 1) // per + 1)
+        together = self._uniform_draws(replicas)
+        for number, replica in enumerate(replicas):
             chosen = {}
             if unpaired:  # a Generator costs ~30 us: only made when there is something to pick
                 picks = np.random.default_rng([self.seed, replica])
@@ -580,7 +583,9 @@ class SweepPlan:
                     for a in unpaired
                 }
             drawn = {}
-            if self.has_draws:
+            if together is not None:
+                drawn = together[number]
+            elif self.has_draws:
                 drawn = self.draws(np.random.default_rng([self.seed, replica, 1]))
             for position in range(max(start, replica * per), min(stop, (replica + 1) * per)):
                 digits = _digits(position - replica * per, [len(a.values or ()) for a in paired])
@@ -588,6 +593,28 @@ class SweepPlan:
                 both = {**chosen, **{a.key: v for a, v in zip(paired, values, strict=True)}}
                 key = (replica, tuple(both[a.key] for a in discrete))
                 yield self.planned(position, both, drawn, key)
+
+    def _uniform_draws(self, replicas: range) -> list[dict[str, Any]] | None:
+        """:meth:`draws` of each replica's Generator (``default_rng([seed, replica, 1])``),
+        all at once over arrays (:class:`~skymule.experiments.seeding.PCG64Rows`, the same
+        numbers): when every distribution axis is uniform. None: draw replica by replica."""
+        axes = self._drawn_axes
+        if not axes or any(dist.name != "uniform" for _, dist, _ in axes) or not replicas:
+            return None
+        if replicas[-1] >= 2**32:  # one entropy word per replica (numpy's split differs)
+            return None
+        words = np.empty((len(replicas), len(entropy_words(self.seed)) + 2), np.uint32)
+        words[:, :-2] = entropy_words(self.seed)
+        words[:, -2] = np.arange(replicas.start, replicas.stop, dtype=np.uint32)
+        words[:, -1] = 1
+        rows = PCG64Rows(words)
+        columns = []
+        for _, dist, count in axes:
+            params = dict(dist.params)
+            drawn = rows.uniform(params["low"], params["high"], count or 1).tolist()
+            columns.append(drawn if count is not None else [row[0] for row in drawn])
+        keys = [key for key, _, _ in axes]
+        return [dict(zip(keys, values, strict=True)) for values in zip(*columns, strict=True)]
 
     def indices(self, start: int, stop: int) -> np.ndarray:
         """Mission indices at run positions ``start`` to ``stop`` (int64, no mission planned)."""

@@ -24,6 +24,7 @@ import math
 import sys
 import tempfile
 import time
+from collections import OrderedDict
 from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, wait
 from dataclasses import dataclass, replace
@@ -190,16 +191,21 @@ def run_chunk(tasks: Sequence[Task], base_dir: str) -> pd.DataFrame:
     return _run_items(items)
 
 
-def run_planned(resolve: Expansion, planned: Sequence[PlannedMission]) -> pd.DataFrame:
+def run_planned(
+    resolve: Expansion, planned: Sequence[PlannedMission], sweep: bytes | None = None
+) -> pd.DataFrame:
     """Run a chunk of planned missions (in a worker): each is resolved and validated here once.
 
-    The worker gets the base scenario once (``resolve``) and each mission as its axis values.
-    Missions that differ only in their buffers, seed and name share one validated scenario
-    (:func:`_chunk_runs`); a value those checks do not pass sends the chunk through the full
-    validation of each mission, which names the first bad mission as it always did.
+    The worker gets the base scenario once (``resolve``) and each mission as its axis values;
+    ``sweep`` (the plan's id prefix) lets it reuse the missions it built for earlier chunks
+    of the same sweep. Missions that differ only in their buffers, seed and name share one
+    validated scenario (:func:`_chunk_runs`); a value those checks do not pass sends the chunk
+    through the full validation of each mission, which names the first bad mission as it
+    always did.
     """
     runs = _chunk_runs(resolve, planned)
-    return _run(runs if runs is not None else _validated_runs(resolve, planned))
+    identity = None if sweep is None else (sweep, resolve.base_dir)
+    return _run(runs if runs is not None else _validated_runs(resolve, planned), identity)
 
 
 def run_range(
@@ -215,7 +221,7 @@ def run_range(
     if skip is not None and skip.size:
         stored = set(skip.tolist())
         missions = [m for m in missions if m.index not in stored]
-    frame = run_planned(plan.resolve, list(missions))
+    frame = run_planned(plan.resolve, list(missions), plan.prefix)
     if out is None:
         return len(frame), store.part_bytes(frame)
     store.write_part(Path(out), frame)
@@ -421,9 +427,23 @@ def _run_items(items: Sequence[_Item]) -> pd.DataFrame:
     )
 
 
-def _run(runs: _Runs) -> pd.DataFrame:
+#: Missions built by this process's last chunks, by (sweep, geometry key): the next chunk of
+#: the same sweep reuses them (a build is milliseconds; a chunk is a few hundred missions).
+_BUILT: OrderedDict[tuple[Hashable, Hashable], Mission] = OrderedDict()
+_BUILT_KEEP = 8
+
+
+def _keep_built(key: tuple[Hashable, Hashable], mission: Mission) -> None:
+    _BUILT[key] = mission
+    _BUILT.move_to_end(key)
+    while len(_BUILT) > _BUILT_KEEP:
+        _BUILT.popitem(last=False)
+
+
+def _run(runs: _Runs, sweep: Hashable = None) -> pd.DataFrame:
     """Build each geometry once, run every mission through the engine in batches, one row
-    per mission (written as columns)."""
+    per mission (written as columns). ``sweep``: what identifies the sweep, whose chunks'
+    keys name the same geometries (its built missions are then kept for its next chunks)."""
     from skymule.sim.run import summarize_missions
     from skymule.world import build_mission
 
@@ -431,6 +451,8 @@ def _run(runs: _Runs) -> pd.DataFrame:
     missions: list[Mission] = []
     for scenario, key, buffers in zip(runs.scenarios, runs.keys, runs.buffers_bit, strict=True):
         shared = built.get(key)
+        if shared is None and sweep is not None:
+            shared = _BUILT.get((sweep, key))
         if shared is None:
             shared = build_mission(scenario)
             if shared.track is not None:
@@ -438,6 +460,8 @@ def _run(runs: _Runs) -> pd.DataFrame:
                 shared = replace(shared, source=None)
             if shared.track is not None or not _needs_seed(scenario):
                 built[key] = shared
+                if sweep is not None:
+                    _keep_built((sweep, key), shared)
         missions.append(_per_mission(shared, scenario, buffers))
     summaries = summarize_missions(
         missions, [s.policy for s in runs.scenarios], [s.name for s in runs.scenarios]

@@ -186,3 +186,17 @@ def test_a_sampled_plan_draws_all_replicas_at_once_as_one_by_one(
     together = list(plan.missions(3, 71))
     monkeypatch.setattr(SweepPlan, "_uniform_draws", lambda self, replicas: None)
     assert together == list(plan.missions(3, 71))
+
+
+def test_a_product_plan_draws_all_combinations_at_once_as_one_by_one(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    text = (
+        'base = "paper-sim-fixed"\nseed = 3\n[axes]\npolicy.name = ["greedy", "hgad"]\n'
+        'seed = { range = [0, 30] }\n"mission.duration_s" = [60, 90]\n'
+        '"sensors[*].buffer_mbit" = { dist = "uniform", low = 20, high = 300 }\n'
+    )
+    plan = sweep_plan(_spec(text))
+    together = list(plan.missions(5, 113))
+    monkeypatch.setattr(SweepPlan, "_combination_draws", lambda self, keys: None)
+    assert together == list(plan.missions(5, 113))

@@ -53,6 +53,7 @@ from skymule.experiments.fields import (
     base_dict,
     canonical,
     column,
+    draw_hash,
     draw_seed,
     place_sensors,
     stars,
@@ -548,15 +549,22 @@ class SweepPlan:
         discrete, sizes, strides = self.discrete, self._sizes, self._strides
         outer, inner = self._outer, self._inner
         per = self.paired_count
+        combos: list[tuple[int, list[Any], int]] = []
         for number in range(start // per, (stop - 1) // per + 1):
             combo: list[Any] = [None] * len(discrete)
             first = 0
             for i, d in zip(outer, _digits(number, [sizes[i] for i in outer]), strict=True):
                 combo[i] = (discrete[i].values or ())[d]
                 first += d * strides[i]
+            combos.append((number, combo, first))
+        keys = [[combo[i] for i in outer] for _, combo, _ in combos]
+        together = self._combination_draws(keys) if self.has_draws else None
+        for (number, combo, first), key, k in zip(combos, keys, range(len(keys)), strict=True):
             drawn = {}
-            if self.has_draws:
-                drawn = self.draws(draw_seed(self.seed, [combo[i] for i in outer]))
+            if together is not None:
+                drawn = together[k]
+            elif self.has_draws:
+                drawn = self.draws(draw_seed(self.seed, key))
             for position in range(max(start, number * per), min(stop, (number + 1) * per)):
                 index = first
                 digits = _digits(position - number * per, [sizes[i] for i in inner])
@@ -596,25 +604,44 @@ class SweepPlan:
 
     def _uniform_draws(self, replicas: range) -> list[dict[str, Any]] | None:
         """:meth:`draws` of each replica's Generator (``default_rng([seed, replica, 1])``),
-        all at once over arrays (:class:`~skymule.experiments.seeding.PCG64Rows`, the same
-        numbers): when every distribution axis is uniform. None: draw replica by replica."""
-        axes = self._drawn_axes
-        if not axes or any(dist.name != "uniform" for _, dist, _ in axes) or not replicas:
-            return None
-        if replicas[-1] >= 2**32:  # one entropy word per replica (numpy's split differs)
+        all at once; None: draw replica by replica (:meth:`_draws_of`)."""
+        if not replicas or replicas[-1] >= 2**32:  # one entropy word a replica (else 2)
             return None
         words = np.empty((len(replicas), len(entropy_words(self.seed)) + 2), np.uint32)
         words[:, :-2] = entropy_words(self.seed)
         words[:, -2] = np.arange(replicas.start, replicas.stop, dtype=np.uint32)
         words[:, -1] = 1
+        return self._draws_of(words)
+
+    def _combination_draws(self, keys: Sequence[Any]) -> list[dict[str, Any]] | None:
+        """:meth:`draws` of each combination's Generator (:func:`draw_seed` of its key), all
+        at once; None: draw combination by combination (:meth:`_draws_of`)."""
+        hashes = [draw_hash(key) for key in keys]
+        if not hashes or min(hashes) < 2**32:  # two entropy words a hash (else one)
+            return None
+        values = np.array(hashes, np.uint64)
+        words = np.empty((len(keys), len(entropy_words(self.seed)) + 2), np.uint32)
+        words[:, :-2] = entropy_words(self.seed)
+        words[:, -2] = (values & np.uint64(0xFFFFFFFF)).astype(np.uint32)
+        words[:, -1] = (values >> np.uint64(32)).astype(np.uint32)
+        return self._draws_of(words)
+
+    def _draws_of(self, words: np.ndarray) -> list[dict[str, Any]] | None:
+        """:meth:`draws` of the Generators seeded by each row of entropy ``words``, all at
+        once over arrays (:class:`~skymule.experiments.seeding.PCG64Rows`, the same numbers,
+        ~0.1 us a value instead of ~10 us a Generator): when every distribution axis is
+        uniform; None otherwise."""
+        axes = self._drawn_axes
+        if not axes or any(dist.name != "uniform" for _, dist, _ in axes):
+            return None
         rows = PCG64Rows(words)
         columns = []
         for _, dist, count in axes:
             params = dict(dist.params)
             drawn = rows.uniform(params["low"], params["high"], count or 1).tolist()
             columns.append(drawn if count is not None else [row[0] for row in drawn])
-        keys = [key for key, _, _ in axes]
-        return [dict(zip(keys, values, strict=True)) for values in zip(*columns, strict=True)]
+        names = [key for key, _, _ in axes]
+        return [dict(zip(names, values, strict=True)) for values in zip(*columns, strict=True)]
 
     def indices(self, start: int, stop: int) -> np.ndarray:
         """Mission indices at run positions ``start`` to ``stop`` (int64, no mission planned)."""

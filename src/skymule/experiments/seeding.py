@@ -54,7 +54,9 @@ class _Hash:
 
 
 def _mix(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    result = (x * np.uint64(_MIX_MULT_L) - y * np.uint64(_MIX_MULT_R)) & _MASK32
+    result: np.ndarray = np.bitwise_and(
+        x * np.uint64(_MIX_MULT_L) - y * np.uint64(_MIX_MULT_R), _MASK32
+    )
     return result ^ (result >> np.uint64(_XSHIFT))
 
 

@@ -307,13 +307,23 @@ _COMPILE_NOTE_SAID = threading.Event()
 _COMPILE_NOTE_LOCK = threading.Lock()
 
 
+def _launched_here() -> bool:
+    """True in the process the user started; False in a worker it started (a process pool's
+    or dask-local's), whose piped stderr is the user's too: a worker says it on a terminal
+    only, so N workers compiling at once do not add N lines to a piped log."""
+    import multiprocessing
+
+    return multiprocessing.parent_process() is None
+
+
 @cache
 def note_first_compile() -> None:
     """Once per process: when numba compiles a skymule kernel (its compile event fires on a
     cache miss only: a new installation, a changed rule, a new signature) for longer than
     :data:`COMPILE_NOTE_AFTER_S`, print :data:`FIRST_COMPILE_NOTE` on stderr, terminal or
-    pipe alike, so a first run's pause is explained; a quick compile says nothing. The line
-    comes while the compile runs (a timer), or as it ends if the timer could not run."""
+    pipe alike (a worker process: on a terminal only, see :func:`_launched_here`), so a first
+    run's pause is explained; a quick compile says nothing. The line comes while the compile
+    runs (a timer), or as it ends if the timer could not run."""
     from numba.core import event
 
     class FirstCompileNote(event.Listener):
@@ -327,7 +337,8 @@ def note_first_compile() -> None:
                 if _COMPILE_NOTE_SAID.is_set():
                     return
                 _COMPILE_NOTE_SAID.set()
-            print(FIRST_COMPILE_NOTE, file=sys.stderr, flush=True)
+            if _launched_here() or sys.stderr.isatty():
+                print(FIRST_COMPILE_NOTE, file=sys.stderr, flush=True)
 
         def on_start(self, happened: event.Event) -> None:
             function = getattr(happened.data.get("dispatcher"), "py_func", None)

@@ -8,6 +8,7 @@ import sys
 import threading
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -84,3 +85,26 @@ def test_a_long_first_compile_is_announced_once_even_on_a_pipe(
     first = numba.njit(cache=False)(kernel)
     assert first(1.0) == 2.0 and first(1) == 2.0  # two compiles (two signatures)
     assert piped.getvalue().splitlines() == [FIRST_COMPILE_NOTE]
+
+
+def _report_launched(queue: Any) -> None:
+    from skymule.sim.compiled import _launched_here
+
+    queue.put(_launched_here())
+
+
+def test_only_the_process_the_user_started_announces_a_compile_on_a_pipe() -> None:
+    """A pool's worker that compiles says nothing on a piped stderr (N workers, one log)."""
+    import multiprocessing
+
+    from skymule.sim.compiled import _launched_here
+
+    assert _launched_here()
+    context = multiprocessing.get_context("spawn")
+    queue = context.Queue()
+    worker = context.Process(target=_report_launched, args=(queue,))
+    worker.start()
+    try:
+        assert queue.get(timeout=120) is False
+    finally:
+        worker.join(timeout=60)

@@ -520,6 +520,12 @@ class SweepPlan:
             if axis.dist is not None
         )
 
+    @functools.cached_property
+    def _all_uniform(self) -> bool:
+        """True when the sweep draws, and only from uniform distributions (drawn over arrays)."""
+        axes = self._drawn_axes
+        return bool(axes) and all(dist.name == "uniform" for _, dist, _ in axes)
+
     def draws(self, rng: np.random.Generator) -> dict[str, Any]:
         """One combination's draws of every distribution axis."""
         values: dict[str, Any] = {}
@@ -559,7 +565,7 @@ class SweepPlan:
             combos.append((number, combo, first))
         keys = [[combo[i] for i in outer] for _, combo, _ in combos]
         together = self._combination_draws(keys) if self.has_draws else None
-        for (number, combo, first), key, k in zip(combos, keys, range(len(keys)), strict=True):
+        for k, ((number, combo, first), key) in enumerate(zip(combos, keys, strict=True)):
             drawn = {}
             if together is not None:
                 drawn = together[k]
@@ -605,8 +611,8 @@ class SweepPlan:
     def _uniform_draws(self, replicas: range) -> list[dict[str, Any]] | None:
         """:meth:`draws` of each replica's Generator (``default_rng([seed, replica, 1])``),
         all at once; None: draw replica by replica (:meth:`_draws_of`)."""
-        if not replicas or replicas[-1] >= 2**32:  # one entropy word a replica (else 2)
-            return None
+        if not self._all_uniform or not replicas or replicas[-1] >= 2**32:
+            return None  # (a replica from 2**32 on is two entropy words)
         words = np.empty((len(replicas), len(entropy_words(self.seed)) + 2), np.uint32)
         words[:, :-2] = entropy_words(self.seed)
         words[:, -2] = np.arange(replicas.start, replicas.stop, dtype=np.uint32)
@@ -616,6 +622,8 @@ class SweepPlan:
     def _combination_draws(self, keys: Sequence[Any]) -> list[dict[str, Any]] | None:
         """:meth:`draws` of each combination's Generator (:func:`draw_seed` of its key), all
         at once; None: draw combination by combination (:meth:`_draws_of`)."""
+        if not self._all_uniform:
+            return None
         hashes = [draw_hash(key) for key in keys]
         if not hashes or min(hashes) < 2**32:  # two entropy words a hash (else one)
             return None
@@ -631,16 +639,15 @@ class SweepPlan:
         once over arrays (:class:`~skymule.experiments.seeding.PCG64Rows`, the same numbers,
         ~0.1 us a value instead of ~10 us a Generator): when every distribution axis is
         uniform; None otherwise."""
-        axes = self._drawn_axes
-        if not axes or any(dist.name != "uniform" for _, dist, _ in axes):
+        if not self._all_uniform:
             return None
         rows = PCG64Rows(words)
         columns = []
-        for _, dist, count in axes:
+        for _, dist, count in self._drawn_axes:
             params = dict(dist.params)
             drawn = rows.uniform(params["low"], params["high"], count or 1).tolist()
             columns.append(drawn if count is not None else [row[0] for row in drawn])
-        names = [key for key, _, _ in axes]
+        names = [key for key, _, _ in self._drawn_axes]
         return [dict(zip(names, values, strict=True)) for values in zip(*columns, strict=True)]
 
     def indices(self, start: int, stop: int) -> np.ndarray:

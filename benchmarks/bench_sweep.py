@@ -1,6 +1,7 @@
 """Sweep overhead: cost per mission at 10k and 100k missions, executors, the seed axis, memory.
 
-Run: ``python benchmarks/bench_sweep.py [--old-rev REV] [--old-large] [--quick]``, or at scale:
+Run: ``python benchmarks/bench_sweep.py [--old-rev REV] [--old-large] [--quick] [--paths]``, or
+at scale:
 ``python benchmarks/bench_sweep.py --missions N[,N...] [--executors E[,E...]] [--report]``
 
 Cases (paper-sim-fixed, Greedy and HGAD paired, random buffers), each in its own process
@@ -27,6 +28,19 @@ existing sweep folder. Targets printed at the end: peak RSS flat with N (200,000
 60 MiB of 20,000), ``dask-local`` CPU within 1.15x of ``inprocess``, CPU per mission at
 10,000,000 within 1.1x of 100,000, the report in under a minute.
 
+The paths to the engine (issue 33), each in a fresh process, printed next to the issue's
+figure and target (and, with ``--old-rev``, the other commit's figure in the same run); also
+alone with ``--paths``:
+
+* a fixed sweep of 20,000 missions of paper-sim-fixed with the buffers drawn per mission:
+  ``run_sweep`` in-process and ``skymule sweep --executor inprocess`` (CPU per mission), and
+  the engine with summaries alone on the same missions (the floor);
+* a batched plug-in without ``Params`` and the same with ``Params``, swept over 4,000
+  missions with drawn buffers, and ``simulate()`` of its per-mission form (CPU per mission);
+* ``simulate()`` of one paper-sim-fixed mission in a warm process (median CPU of 30 calls
+  after 30);
+* re-running a finished sweep on ``dask-local`` (wall seconds: nothing to run).
+
 ``--old-rev REV`` runs the same cases on another commit (``git archive REV`` into a temporary
 folder, e.g. ``--old-rev main``) in the same run and prints the ratio; its 100k case (several
 minutes) only with ``--old-large``. ``--quick`` skips the 100k case.
@@ -50,7 +64,13 @@ import tempfile
 import threading
 import time
 import tomllib
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel
 
 from _results import json_option, table, write
 from _sizes import size
@@ -199,6 +219,271 @@ def _line(case: str, new: dict[str, float], old: dict[str, float] | None) -> str
     return text
 
 
+# --- the paths to the engine (issue 33) ---------------------------------------------------
+
+
+class ServeFirstBatched:
+    """A user's batched policy without ``Params``: serve sensor 0 while it has data."""
+
+    name = "serve-first"
+    batched = True
+
+    def reset(self, contexts: Sequence[Any]) -> None:
+        pass
+
+    def act(self, observation: Any) -> Any:
+        from skymule.policies.base import BatchAction
+
+        return BatchAction(serve=np.where(observation.remaining_bit[:, 0] > 0, 0, -1))
+
+
+class ServeFirstParams(BaseModel):
+    """No parameter to set: the model's presence is what differs."""
+
+
+class ServeFirstBatchedParams(ServeFirstBatched):
+    """:class:`ServeFirstBatched` with a ``Params`` model."""
+
+    Params = ServeFirstParams
+
+    def __init__(self, params: ServeFirstParams) -> None:
+        self.params = params
+
+
+class ServeFirst:
+    """The per-mission form of :class:`ServeFirstBatched`."""
+
+    name = "serve-first"
+
+    def reset(self, context: Any) -> None:
+        pass
+
+    def act(self, observation: Any) -> Any:
+        from skymule.policies.base import Action
+
+        return Action(serve=0 if observation.remaining_bit[0] > 0 else None)
+
+
+FIXED_SWEEP = """
+base = "paper-sim-fixed"
+seed = 1
+mode = {{ sample = {n} }}
+[axes]
+{policy}"sensors[*].buffer_mbit" = {{ dist = "uniform", low = 200, high = 1500 }}
+"""
+
+PATH_MISSIONS, PLUGIN_MISSIONS = size(20_000, 40), size(4_000, 20)
+PER_MISSION_RUNS, SIMULATE_CALLS = size(20, 2), size(30, 3)
+
+
+@dataclass(frozen=True)
+class PathRow:
+    """One row of the issue's table: what it measures, its unit, the issue's figure, the
+    target (None: relative, see :func:`_path_verdicts`)."""
+
+    label: str
+    unit: str
+    issue: float
+    target: float | None
+
+
+PATHS: dict[str, PathRow] = {
+    "sweep-api": PathRow("fixed sweep, run_sweep (API)", "us/mission", 305, 60),
+    "sweep-cli": PathRow("fixed sweep, skymule sweep (CLI)", "us/mission", 389, 80),
+    "sweep-engine": PathRow("  engine + summaries alone, same missions", "us/mission", 26, None),
+    "plugin-no-params": PathRow("batched plug-in without Params, sweep", "us/mission", 8523, None),
+    "plugin-params": PathRow("batched plug-in with Params, sweep", "us/mission", 413, None),
+    "plugin-per-mission": PathRow("its per-mission form, simulate()", "us/mission", 12479, None),
+    "simulate": PathRow("simulate(), one paper-sim-fixed mission, warm", "ms", 17.9, 2.0),
+    "dask-rerun": PathRow("re-run of a finished sweep, dask-local", "s wall", 13.0, None),
+}
+"""name -> row; measured by :func:`measure_path` in a fresh process each."""
+
+
+def _sweep_spec(n: int, policy: str = "") -> Any:
+    from skymule.experiments.sweep import parse_sweep
+
+    line = f'policy.name = ["{policy}"]\n' if policy else ""
+    return parse_sweep(tomllib.loads(FIXED_SWEEP.format(n=n, policy=line)), "bench", Path("."))
+
+
+def _sweep_cpu_us(n: int, policy: str = "") -> float:
+    """CPU per mission of ``run_sweep`` in-process (after a 50-mission sweep loads the
+    compiled engine)."""
+    from skymule.experiments.run import run_sweep
+
+    with tempfile.TemporaryDirectory() as folder:
+        run_sweep(_sweep_spec(50, policy), Path(folder) / "warm", executor="inprocess",
+                  progress=False)  # fmt: skip
+        start = time.process_time()
+        run_sweep(_sweep_spec(n, policy), Path(folder) / "out", executor="inprocess",
+                  progress=False)  # fmt: skip
+        return 1e6 * (time.process_time() - start) / n
+
+
+def _engine_cpu_us(n: int) -> float:
+    """CPU per mission of the engine with summaries on the sweep's missions, built outside
+    the timing (with calls both revisions have)."""
+    from dataclasses import replace
+
+    from skymule.experiments.sweep import sweep_plan
+    from skymule.sim.run import summarize_missions
+    from skymule.world import build_mission
+
+    plan = sweep_plan(_sweep_spec(n))
+    scenarios = [plan.resolve.validate(m) for m in plan.missions()]
+    built = replace(build_mission(scenarios[0]), source=None)
+    missions = [
+        replace(built, scenario=s, buffers_bit=np.array([x.buffer_mbit for x in s.sensors]) * 1e6)
+        for s in scenarios
+    ]
+    policies, names = [s.policy for s in scenarios], [s.name for s in scenarios]
+    summarize_missions(missions[:50], policies[:50], names[:50])  # the compiled engine loaded
+    start = time.process_time()
+    summarize_missions(missions, policies, names)
+    return 1e6 * (time.process_time() - start) / n
+
+
+def _cli_cpu_us(n: int, src: Path) -> float:
+    """CPU per mission of ``skymule sweep --executor inprocess`` (its start-up included)."""
+    with tempfile.TemporaryDirectory() as folder:
+        sweep = Path(folder) / "sweep.toml"
+        sweep.write_text(FIXED_SWEEP.format(n=n, policy=""))
+        env = {**os.environ, "PYTHONPATH": str(src)}
+        command = [sys.executable, "-m", "skymule", "sweep", str(sweep), "--executor",
+                   "inprocess", "--quiet", "--out"]  # fmt: skip
+        subprocess.run([*command, f"{folder}/warm"], env=env, capture_output=True, check=False)
+        before = _children_cpu_s()
+        done = subprocess.run([*command, f"{folder}/out"], env=env, capture_output=True,
+                              text=True, check=False)  # fmt: skip
+        if done.returncode != 0:
+            raise SystemExit(f"skymule sweep failed:\n{done.stderr}")
+        return 1e6 * (_children_cpu_s() - before) / n
+
+
+def _children_cpu_s() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _per_mission_cpu_us(runs: int) -> float:
+    """CPU per mission of ``simulate()`` under the per-mission plug-in (buffers varied)."""
+    from skymule.scenario import load_scenario
+    from skymule.tasks.simulate import simulate
+
+    base = load_scenario("paper-sim-fixed").with_policy("bench_sweep:ServeFirst")
+    simulate(base)
+    rng = np.random.default_rng(1)
+    scenarios = []
+    for _ in range(runs):
+        sensors = [
+            s.model_copy(update={"buffer_mbit": float(rng.uniform(200, 1500))})
+            for s in base.sensors
+        ]
+        scenarios.append(base.model_copy(update={"sensors": sensors}))
+    start = time.process_time()
+    for scenario in scenarios:
+        simulate(scenario)
+    return 1e6 * (time.process_time() - start) / runs
+
+
+def _simulate_ms(calls: int) -> float:
+    """Median CPU of ``simulate()`` of paper-sim-fixed over ``calls`` calls after ``calls``."""
+    from skymule.scenario import load_scenario
+    from skymule.tasks.simulate import simulate
+
+    scenario = load_scenario("paper-sim-fixed")
+    for _ in range(calls):  # a warm process: past the compiled engine's break-even
+        simulate(scenario)
+    times = []
+    for _ in range(calls):
+        start = time.process_time()
+        simulate(scenario)
+        times.append(time.process_time() - start)
+    return 1e3 * float(np.median(times))
+
+
+def _dask_rerun_s(n: int) -> float:
+    """Wall seconds of re-running a finished sweep on ``dask-local`` (2 workers)."""
+    import importlib.util
+
+    if importlib.util.find_spec("distributed") is None:
+        return float("inf")  # (the `dask` extra is not installed)
+    from skymule.experiments.run import run_sweep
+
+    with tempfile.TemporaryDirectory() as folder:
+        spec = _sweep_spec(n)
+        run_sweep(spec, Path(folder) / "out", executor="inprocess", progress=False)
+        start = time.perf_counter()
+        run_sweep(spec, Path(folder) / "out", executor="dask-local", workers=2, progress=False)
+        return time.perf_counter() - start
+
+
+def measure_path(name: str, src: Path) -> float:
+    """The figure of one :data:`PATHS` row, in this process (``src``: the CLI's code)."""
+    if name == "sweep-api":
+        return _sweep_cpu_us(PATH_MISSIONS)
+    if name == "sweep-cli":
+        return _cli_cpu_us(PATH_MISSIONS, src)
+    if name == "sweep-engine":
+        return _engine_cpu_us(PATH_MISSIONS)
+    if name == "plugin-no-params":
+        return _sweep_cpu_us(PLUGIN_MISSIONS, "bench_sweep:ServeFirstBatched")
+    if name == "plugin-params":
+        return _sweep_cpu_us(PLUGIN_MISSIONS, "bench_sweep:ServeFirstBatchedParams")
+    if name == "plugin-per-mission":
+        return _per_mission_cpu_us(PER_MISSION_RUNS)
+    if name == "simulate":
+        return _simulate_ms(SIMULATE_CALLS)
+    if name == "dask-rerun":
+        return _dask_rerun_s(size(100, 10))
+    raise ValueError(name)
+
+
+def run_paths(src: Path, old_src: Path | None) -> None:
+    """Every :data:`PATHS` row in a fresh process each (and on the old tree), printed next to
+    the issue's figure and target; then the relative targets."""
+    found: dict[str, float] = {}
+    for name, row in PATHS.items():
+        value = _subprocess_json("--one-path", name, src=src)["value"]
+        found[name] = value
+        target = "" if row.target is None else f", target <= {row.target:g}"
+        text = f"path {row.label:<46} {value:9.1f} {row.unit:<10} (issue 33: {row.issue:g}{target})"
+        if old_src is not None:
+            old = _subprocess_json("--one-path", name, src=old_src)["value"]
+            text += f" | previous {old:9.1f} -> {old / max(value, 1e-9):.1f}x less"
+        print(text, flush=True)
+    for line in _path_verdicts(found):
+        print(line, flush=True)
+
+
+def _path_verdicts(found: dict[str, float]) -> list[str]:
+    """The targets of the issue's table, met or missed."""
+    lines = []
+    for name, row in PATHS.items():
+        if row.target is not None and name in found:
+            met = "met" if found[name] <= row.target else "MISSED"
+            lines.append(
+                f"target {row.label}: {found[name]:.1f} {row.unit} <= {row.target:g}: {met}"
+            )
+    if {"plugin-no-params", "plugin-params"} <= set(found):
+        ratio = found["plugin-no-params"] / found["plugin-params"]
+        lines.append(
+            f"target plug-in without Params / with Params: {ratio:.2f}x (target: about 1; "
+            f"issue 33: 20.6x)"
+        )
+    if {"plugin-no-params", "plugin-per-mission"} <= set(found):
+        gain = found["plugin-per-mission"] / found["plugin-no-params"]
+        met = "met" if gain >= 100 else "MISSED"
+        lines.append(
+            f"target per-mission form / batched without Params: {gain:.0f}x (target >= 100x): {met}"
+        )
+    if "sweep-engine" in found and "sweep-api" in found:
+        share = found["sweep-engine"] / found["sweep-api"]
+        lines.append(f"share of the API sweep's CPU in the engine + summaries: {share:.0%}")
+    return lines
+
+
 EXECUTORS = ("inprocess", "process", "dask-local")
 SCALE_WORKERS = 2
 
@@ -305,6 +590,8 @@ def main() -> None:
     parser.add_argument("--report", action="store_true", help="scale mode: time the report")
     parser.add_argument("--keep", help="scale mode: keep the sweep folders in this folder")
     parser.add_argument("--report-only", help="time the report of this sweep folder")
+    parser.add_argument("--one-path", choices=sorted(PATHS), help=argparse.SUPPRESS)
+    parser.add_argument("--paths", action="store_true", help="only the issue-33 path rows")
     args = parser.parse_args()
     if args.one:
         print(json.dumps(measure(args.one)))
@@ -319,6 +606,10 @@ def main() -> None:
         print(json.dumps(measure_report(Path(args.one_report))))
         return
     repo = Path(__file__).resolve().parents[1]
+    if args.one_path:
+        src = Path(os.environ.get("PYTHONPATH", str(repo / "src")).split(os.pathsep)[0])
+        print(json.dumps({"value": measure_path(args.one_path, src)}))
+        return
     if args.report_only:
         folder = Path(args.report_only)
         result = _subprocess_json("--one-report", str(folder), src=repo / "src")
@@ -337,6 +628,9 @@ def main() -> None:
                 check=True,
             ).stdout
             subprocess.run(["tar", "-x", "-C", old_tree], input=archive, check=True)
+        if args.paths:
+            run_paths(repo / "src", Path(old_tree) / "src" if args.old_rev else None)
+            return
         results: dict[str, dict[str, float]] = {}
         for case in CASES:
             large = case.endswith("100k")
@@ -347,6 +641,7 @@ def main() -> None:
             if args.old_rev and (not large or args.old_large):
                 old = old_results[case] = run_case(case, Path(old_tree) / "src")
             print(_line(case, results[case], old), flush=True)
+        run_paths(repo / "src", Path(old_tree) / "src" if args.old_rev else None)
     small, seeds = results["sample-10k"], results["seeds-10k"]
     for scale in ("10k", "100k"):
         if f"process-{scale}" not in results:

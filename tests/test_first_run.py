@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import io
 import sys
+import threading
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -52,33 +54,57 @@ def test_the_sweep_command_says_which_executor_it_chose(tmp_path: Path) -> None:
     assert not (tmp_path / "bad").exists()
 
 
-class _Terminal(io.StringIO):
-    def isatty(self) -> bool:
-        return True
-
-
-def test_the_first_compile_is_announced_once_on_a_terminal(
+def test_a_long_first_compile_is_announced_once_even_on_a_pipe(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """numba's compile event (a cache miss) of a skymule kernel prints one line, once."""
+    """numba's compile event (a cache miss) of a skymule kernel that lasts longer than
+    COMPILE_NOTE_AFTER_S prints one line on stderr, piped or not, once; a quick one and
+    other packages' kernels say nothing."""
     numba = pytest.importorskip("numba", reason="the compiled engine is the `fast` extra")
+    from skymule.sim import compiled
     from skymule.sim.compiled import FIRST_COMPILE_NOTE, note_first_compile
 
     note_first_compile()  # what compiled.jit does before it compiles anything
+    # as in a process that has not said it yet (an earlier test's compile may have)
+    monkeypatch.setattr(compiled, "_COMPILE_NOTE_SAID", threading.Event())
 
     def kernel(x: float) -> float:
         return x + 1.0
 
     kernel.__module__ = "skymule.sim.kernels"  # as if it were one of ours
     other = numba.njit(cache=False)(lambda x: x * 2.0)
-    piped = io.StringIO()
+    piped = io.StringIO()  # not a terminal
     monkeypatch.setattr(sys, "stderr", piped)
+    monkeypatch.setattr(compiled, "COMPILE_NOTE_AFTER_S", 60.0)
     assert numba.njit(cache=False)(kernel)(1.0) == 2.0
-    assert piped.getvalue() == ""  # not on a pipe (as the progress bars)
+    assert piped.getvalue() == ""  # a quick compile: nothing to explain
 
-    terminal = _Terminal()
-    monkeypatch.setattr(sys, "stderr", terminal)
+    monkeypatch.setattr(compiled, "COMPILE_NOTE_AFTER_S", 0.0)  # every compile is "long"
+    assert other(1.0) == 2.0  # not ours: says nothing
+    assert piped.getvalue() == ""
     first = numba.njit(cache=False)(kernel)
     assert first(1.0) == 2.0 and first(1) == 2.0  # two compiles (two signatures)
-    assert other(1.0) == 2.0  # not ours: says nothing
-    assert terminal.getvalue().splitlines() == [FIRST_COMPILE_NOTE]
+    assert piped.getvalue().splitlines() == [FIRST_COMPILE_NOTE]
+
+
+def _report_launched(queue: Any) -> None:
+    from skymule.sim.compiled import _launched_here
+
+    queue.put(_launched_here())
+
+
+def test_only_the_process_the_user_started_announces_a_compile_on_a_pipe() -> None:
+    """A pool's worker that compiles says nothing on a piped stderr (N workers, one log)."""
+    import multiprocessing
+
+    from skymule.sim.compiled import _launched_here
+
+    assert _launched_here()
+    context = multiprocessing.get_context("spawn")
+    queue = context.Queue()
+    worker = context.Process(target=_report_launched, args=(queue,))
+    worker.start()
+    try:
+        assert queue.get(timeout=120) is False
+    finally:
+        worker.join(timeout=60)

@@ -12,6 +12,7 @@ Geofences are shapely polygons in the same local frame, loaded from a built-in n
 
 from __future__ import annotations
 
+import functools
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from importlib import resources
@@ -92,8 +93,10 @@ class Site:
         return next(p for p in self.points if p.kind == "launch")
 
 
+@functools.cache
 def load_site(name: str) -> Site:
-    """Load a built-in site by name (e.g. ``"lake-wheeler"``)."""
+    """Load a built-in site by name (e.g. ``"lake-wheeler"``); read once per process (a
+    site is immutable, and every mission built on it asks)."""
     if name not in BUILTIN_SITES:
         raise SkymuleError(
             f"site {name!r} is not built in; built-in sites: {', '.join(sorted(BUILTIN_SITES))}"

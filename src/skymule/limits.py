@@ -10,8 +10,6 @@ level; that is context, not a limit here).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 MAX_BUFFER_MBIT = 1e12
@@ -64,15 +62,25 @@ BUFFER_LIMIT = at_most(MAX_BUFFER_MBIT, "Mbit", "skymule's largest buffer")
 
 def waypoint_problem(points: np.ndarray) -> str | None:
     """What is wrong with (N, 3) waypoints ``[x_m, y_m, z_m]``, or None: finite, |x| and |y|
-    within :data:`MAX_COORDINATE_M`, z (above take-off) from 0 to :data:`MAX_ALTITUDE_M`."""
-    for index, point in enumerate(np.asarray(points, float).reshape(-1, 3)):
-        x_m, y_m, z_m = (float(v) for v in point)
-        for name, value in (("x_m", x_m), ("y_m", y_m)):
-            if not math.isfinite(value) or abs(value) > MAX_COORDINATE_M:
-                return f"waypoint {index + 1}: {name} = {value!r}: {COORDINATE_LIMIT}"
-        if not math.isfinite(z_m) or not 0 <= z_m <= MAX_ALTITUDE_M:
-            return (
-                f"waypoint {index + 1}: z_m = {z_m!r}: allowed: 0 (the take-off ground) to "
-                f"{MAX_ALTITUDE_M:g} m (above any UAV's ceiling; skymule's limit)"
+    within :data:`MAX_COORDINATE_M`, z (above take-off) from 0 to :data:`MAX_ALTITUDE_M`.
+
+    Checked over the whole array at once; the first bad waypoint (and, in it, the first bad of
+    x, y, z) is the one named."""
+    xyz = np.asarray(points, float).reshape(-1, 3)
+    with np.errstate(invalid="ignore"):
+        bad = np.column_stack(
+            (
+                ~(np.abs(xyz[:, :2]) <= MAX_COORDINATE_M),  # NaN compares False: bad too
+                ~((xyz[:, 2] >= 0) & (xyz[:, 2] <= MAX_ALTITUDE_M)),
             )
-    return None
+        )
+    if not bad.any():
+        return None
+    index, axis = divmod(int(np.argmax(bad.ravel())), 3)
+    value = float(xyz[index, axis])
+    if axis < 2:
+        return f"waypoint {index + 1}: {('x_m', 'y_m')[axis]} = {value!r}: {COORDINATE_LIMIT}"
+    return (
+        f"waypoint {index + 1}: z_m = {value!r}: allowed: 0 (the take-off ground) to "
+        f"{MAX_ALTITUDE_M:g} m (above any UAV's ceiling; skymule's limit)"
+    )

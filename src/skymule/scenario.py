@@ -482,10 +482,23 @@ def plugin_default_overrides(params: dict[str, Any], names: Sequence[str], owner
 
 
 def _pathloss_param_names() -> frozenset[str]:
-    return _param_names_of_models(tuple(kind.params for _, kind in PATHLOSS_MODELS.items()))
+    return _pathloss_names(len(PATHLOSS_MODELS))
 
 
 def _policy_param_names() -> frozenset[str]:
+    return _policy_names(len(POLICIES))
+
+
+# Registries only grow (``register``; nothing is removed or replaced), so their size keys
+# what was registered: a scenario's validation asks for these names a few times, and a sweep
+# validates thousands of scenarios against the same registries.
+@functools.lru_cache(maxsize=8)
+def _pathloss_names(count: int) -> frozenset[str]:
+    return _param_names_of_models(tuple(kind.params for _, kind in PATHLOSS_MODELS.items()))
+
+
+@functools.lru_cache(maxsize=8)
+def _policy_names(count: int) -> frozenset[str]:
     return _param_names_of_models(
         tuple(policy_params_model(policy) or BaseModel for policy in POLICIES.names())
     )

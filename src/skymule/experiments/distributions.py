@@ -5,6 +5,7 @@ Every draw comes from the numpy Generator the sweep hands in (seeded per combina
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -21,7 +22,11 @@ class Distribution:
     params: tuple[tuple[str, Any], ...]
 
     def draw(self, rng: np.random.Generator, size: int) -> list[Any]:
-        return DISTRIBUTIONS[self.name].draw(rng, dict(self.params), size)
+        return DISTRIBUTIONS[self.name].draw(rng, self._params, size)
+
+    @functools.cached_property
+    def _params(self) -> dict[str, Any]:  # a sweep draws once per mission: made once
+        return dict(self.params)
 
 
 @dataclass(frozen=True)

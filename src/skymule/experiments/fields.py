@@ -102,9 +102,13 @@ def canonical(value: Any) -> str:
     return json.dumps(value, sort_keys=True, separators=(",", ":"), default=str)
 
 
+def draw_hash(key: Any) -> int:
+    """The 64-bit number a combination ``key`` adds to the sweep seed (:func:`draw_seed`)."""
+    return int.from_bytes(hashlib.sha256(canonical(key).encode()).digest()[:8], "little")
+
+
 def draw_seed(seed: int, key: Any) -> np.random.Generator:
-    digest = hashlib.sha256(canonical(key).encode()).digest()
-    return np.random.default_rng([seed, int.from_bytes(digest[:8], "little")])
+    return np.random.default_rng([seed, draw_hash(key)])
 
 
 def column(key: str, index: int) -> str:

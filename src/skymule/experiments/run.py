@@ -24,6 +24,7 @@ import math
 import sys
 import tempfile
 import time
+from collections import OrderedDict
 from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, wait
 from dataclasses import dataclass, replace
@@ -37,12 +38,14 @@ import pandas as pd
 from skymule.errors import SkymuleError
 from skymule.experiments import store
 from skymule.experiments.executors import (
+    EXECUTORS,
     executor_slots,
     open_executor,
     sees_local_files,
     share,
     ship_modules,
 )
+from skymule.experiments.fields import column
 from skymule.experiments.sweep import (
     Axis,
     Expansion,
@@ -149,15 +152,33 @@ class _Item:
     key: Hashable
 
 
-def _per_mission(built: Mission, scenario: Scenario) -> Mission:
+@dataclass(frozen=True)
+class _Runs:
+    """A chunk's missions, validated, in chunk order, as columns: what the engine and the
+    rows need. ``scenarios[j]`` is mission j's scenario; its buffers are ``buffers_bit[j]``
+    (the scenario's own may be those of another mission with the same structure)."""
+
+    index: list[int]
+    mission_id: list[str]
+    params: dict[str, list[Any]]  # result columns of the axis values
+    scenarios: list[Scenario]
+    buffers_bit: list[np.ndarray]  # (N,) each
+    keys: list[Hashable]  # missions with one key share one built mission
+
+
+def _buffers_bit(scenario: Scenario) -> np.ndarray:
+    return np.array([s.buffer_mbit for s in scenario.sensors], float) * BITS_PER_MBIT
+
+
+def _per_mission(built: Mission, scenario: Scenario, buffers: np.ndarray | None = None) -> Mission:
     """The shared built mission with this mission's scenario, buffers and fading."""
-    buffers = np.array([s.buffer_mbit for s in scenario.sensors], float) * BITS_PER_MBIT
+    buffers = _buffers_bit(scenario) if buffers is None else buffers
     fading = built.fading_db
     if fading is not None:  # fading is on for every mission of this geometry: redraw it
         fading = mission_fading_db(scenario, built.n_slots, len(buffers))
     # faults follow the seed: drawn for this mission (None without [[faults]])
     faults = mission_faults(scenario, built.n_slots, built.sensor_names, built.slot_s)
-    return replace(built, scenario=scenario, buffers_bit=buffers, fading_db=fading, faults=faults)
+    return built.for_run(scenario, buffers, fading, faults)
 
 
 def run_chunk(tasks: Sequence[Task], base_dir: str) -> pd.DataFrame:
@@ -171,21 +192,21 @@ def run_chunk(tasks: Sequence[Task], base_dir: str) -> pd.DataFrame:
     return _run_items(items)
 
 
-def run_planned(resolve: Expansion, planned: Sequence[PlannedMission]) -> pd.DataFrame:
+def run_planned(
+    resolve: Expansion, planned: Sequence[PlannedMission], sweep: bytes | None = None
+) -> pd.DataFrame:
     """Run a chunk of planned missions (in a worker): each is resolved and validated here once.
 
-    The worker gets the base scenario once (``resolve``) and each mission as its axis values.
+    The worker gets the base scenario once (``resolve``) and each mission as its axis values;
+    ``sweep`` (the plan's id prefix) lets it reuse the missions it built for earlier chunks
+    of the same sweep. Missions that differ only in their buffers, seed and name share one
+    validated scenario (:func:`_chunk_runs`); a value those checks do not pass sends the chunk
+    through the full validation of each mission, which names the first bad mission as it
+    always did.
     """
-    geometric = [i for i, axis in enumerate(resolve.axes) if not _shares_geometry(axis)]
-    items = []
-    for mission in planned:
-        scenario = resolve.validate(mission)
-        key: tuple[Any, ...] = tuple(repr(mission.values[i]) for i in geometric)
-        if _needs_seed(scenario):
-            key = (*key, scenario.seed)
-        params = resolve.params(mission.values)
-        items.append(_Item(mission.index, mission.mission_id, params, scenario, key))
-    return _run_items(items)
+    runs = _chunk_runs(resolve, planned)
+    identity = None if sweep is None else (sweep, resolve.base_dir)
+    return _run(runs if runs is not None else _validated_runs(resolve, planned), identity)
 
 
 def run_range(
@@ -201,44 +222,292 @@ def run_range(
     if skip is not None and skip.size:
         stored = set(skip.tolist())
         missions = [m for m in missions if m.index not in stored]
-    frame = run_planned(plan.resolve, list(missions))
+    frame = run_planned(plan.resolve, list(missions), plan.prefix)
     if out is None:
         return len(frame), store.part_bytes(frame)
     store.write_part(Path(out), frame)
     return len(frame), None
 
 
+def _validated_runs(resolve: Expansion, planned: Sequence[PlannedMission]) -> _Runs:
+    """Each mission resolved and validated in full (its one-line error names it)."""
+    geometric = [i for i, axis in enumerate(resolve.axes) if not _shares_geometry(axis)]
+    scenarios: list[Scenario] = []
+    keys: list[Hashable] = []
+    for mission in planned:
+        scenario = resolve.validate(mission)
+        key: tuple[Any, ...] = tuple(repr(mission.values[i]) for i in geometric)
+        if _needs_seed(scenario):
+            key = (*key, scenario.seed)
+        scenarios.append(scenario)
+        keys.append(key)
+    return _Runs(
+        [m.index for m in planned],
+        [m.mission_id for m in planned],
+        param_columns(resolve, [m.values for m in planned]),
+        scenarios,
+        [_buffers_bit(s) for s in scenarios],
+        keys,
+    )
+
+
+def _array_field(axis: Axis) -> str | None:
+    """The field an axis sets that changes nothing a mission is built or validated from but
+    itself: a sensor's ``buffer_mbit``, the ``seed`` or the ``name`` (None: another field)."""
+    if axis.key in ("seed", "name"):
+        return axis.key
+    path = axis.path
+    if len(path) == 3 and path[0] == "sensors" and path[2] == "buffer_mbit":
+        return "buffer_mbit"
+    return None
+
+
+def _field_info(field: str) -> Any:
+    from skymule.scenario import Scenario, SensorSpec
+
+    return (SensorSpec if field == "buffer_mbit" else Scenario).model_fields[field]
+
+
+def allowed_values(values: Sequence[Any], field: str) -> bool:
+    """True when every one of ``values`` passes the scenario's check of ``field``
+    (``buffer_mbit``, ``seed`` or ``name``): its strict type, finite, and its bounds, read
+    from the scenario model itself; checked over an array at once. False may also mean
+    "not sure" (a huge integer): the caller then validates each mission in full."""
+    import annotated_types as at
+
+    info = _field_info(field)
+    types = {type(v) for v in values}
+    if info.annotation is str:
+        return types <= {str}
+    if not types <= ({int} if info.annotation is int else {int, float}):
+        return False  # bool, str, numpy scalars, lists: the full check says what is wrong
+    try:
+        array = np.asarray(values, float)
+    except OverflowError:
+        return False
+    ok = np.isfinite(array)
+    for bound in info.metadata:
+        if isinstance(bound, at.Ge):
+            ok &= array >= bound.ge
+        elif isinstance(bound, at.Gt):
+            ok &= array > bound.gt
+        elif isinstance(bound, at.Le):
+            ok &= array <= bound.le
+        elif isinstance(bound, at.Lt):
+            ok &= array < bound.lt
+        else:
+            return False
+    return bool(ok.all())
+
+
+def _chunk_runs(resolve: Expansion, planned: Sequence[PlannedMission]) -> _Runs | None:
+    """The chunk's missions with one validated scenario per structure (the values of every
+    axis but the buffer, seed and name axes) and those axes' values checked over arrays,
+    each once; None when a value fails a check (the full validation then names it)."""
+    fields = [_array_field(axis) for axis in resolve.axes]
+    structural = [i for i, field in enumerate(fields) if field is None]
+    values = [m.values for m in planned]
+    for i, field in enumerate(fields):
+        if field is None:
+            continue
+        column_ = [v[i] for v in values]
+        if resolve.counts[i] is not None and resolve.axes[i].dist is not None:
+            column_ = [x for drawn in column_ for x in drawn]
+        if not allowed_values(column_, field):
+            return None
+    groups: dict[tuple[str, ...], list[int]] = {}
+    for j, v in enumerate(values):
+        groups.setdefault(tuple(repr(v[i]) for i in structural), []).append(j)
+    geometric = [i for i in structural if not _shares_geometry(resolve.axes[i])]
+    scenarios: list[Any] = [None] * len(planned)
+    buffers: list[Any] = [None] * len(planned)
+    keys: list[Hashable] = [None] * len(planned)
+    for members in groups.values():
+        try:
+            structure = resolve.validate(planned[members[0]])
+        except SkymuleError:
+            return None
+        group = _group_values(resolve, fields, structure, [values[j] for j in members])
+        if group is None:
+            return None
+        bits, seeds, names = group
+        key = tuple(repr(values[members[0]][i]) for i in geometric)
+        by_seed = _needs_seed(structure)
+        for row, j in enumerate(members):
+            seed, name = seeds[row], names[row]
+            scenario = structure
+            if seed != structure.seed or name != structure.name:
+                scenario = structure.model_copy(update={"seed": seed, "name": name})
+            scenarios[j] = scenario
+            buffers[j] = bits[row]
+            keys[j] = (*key, seed) if by_seed else key
+    return _Runs(
+        [m.index for m in planned],
+        [m.mission_id for m in planned],
+        param_columns(resolve, values),
+        scenarios,
+        buffers,
+        keys,
+    )
+
+
+def _group_values(
+    resolve: Expansion,
+    fields: Sequence[str | None],
+    structure: Scenario,
+    values: Sequence[Sequence[Any]],
+) -> tuple[np.ndarray, list[int], list[str]] | None:
+    """(M, N) buffers [bit], seeds and names of missions sharing ``structure``: its own
+    values with the buffer, seed and name axes applied in axis order (None: an axis does not
+    fit its sensors; the full validation says how)."""
+    n = len(structure.sensors)
+    mbit = np.repeat(
+        np.array([[s.buffer_mbit for s in structure.sensors]], float), len(values), axis=0
+    )
+    seeds = [structure.seed] * len(values)
+    names = [structure.name] * len(values)
+    for i, field in enumerate(fields):
+        if field is None:
+            continue
+        column_ = [v[i] for v in values]
+        if field == "seed":
+            seeds = column_
+        elif field == "name":
+            names = column_
+        else:
+            sensor = resolve.axes[i].path[1]
+            if sensor == "*":
+                if resolve.counts[i] != n:
+                    return None
+                drawn = resolve.axes[i].dist is not None
+                mbit[:] = np.array(column_, float) if drawn else np.array(column_, float)[:, None]
+            elif isinstance(sensor, int) and sensor < n:
+                mbit[:, sensor] = column_
+            else:
+                return None
+    return mbit * BITS_PER_MBIT, seeds, names
+
+
+def param_columns(resolve: Expansion, values: Sequence[Sequence[Any]]) -> dict[str, list[Any]]:
+    """The result columns of the axis values of missions (``sensors[*]`` axes get one column
+    per sensor; lists and tables as JSON): :meth:`Expansion.params`, column by column."""
+    columns: dict[str, list[Any]] = {}
+    for i, (axis, count) in enumerate(zip(resolve.axes, resolve.counts, strict=True)):
+        column_ = [v[i] for v in values]
+        if count is None:
+            columns[axis.key] = _param_column(column_)
+        elif axis.values is not None:
+            for k in range(count):
+                columns[column(axis.key, k)] = _param_column(column_)
+        else:
+            for k in range(count):
+                columns[column(axis.key, k)] = _param_column([drawn[k] for drawn in column_])
+    return columns
+
+
+def _param_column(values: list[Any]) -> list[Any]:
+    if any(issubclass(kind, list | dict) for kind in set(map(type, values))):
+        return [_param_value(v) for v in values]
+    return values
+
+
 def _run_items(items: Sequence[_Item]) -> pd.DataFrame:
     """Build each geometry once, run every mission through the engine in batches, summarise
     every row."""
+    params = [item.params for item in items]
+    names = list(dict.fromkeys(k for p in params for k in p))
+    return _run(
+        _Runs(
+            [item.index for item in items],
+            [item.mission_id for item in items],
+            {k: [_param_value(p[k]) if k in p else None for p in params] for k in names},
+            [item.scenario for item in items],
+            [_buffers_bit(item.scenario) for item in items],
+            [item.key for item in items],
+        )
+    )
+
+
+#: Missions built by this process's last chunks, by (sweep, geometry key): the next chunk of
+#: the same sweep reuses them (a build is milliseconds; a chunk is a few hundred missions).
+_BUILT: OrderedDict[tuple[Hashable, Hashable], Mission] = OrderedDict()
+_BUILT_KEEP = 8
+
+
+def _keep_built(key: tuple[Hashable, Hashable], mission: Mission) -> None:
+    _BUILT[key] = mission
+    _BUILT.move_to_end(key)
+    while len(_BUILT) > _BUILT_KEEP:
+        _BUILT.popitem(last=False)
+
+
+def _run(runs: _Runs, sweep: Hashable = None) -> pd.DataFrame:
+    """Build each geometry once, run every mission through the engine in batches, one row
+    per mission (written as columns). ``sweep``: what identifies the sweep, whose chunks'
+    keys name the same geometries (its built missions are then kept for its next chunks)."""
     from skymule.sim.run import summarize_missions
     from skymule.world import build_mission
 
     built: dict[Hashable, Mission] = {}
     missions: list[Mission] = []
-    for item in items:
-        shared = built.get(item.key)
+    for scenario, key, buffers in zip(runs.scenarios, runs.keys, runs.buffers_bit, strict=True):
+        shared = built.get(key)
+        if shared is None and sweep is not None:
+            shared = _BUILT.get((sweep, key))
         if shared is None:
-            shared = build_mission(item.scenario)
+            shared = build_mission(scenario)
             if shared.track is not None:
                 # the track holds the SNR; a shadowing field (tens of MB) is not kept per mission
                 shared = replace(shared, source=None)
-            if shared.track is not None or not _needs_seed(item.scenario):
-                built[item.key] = shared
-        missions.append(_per_mission(shared, item.scenario))
+            if shared.track is not None or not _needs_seed(scenario):
+                built[key] = shared
+                if sweep is not None:
+                    _keep_built((sweep, key), shared)
+        missions.append(_per_mission(shared, scenario, buffers))
     summaries = summarize_missions(
-        missions,
-        [item.scenario.policy for item in items],
-        [item.scenario.name for item in items],
+        missions, [s.policy for s in runs.scenarios], [s.name for s in runs.scenarios]
     )
-    rows = []
-    for item, summary in zip(items, summaries, strict=True):
-        assert summary is not None
-        row = {"mission_index": item.index, "mission_id": item.mission_id}
-        row.update({k: _param_value(v) for k, v in item.params.items()})
-        row.update(_flat_summary(summary))
-        rows.append(row)
-    return pd.DataFrame(rows)
+    columns: dict[str, list[Any]] = {"mission_index": runs.index, "mission_id": runs.mission_id}
+    columns.update(runs.params)
+    flat = _summary_columns(summaries)
+    if flat is None:  # missions whose summaries differ in shape (other sensors): row by row
+        rows = [_flat_summary(summary) for summary in summaries]
+        flat = {k: [row.get(k) for row in rows] for k in dict.fromkeys(k for r in rows for k in r)}
+    columns.update(flat)
+    return pd.DataFrame(columns)
+
+
+def _summary_columns(summaries: Sequence[dict[str, Any]]) -> dict[str, list[Any]] | None:
+    """:func:`_flat_summary` of every summary, column by column; None when the summaries do
+    not all have the same keys (and sensor names)."""
+    if not summaries:
+        return {}
+    first = summaries[0]
+    keys = first.keys()
+    nested = [k for k, v in first.items() if isinstance(v, dict)]
+    for summary in summaries:
+        if summary.keys() != keys:
+            return None
+        for k in nested:
+            value = summary[k]
+            if not isinstance(value, dict) or value.keys() != first[k].keys():
+                return None
+    columns: dict[str, list[Any]] = {}
+    for key in keys:
+        values = [summary[key] for summary in summaries]
+        if key in nested:
+            for name in first[key]:
+                columns[f"{key}.{name}"] = [value[name] for value in values]
+            continue
+        kinds = set(map(type, values))
+        if any(issubclass(k, dict | list | tuple) for k in kinds):  # one test per type
+            if any(issubclass(k, dict) for k in kinds):
+                return None
+            values = [
+                ",".join(str(x) for x in v) if isinstance(v, list | tuple) else v for v in values
+            ]
+        columns[key] = values
+    return columns
 
 
 def policy_modules(spec: SweepSpec) -> list[str]:
@@ -363,6 +632,9 @@ def run_sweep(
         plan = sweep_plan(spec)
         n_run = 0
         total = len(plan)
+        if found.count >= total:  # a finished sweep: no cluster or pool started to run none
+            EXECUTORS.get(executor)  # (a wrong name is still the one-line error)
+            executor, scheduler = "inprocess", None
         with (
             open_executor(executor, workers, scheduler, WORKER_MODULES) as pool,
             _progress(progress, total, found.count) as advance,

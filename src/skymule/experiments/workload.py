@@ -4,9 +4,9 @@ that finishes it sooner: ``skymule sweep --executor auto`` (the default).
 A ``process`` pool pays for starting its workers (each imports skymule and loads the compiled
 engine: ~2 s) and then divides the work by the number of workers. It finishes sooner than
 ``inprocess`` only when the work W (seconds in one process) exceeds
-``WORKER_START_S * n / (n - 1)``: ~4 s on two cores. The docs/sweeps.md example is
-~0.4 s of work and ran 2-4x slower under ``process``; a 100,000-mission sweep is ~40 s and runs
-~1.9x faster (``benchmarks/bench_sweep.py``).
+``WORKER_START_S * n / (n - 1)``: ~4 s on two cores, ~27,000 fixed-path missions. The
+docs/sweeps.md 1,000-mission example is ~0.15 s of work and ran 2-4x slower under ``process``
+(``benchmarks/bench_sweep.py``: ``process-10k`` against ``sample-10k``).
 
 The work is the number of missions times a cost per mission that depends on how the mission
 runs: fixed-path Greedy and HGAD in the batched compiled loop, autonomous Greedy and HGAD in
@@ -22,8 +22,10 @@ import math
 
 from skymule.experiments.sweep import SweepSpec
 
-SECONDS_PER_MISSION = {"fixed-batched": 4e-4, "autonomous-batched": 2e-2, "one-at-a-time": 0.15}
-"""CPU seconds per 500-slot mission in one process, by how the mission runs."""
+SECONDS_PER_MISSION = {"fixed-batched": 1.5e-4, "autonomous-batched": 2e-2, "one-at-a-time": 0.15}
+"""CPU seconds per 500-slot mission in one process, by how the mission runs (fixed-batched:
+``bench_sweep.py``'s ``sample-10k``, 138 us a mission with the sweep's own costs, since the
+sweep builds missions rather than scenarios; it was 4e-4)."""
 
 REFERENCE_SLOTS = 500
 """Slots of the missions :data:`SECONDS_PER_MISSION` was measured on."""

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import json
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -168,6 +169,11 @@ def make_policy(spec: PolicySpec) -> Policy | BatchPolicy:
     return checked.check(target(spec) if _takes_argument(target) else target())
 
 
+def _content(params: dict[str, Any]) -> str:
+    """A ``[policy.params]`` table as text, equal for equal tables (key order aside)."""
+    return json.dumps(params, sort_keys=True, default=repr)
+
+
 def batch_policy(specs: Sequence[PolicySpec]) -> BatchPolicy:
     """One batched policy for B missions, mission b under ``specs[b]``.
 
@@ -176,20 +182,28 @@ def batch_policy(specs: Sequence[PolicySpec]) -> BatchPolicy:
     policy one instance per mission (:class:`PerMission`). Several of these side by side are
     :class:`Columns`.
     """
-    groups: dict[Any, list[int]] = {}
-    params: list[Any] = []
-    # sweeps repeat a few spec objects many times: (parameters, group key) once per object
-    cache: dict[int, tuple[Any, Any]] = {}
-    for index, spec in enumerate(specs):
-        if id(spec) not in cache:
+    # sweeps repeat a few spec objects many times: each distinct object read once, each
+    # distinct content validated once, and missions grouped by content, never by object
+    ids = list(map(id, specs))  # specs is held: an id is not reused meanwhile
+    by_content: dict[tuple[str, str], tuple[Any, Any]] = {}
+    by_object: dict[int, tuple[Any, Any]] = {}
+    for ident, spec in dict(zip(ids, specs, strict=True)).items():
+        content = (spec.name, _content(spec.params))
+        if content not in by_content:
             learned = spec.name.startswith(LEARNED_PREFIX)
             validated = None if learned else spec.policy_params()
             batched = ":" not in spec.name and POLICIES.meta(spec.name, "batch", None) is not None
-            own = repr(validated) if validated is not None else id(spec)
-            cache[id(spec)] = (validated, spec.name if batched else (spec.name, own))
-        validated, key = cache[id(spec)]
-        params.append(validated)
-        groups.setdefault(key, []).append(index)
+            own = repr(validated) if validated is not None else content[1]
+            by_content[content] = (validated, spec.name if batched else (spec.name, own))
+        by_object[ident] = by_content[content]
+    params: list[Any] = [by_object[ident][0] for ident in ids]
+    keys = [by_object[ident][1] for ident in ids]
+    groups: dict[Any, list[int]] = {}
+    if len(set(keys)) == 1:
+        groups[keys[0]] = list(range(len(keys)))
+    else:
+        for index, key in enumerate(keys):
+            groups.setdefault(key, []).append(index)
     parts: list[tuple[BatchPolicy, Any]] = []
     for key, cols in groups.items():
         first = specs[cols[0]]

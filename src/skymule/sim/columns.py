@@ -10,6 +10,7 @@ run record both write (:func:`flights_record`).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from operator import attrgetter
 from typing import Any
 
 import numpy as np
@@ -121,8 +122,8 @@ def mission_geometry(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """What the summaries need of each mission besides its slots: home (B, 2) [m] (NaN: none),
     hover points (B, N, 2) [m] (NaN: unknown), visit radius (B,) [m], AADM window (B,) [s]."""
-    home = _rows_by_object([m.home_m for m in missions], (2,))
-    hover = _rows_by_object([m.hover_points_m for m in missions], (n_sensors, 2))
+    home = _rows_by_object(list(map(attrgetter("home_m"), missions)), (2,))
+    hover = _rows_by_object(list(map(attrgetter("hover_points_m"), missions)), (n_sensors, 2))
     radius = np.array([m.visit_radius_m for m in missions], float)
     window = np.array([m.score_window_s for m in missions], float)
     return home, hover, radius, window
@@ -130,12 +131,13 @@ def mission_geometry(
 
 def _rows_by_object(values: Sequence[np.ndarray | None], shape: tuple[int, ...]) -> np.ndarray:
     """(B, *shape) array of ``values`` (None: NaN), each distinct array object copied once:
-    missions built from one geometry share these arrays."""
-    first: dict[int, int] = {}
-    which = np.array([first.setdefault(id(v), len(first)) for v in values], np.int64)
+    missions built from one geometry share these arrays. Grouped by object over an array of
+    their ids (no Python per mission: a sweep's batch is thousands of missions)."""
+    ids = np.fromiter(map(id, values), np.int64, len(values))
+    _, first, which = np.unique(ids, return_index=True, return_inverse=True)
     distinct = np.full((len(first), *shape), np.nan)
-    for row in np.unique(which, return_index=True)[1]:
-        value = values[row]
+    for row, index in enumerate(first.tolist()):
+        value = values[index]
         if value is not None:
-            distinct[which[row]] = value
-    return distinct[which]
+            distinct[row] = value
+    return distinct[which.reshape(-1)]

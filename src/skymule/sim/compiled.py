@@ -28,6 +28,8 @@ import hashlib
 import importlib.util
 import inspect
 import sys
+import threading
+import time
 import types
 from collections.abc import Callable
 from functools import cache
@@ -296,27 +298,67 @@ FIRST_COMPILE_NOTE = (
 )
 
 
+COMPILE_NOTE_AFTER_S = 1.0
+"""A compile of a skymule kernel that lasts longer than this [s] is announced (once)."""
+
+_COMPILE_NOTE_SAID = threading.Event()
+"""Set once :data:`FIRST_COMPILE_NOTE` has been printed in this process."""
+_COMPILE_NOTE_LOCK = threading.Lock()
+
+
+def _launched_here() -> bool:
+    """True in the process the user started; False in a worker it started (a process pool's
+    or dask-local's), whose piped stderr is the user's too: a worker says it on a terminal
+    only, so N workers compiling at once do not add N lines to a piped log."""
+    import multiprocessing
+
+    return multiprocessing.parent_process() is None
+
+
 @cache
 def note_first_compile() -> None:
-    """Once per process: have numba's compile event (fired on a cache miss only: a new
-    installation, or a changed rule) print :data:`FIRST_COMPILE_NOTE` on stderr the first
-    time a skymule kernel compiles, so a first run's pause is explained. Only on a terminal
-    (as the progress bars); each process that compiles says it for itself."""
+    """Once per process: when numba compiles a skymule kernel (its compile event fires on a
+    cache miss only: a new installation, a changed rule, a new signature) for longer than
+    :data:`COMPILE_NOTE_AFTER_S`, print :data:`FIRST_COMPILE_NOTE` on stderr, terminal or
+    pipe alike (a worker process: on a terminal only, see :func:`_launched_here`), so a first
+    run's pause is explained; a quick compile says nothing. The line comes while the compile
+    runs (a timer), or as it ends if the timer could not run."""
     from numba.core import event
 
     class FirstCompileNote(event.Listener):
         def __init__(self) -> None:
-            self.said = False
+            self.depth = 0  # compiles nest (a kernel compiles the kernels it calls)
+            self.started = 0.0
+            self.timer: threading.Timer | None = None
+
+        def say(self) -> None:
+            with _COMPILE_NOTE_LOCK:
+                if _COMPILE_NOTE_SAID.is_set():
+                    return
+                _COMPILE_NOTE_SAID.set()
+            if _launched_here() or sys.stderr.isatty():
+                print(FIRST_COMPILE_NOTE, file=sys.stderr, flush=True)
 
         def on_start(self, happened: event.Event) -> None:
             function = getattr(happened.data.get("dispatcher"), "py_func", None)
             ours = getattr(function, "__module__", "").startswith("skymule.")
-            if ours and not self.said and sys.stderr.isatty():
-                self.said = True
-                print(FIRST_COMPILE_NOTE, file=sys.stderr, flush=True)
+            if _COMPILE_NOTE_SAID.is_set() or (self.depth == 0 and not ours):
+                return
+            self.depth += 1
+            if self.depth == 1:
+                self.started = time.perf_counter()
+                self.timer = threading.Timer(COMPILE_NOTE_AFTER_S, self.say)
+                self.timer.daemon = True
+                self.timer.start()
 
         def on_end(self, happened: event.Event) -> None:
-            return None
+            if self.depth == 0:
+                return
+            self.depth -= 1
+            if self.depth == 0 and self.timer is not None:
+                self.timer.cancel()
+                if time.perf_counter() - self.started > COMPILE_NOTE_AFTER_S:
+                    self.say()
 
     event.register("numba:compile", FirstCompileNote())
 

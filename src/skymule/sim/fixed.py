@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from operator import attrgetter
 from typing import Any
 
 import numpy as np
@@ -78,17 +79,22 @@ def stack_tracks(missions: Sequence[Mission]) -> TrackTables:
     """Each distinct (track, rate table, bandwidth) of ``missions`` once, every flight pointing
     at one (missions of a sweep share one built track)."""
     n = missions[0].n_sensors
-    keys: dict[tuple[int, int, float], int] = {}
-    unique: list[Mission] = []
-    track_id = np.empty(len(missions), np.int64)
-    for b, mission in enumerate(missions):
-        if mission.track is None:
-            raise SkymuleError("the fixed-trajectory engine needs trajectory.mode = 'fixed'")
-        key = (id(mission.track), id(mission.rate_table), mission.bandwidth_hz)
-        if key not in keys:
-            keys[key] = len(unique)
-            unique.append(mission)
-        track_id[b] = keys[key]
+    found = list(map(attrgetter("track"), missions))
+    if None in found:
+        raise SkymuleError("the fixed-trajectory engine needs trajectory.mode = 'fixed'")
+    # (track, rate table, bandwidth) of each flight as an array row, grouped by numpy: no
+    # Python per flight (a sweep's batch is thousands of flights over a few tracks)
+    size = len(missions)
+    keys = np.empty((size, 3), np.int64)
+    keys[:, 0] = np.fromiter(map(id, found), np.int64, size)
+    keys[:, 1] = np.fromiter(map(id, map(attrgetter("rate_table"), missions)), np.int64, size)
+    keys[:, 2] = np.fromiter(map(attrgetter("bandwidth_hz"), missions), float, size).view(np.int64)
+    _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)  # tracks in order of first appearance, as flights name them
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    track_id = rank[inverse.reshape(-1)]
+    unique: list[Mission] = [missions[i] for i in first[order].tolist()]
     tracks: list[Track] = [m.track for m in unique if m.track is not None]
     k_max = max(t.n_samples for t in tracks) + 1
     rate = np.zeros((len(unique), k_max, n))

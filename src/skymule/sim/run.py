@@ -130,7 +130,7 @@ def summarize_missions(
         policy = batch_policy([specs[i] for i in part])
         names = [scenario_names[i] for i in part]
         dicts: list[dict[str, Any]]
-        if chosen[0].mode == "fixed" and engine != "numpy":
+        if chosen[0].mode == "fixed" and engine != "numpy" and _may_have_rule(policy):
             fixed = FixedEngine(chosen, detail=False)
             policy.reset(fixed.contexts())
             rule = getattr(policy, "slot_rule", lambda: None)()
@@ -161,3 +161,13 @@ def summarize_missions(
         for i, row in zip(part, dicts, strict=True):
             rows[i] = row
     return [row for row in rows if row is not None]
+
+
+def _may_have_rule(policy: Any) -> bool:
+    """False when ``policy`` has no compiled twin whatever its reset (no ``slot_rule``, or a
+    :class:`~skymule.policies.batched.Columns` with a part without one): it then goes to the
+    slot loop directly, reset once, not first for a rule it cannot have."""
+    parts = getattr(policy, "parts", None)
+    if parts is not None:
+        return all(hasattr(part, "slot_rule") for part, _ in parts)
+    return hasattr(policy, "slot_rule")

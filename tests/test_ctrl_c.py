@@ -36,7 +36,9 @@ seed = { range = [0, 200] }
 
 
 @contextlib.contextmanager
-def _group(args: list[str], cwd: Path) -> Iterator[subprocess.Popen[str]]:
+def _group(
+    args: list[str], cwd: Path, env: dict[str, str] | None = None
+) -> Iterator[subprocess.Popen[str]]:
     """A process in a session of its own; the whole group is killed however the test ends."""
     process = subprocess.Popen(
         args,
@@ -45,6 +47,7 @@ def _group(args: list[str], cwd: Path) -> Iterator[subprocess.Popen[str]]:
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        env=env,
     )
     try:
         yield process
@@ -71,6 +74,9 @@ def _signal_group(pid: int, how: str) -> None:
     ("executor", "how"),
     [
         ("process", "ctrl-c"),
+        # a fresh clone's first sweep: the workers compile (numba's LLVM callbacks printed
+        # "Exception ignored ... KeyboardInterrupt" when a worker took the Ctrl-C itself)
+        ("process", "ctrl-c-compiling"),
         ("process", "sigterm"),
         ("dask-local", "ctrl-c"),
         ("dask-local", "ctrl-c-twice"),
@@ -89,7 +95,11 @@ def test_ctrl_c_prints_one_line_and_the_resume_command(
     # ignored signal is inherited)
     start = "import signal; signal.signal(signal.SIGINT, signal.default_int_handler); "
     command = [sys.executable, "-c", start + "from skymule.cli import main; main()", *args]
-    with _group([*command, "--chunk-size", "20"], tmp_path) as sweep:
+    env = None
+    if how.endswith("-compiling"):
+        env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba-cache")}
+        how = how.removesuffix("-compiling")
+    with _group([*command, "--chunk-size", "20"], tmp_path, env) as sweep:
         deadline = time.monotonic() + 240  # a loaded machine starts a cluster slowly
         while not list((out / "results").glob("part-*.parquet")):
             if sweep.poll() is not None:

@@ -72,6 +72,23 @@ def test_a_lock_dies_with_its_process(tmp_path):
     assert not (out / store.HOLDER).exists()
 
 
+def test_a_part_a_killed_worker_was_writing_is_removed_and_run_again(tmp_path):
+    # Ctrl-C ends a process pool's workers with SIGTERM (no clean-up runs), so the part a
+    # worker was writing stays under its temporary name until the sweep is resumed
+    spec = load_sweep(write(tmp_path, SMALL.format(n=2)))
+    out = tmp_path / "out"
+    (out / store.PARTS).mkdir(parents=True)
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)  # fmt: skip
+    stale = out / store.PARTS / f".part-000000.parquet.{dead.stdout.strip()}.0123456789ab.tmp"
+    stale.write_bytes(b"half a part")
+    mine = out / store.PARTS / f".part-000004.parquet.{os.getpid()}.0123456789ab.tmp"
+    mine.write_bytes(b"a live writer's")
+    outcome = run_sweep(spec, out, executor="inprocess", progress=False)
+    assert outcome.n_run == len(spec) == 8
+    assert not stale.exists() and mine.exists()  # a live writer's file is not touched
+
+
 def test_a_damaged_part_is_named_set_aside_and_its_missions_run_again(tmp_path, capsys):
     spec = load_sweep(write(tmp_path, SMALL.format(n=5)))  # 20 missions
     out = tmp_path / "out"

@@ -29,7 +29,6 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
-from types import FrameType
 from typing import Any
 
 from skymule.errors import SkymuleError
@@ -93,22 +92,6 @@ def start_worker(parent_pid: int, modules: tuple[str, ...]) -> None:
     exit_with_parent(parent_pid)
     for module in modules:
         importlib.import_module(module)
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, _interrupt_a_running_chunk)
-
-
-def _interrupt_a_running_chunk(number: int, frame: FrameType | None) -> None:
-    """A pool worker's Ctrl-C (a terminal sends it to the whole process group).
-
-    A chunk being run stops at once: its ``KeyboardInterrupt`` removes the temporary file it
-    was writing, and the pool hands it to the sweep process, which prints the one line. A
-    worker waiting for work ignores it: interrupted there, multiprocessing prints the
-    traceback of the wait. The worker's stack tells the two apart (a chunk runs skymule code).
-    """
-    while frame is not None:
-        if frame.f_globals.get("__name__", "").startswith("skymule."):
-            raise KeyboardInterrupt
-        frame = frame.f_back
 
 
 @contextmanager
@@ -116,6 +99,7 @@ def _process(
     workers: int | None, scheduler: str | None, warm: tuple[str, ...] = ()
 ) -> Iterator[Executor]:
     context = multiprocessing.get_context("spawn")
+    others = set(multiprocessing.active_children())
     with ProcessPoolExecutor(
         workers or default_workers(),
         mp_context=context,
@@ -123,13 +107,28 @@ def _process(
         initargs=(os.getpid(), warm),
     ) as executor:
         # A spawn pool starts a worker at each submit until it has them all: start them all
-        # now, deaf to Ctrl-C (inherited) until their imports are done and
-        # _interrupt_a_running_chunk takes over; a Ctrl-C in a worker's start-up or imports
-        # would print its traceback
+        # now, deaf to Ctrl-C for good (an ignored SIGINT is inherited)
         with _workers_deaf_to_ctrl_c():
             for _ in range(workers or default_workers()):
                 executor.submit(os.getpid)
-        yield executor
+        try:
+            yield executor
+        except KeyboardInterrupt:
+            _stop_workers(set(multiprocessing.active_children()) - others)
+            raise
+
+
+def _stop_workers(workers: set[Any]) -> None:
+    """Ctrl-C or SIGTERM: end the pool's workers at once, in silence (SIGTERM, whose default
+    action runs no Python). A worker interrupted by SIGINT itself prints tracebacks: of its
+    wait for work, of its imports, or from inside a compile (numba's LLVM callbacks report an
+    interrupt as "Exception ignored"); the chunk it ran is not stored (a part is written
+    under a temporary name, which the next sweep on the folder removes) and runs again on
+    resume."""
+    for worker in workers:
+        worker.terminate()
+    for worker in workers:
+        worker.join(timeout=10)
 
 
 class DaskExecutor(Executor):

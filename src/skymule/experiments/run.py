@@ -55,6 +55,7 @@ from skymule.experiments.sweep import (
     expansion,
     sweep_plan,
 )
+from skymule.io import atomic
 from skymule.metrics.summary import per_sensor_column
 from skymule.radio.channel import mission_fading_db
 from skymule.units import BITS_PER_MBIT
@@ -622,6 +623,8 @@ def run_sweep(
     start = time.perf_counter()
     with store.locked(out):
         store.claim(out, spec.digest, spec.source)
+        # parts a killed worker or sweep was writing (temporary names): run again below
+        atomic.remove_stale_temporaries(out / store.PARTS)
         found = store.scan(out, set_aside=True)
         for path in found.damaged:
             print(

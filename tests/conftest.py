@@ -177,3 +177,43 @@ def tiny_scenario(folder: Path, policy: str, params: str = "", name: str = "shar
         f"[policy]\nname = {json.dumps(policy)}\n{params}"
     )
     return path
+
+
+AUTONOMOUS_TRAJECTORY = """[trajectory]
+mode = "autonomous"
+altitude_m = 30.0
+max_speed_mps = 10.0
+"""
+
+
+def two_towers(
+    name: str,
+    duration_s: float,
+    buffers_mbit: tuple[float, float],
+    trajectory: str = AUTONOMOUS_TRAJECTORY,
+    policy: str = "hgad",
+) -> str:
+    """A small Lake Wheeler scenario (TOML) with two of its towers, LW1 and LW3: the AADM
+    tests' mission, short enough to fly over loopback in seconds."""
+    lw1, lw3 = buffers_mbit
+    return f"""name = "{name}"
+[mission]
+duration_s = {duration_s}
+[site]
+origin = {{ lat = 35.7274824, lon = -78.6962749 }}
+geofence = "lake-wheeler"
+[[sensors]]
+name = "LW1"
+lat = 35.727451
+lon = -78.695974
+height_m = 10.0
+buffer_mbit = {lw1}
+[[sensors]]
+name = "LW3"
+lat = 35.724933
+lon = -78.691912
+height_m = -0.23
+buffer_mbit = {lw3}
+{trajectory}[policy]
+name = "{policy}"
+"""

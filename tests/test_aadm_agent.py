@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import preset_mission, run_cli
+from conftest import preset_mission, run_cli, two_towers
 from skymule.aadm import files
 from skymule.aadm.agent import AadmAgent
 from skymule.aadm.comm import run_comm
@@ -26,38 +26,11 @@ from skymule.world import build_mission
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 
-SMALL = """
-name = "aadm-small"
-[mission]
-duration_s = 60
-[site]
-origin = {{ lat = 35.7274824, lon = -78.6962749 }}
-geofence = "lake-wheeler"
-[[sensors]]
-name = "LW1"
-lat = 35.727451
-lon = -78.695974
-height_m = 10.0
-buffer_mbit = {lw1}
-[[sensors]]
-name = "LW3"
-lat = 35.724933
-lon = -78.691912
-height_m = -0.23
-buffer_mbit = {lw3}
-[trajectory]
-mode = "autonomous"
-altitude_m = 30.0
-max_speed_mps = 10.0
-[policy]
-name = "hgad"
-"""
-
 
 @pytest.fixture
 def small(tmp_path: Path) -> Path:
     path = tmp_path / "small.toml"
-    path.write_text(SMALL.format(lw1=60, lw3=40))
+    path.write_text(two_towers("aadm-small", 60, (60, 40)))
     return path
 
 
@@ -294,32 +267,17 @@ def test_controller_and_agent_as_separate_processes(small: Path, tmp_path: Path)
     assert files.read_download_log(tmp_path / "dl.csv").cumulative_mbit[-1].tolist() == [60, 40]
 
 
-FIXED_SMALL = """
-name = "aadm-small-fixed"
-[mission]
-duration_s = 80
-[site]
-origin = { lat = 35.7274824, lon = -78.6962749 }
-geofence = "lake-wheeler"
-[[sensors]]
-name = "LW1"
-lat = 35.727451
-lon = -78.695974
-height_m = 10.0
-buffer_mbit = 150
-[[sensors]]
-name = "LW3"
-lat = 35.724933
-lon = -78.691912
-height_m = -0.23
-buffer_mbit = 120
-[trajectory]
+FIXED_SMALL = two_towers(
+    "aadm-small-fixed",
+    80,
+    (150, 120),
+    trajectory="""[trajectory]
 mode = "fixed"
 speed_mps = 10.0
 waypoints = [[0, 0, 30], [300, -300, 30], [0, -300, 30]]
-[policy]
-name = "optimal-fixed"
-"""
+""",
+    policy="optimal-fixed",
+)
 
 
 @pytest.mark.parametrize(
@@ -330,7 +288,7 @@ def test_two_process_flight_equals_aadm_fly(policy: str, tmp_path: Path) -> None
     # polls, downloads and score as `aadm fly`. Before the agent took the scenario's altitude
     # it climbed to 25 m where `aadm fly` flew at 30 m, and the planner split at poll 19.
     path = tmp_path / "scenario.toml"
-    text = FIXED_SMALL if policy == "optimal-fixed" else SMALL.format(lw1=300, lw3=250)
+    text = FIXED_SMALL if policy == "optimal-fixed" else two_towers("aadm-small", 60, (300, 250))
     path.write_text(text)
     scenario = load_scenario(str(path))
     fly = fly_loopback(scenario, policy, poll_s=0.0)

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import two_towers
 from skymule.aadm import net, protocol
 from skymule.aadm.agent import AadmAgent, fly_tcp
 from skymule.aadm.controller import ControllerCore, RunningController, serve_controller
@@ -25,32 +26,7 @@ from skymule.policies import make_policy
 from skymule.scenario import load_scenario
 from skymule.world import Mission, build_mission
 
-SMALL = """
-name = "aadm-crowd"
-[mission]
-duration_s = 40
-[site]
-origin = { lat = 35.7274824, lon = -78.6962749 }
-geofence = "lake-wheeler"
-[[sensors]]
-name = "LW1"
-lat = 35.727451
-lon = -78.695974
-height_m = 10.0
-buffer_mbit = 40
-[[sensors]]
-name = "LW3"
-lat = 35.724933
-lon = -78.691912
-height_m = -0.23
-buffer_mbit = 30
-[trajectory]
-mode = "autonomous"
-altitude_m = 30.0
-max_speed_mps = 10.0
-[policy]
-name = "hgad"
-"""
+SMALL = two_towers("aadm-crowd", 40, (40, 30))
 
 
 @pytest.fixture

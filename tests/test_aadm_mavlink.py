@@ -22,39 +22,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import run_cli
+from conftest import run_cli, two_towers
 from skymule.aadm.controller import ControllerCore, serve_controller
 from skymule.errors import SkymuleError
 from skymule.geo import LocalFrame
 from skymule.scenario import load_scenario
 from skymule.world import build_mission
 
-SCENARIO = """
-name = "aadm-mavlink"
-[mission]
-duration_s = 40
-[site]
-origin = { lat = 35.7274824, lon = -78.6962749 }
-geofence = "lake-wheeler"
-[[sensors]]
-name = "LW1"
-lat = 35.727451
-lon = -78.695974
-height_m = 10.0
-buffer_mbit = 40
-[[sensors]]
-name = "LW3"
-lat = 35.724933
-lon = -78.691912
-height_m = -0.23
-buffer_mbit = 30
-[trajectory]
-mode = "autonomous"
-altitude_m = 30.0
-max_speed_mps = 10.0
-[policy]
-name = "hgad"
-"""
+SCENARIO = two_towers("aadm-mavlink", 40, (40, 30))
 
 
 def _free_udp_port() -> int:

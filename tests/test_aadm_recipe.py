@@ -12,37 +12,13 @@ import subprocess
 import sys
 from pathlib import Path
 
+from conftest import two_towers
 from skymule.aadm import files
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 COMMAND = [sys.executable, "-c", "from skymule.cli import main; main()", "aadm"]
 
-SCENARIO = """
-name = "aadm-recipe"
-[mission]
-duration_s = 60
-[site]
-origin = { lat = 35.7274824, lon = -78.6962749 }
-geofence = "lake-wheeler"
-[[sensors]]
-name = "LW1"
-lat = 35.727451
-lon = -78.695974
-height_m = 10.0
-buffer_mbit = 15
-[[sensors]]
-name = "LW3"
-lat = 35.724933
-lon = -78.691912
-height_m = -0.23
-buffer_mbit = 10
-[trajectory]
-mode = "autonomous"
-altitude_m = 30.0
-max_speed_mps = 10.0
-[policy]
-name = "hgad"
-"""
+SCENARIO = two_towers("aadm-recipe", 60, (15, 10))
 
 
 def _start(args: list[str], cwd: Path) -> subprocess.Popen[str]:

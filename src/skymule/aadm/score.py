@@ -3,21 +3,6 @@ are shared, and the score the testbed would give at its real poll cadence. The s
 (:class:`AadmScore`, :func:`aadm_scores`, ...) is a rule and lives in
 :mod:`skymule.rules.score`; it is re-exported here.
 
-The score in force, as the challenge controller computes it, vectorised over missions.
-
-Rules (issue "AADM for real", ``shared/data/README.md``):
-
-* downloads count from the slot in which the volumes were shared with the UAV (the first
-  poll above 24 m on a flight; slot 0 in a simulation), and the timer t1 starts there;
-* the controller stops serving when the window closes: slot k (0-based since sharing) is
-  served while its start ``k * slot_s`` is before ``window_s`` (a 500-s simulation with 1-s
-  slots is 500 served slots);
-* t1 is the end of the slot in which the last bit arrived, since sharing, when everything
-  was downloaded; otherwise the time the window closed or the mission ended, whichever came
-  first;
-* ``S = max(0, (window_s - t1) * complete) + 100 * D_down / D_tot``; there is no landing
-  term (the testbed checks landing separately).
-
 Downloads are given per slot, (B, T) padded with zeros past each mission's ``n_slots``.
 """
 

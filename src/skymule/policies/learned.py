@@ -307,17 +307,7 @@ def load_net(path: str | Path) -> OptionNet:
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise _bad(path, f"not a readable .npz of plain arrays ({reason})") from None
-    expected = {*WEIGHT_NAMES, "format", "features"}
-    missing, extra = sorted(expected - set(arrays)), sorted(set(arrays) - expected)
-    if missing or extra:
-        parts = [
-            f"missing {', '.join(missing)}" if missing else "",
-            f"unexpected {', '.join(extra)}" if extra else "",
-        ]
-        raise _bad(
-            path, "; ".join(p for p in parts if p) + f"; allowed: {', '.join(sorted(expected))}"
-        )
-    tag = arrays["format"]
+    tag = arrays["format"]  # the names were checked from the zip directory
     if tag.dtype.kind != "U" or tag.shape != () or str(tag) != FORMAT:
         raise _bad(path, f"format is {tag!s:.40}; allowed: {FORMAT}")
     features = arrays["features"]

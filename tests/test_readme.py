@@ -43,6 +43,11 @@ def test_readme_states_the_two_setup_commands() -> None:
     assert "python -m pytest -q" in text
     ci = (ROOT / ".ci" / "run").read_text()
     assert "pip install -q -e '.[test,dask,browser,fast]'" in ci and "python -m pytest -q" in ci
+    # the default run leaves the slow tests out (pyproject's addopts); CI runs them too, and
+    # the README says how
+    steps = [line.strip() for line in ci.splitlines()]
+    assert steps.index("python -m pytest -q -m slow") > steps.index("python -m pytest -q")
+    assert "python -m pytest -q -m slow" in text
 
 
 def test_readme_is_short_and_links_every_doc() -> None:

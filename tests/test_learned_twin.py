@@ -315,3 +315,19 @@ def test_on_the_samples_the_learned_twin_is_no_worse_than_free_space_or_log_dist
     )  # fmt: skip
     lines = [line for line in done.stdout.splitlines() if line.startswith("fallback: ")]
     assert len(lines) == 1 and "blocked cross-validation" in lines[0]
+
+
+def test_a_flight_that_is_also_the_prior_is_the_prior_only(tmp_path: Path) -> None:
+    # as data, the DT flight taught LW3/LW4's networks the twin's own errors: they won the
+    # blocked cross-validation on the DT's samples and lost 1.5-1.7 dB to free space on
+    # another real flight
+    dt, real = SAMPLES / "dt_flight.csv", SAMPLES / "flight2_merged.csv"
+    both = fit_radiomap_files([dt, real], method="neural", prior=str(dt))
+    alone = fit_radiomap_files([real], method="neural", prior=str(dt))
+    assert [r["n_used"] for r in both.rows] == [r["n_used"] for r in alone.rows]
+    assert any("used as the prior only" in w for w in both.warnings)
+    assert not any("prior only" in w for w in alone.warnings)
+    done = run_cli("fit-radiomap", dt, "--method", "neural", "--prior", dt,
+                   "--out", tmp_path / "m.json")  # fmt: skip
+    assert done.returncode == 2 and "is the --prior and the only flight" in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1

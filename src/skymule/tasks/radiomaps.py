@@ -164,6 +164,7 @@ def fit_radiomap_files(
         raise SkymuleError(
             f"--prior calibrates a learned map: it needs --method neural, not {method!r}"
         )
+    traces, prior_as_data = _without_the_prior(traces, prior)
     spec = load_scenario(scenario) if scenario else None
     site = spec.site.origin if spec else SiteSpec().origin
     frame = _frame(origin, (site.lat, site.lon))
@@ -199,7 +200,29 @@ def fit_radiomap_files(
         }
         for m in fitted.sensors
     ]
-    return RadioMapFit(fitted, rows, fit_warnings(rows, method), fallback_note(rows, method))
+    warnings = (*prior_as_data, *fit_warnings(rows, method))
+    return RadioMapFit(fitted, rows, warnings, fallback_note(rows, method))
+
+
+def _without_the_prior(
+    traces: Sequence[Path], prior: str | None
+) -> tuple[list[Path], tuple[str, ...]]:
+    """The flights to learn from: a flight that is also ``--prior`` is the prior only. As data
+    it would teach the map the twin's own errors (its networks then win the cross-validation
+    on the twin's samples and lose on a real flight), and the prior already carries what it
+    says. Returns the flights kept and a line saying what was left out."""
+    if prior is None or not Path(prior).is_file():
+        return list(traces), ()
+    same = Path(prior).resolve()
+    kept = [t for t in traces if Path(t).resolve() != same]
+    if not kept:
+        raise SkymuleError(
+            f"fit-radiomap: {prior} is the --prior and the only flight; give the real flight(s)"
+            " to learn the correction from"
+        )
+    if len(kept) == len(traces):
+        return kept, ()
+    return kept, (f"{prior} is the --prior: used as the prior only, not as data",)
 
 
 def fallback_note(rows: Sequence[dict[str, Any]], method: str) -> str | None:

@@ -198,13 +198,15 @@ def test_concurrent_polls_are_each_counted_once(
         except BaseException as exc:
             errors.append(exc)
 
-    threads = [threading.Thread(target=poll, args=(i,)) for i in range(12)]
+    # within the cap on connections from one address (the share poll's may still be closing)
+    concurrent = net.MAX_PER_ADDRESS - 2
+    threads = [threading.Thread(target=poll, args=(i,)) for i in range(concurrent)]
     for thread in threads:
         thread.start()
     for thread in threads:
         thread.join(timeout=30)
     assert not errors
-    assert core.served_polls == 13
+    assert core.served_polls == 1 + concurrent
     assert core.received_mbit().sum() * 1e6 == pytest.approx(sum(core.per_poll_bit))
 
 

@@ -175,7 +175,13 @@ def greedy_choice(snr_db: np.ndarray, has_data: np.ndarray) -> np.ndarray:
     Returns:
         (B,) sensor index, or NO_SENSOR where no sensor is servable.
     """
-    masked = np.where(has_data, snr_db, -np.inf)
+    return _best_servable(snr_db, has_data)
+
+
+def _best_servable(value: np.ndarray, has_data: np.ndarray) -> np.ndarray:
+    """(B,) argmax of ``value`` (N, B) among servable sensors, ties to the lowest index;
+    NO_SENSOR where none is servable."""
+    masked = np.where(has_data, value, -np.inf)
     choice = first_true(masked == masked.max(axis=0))
     choice[~has_data.any(axis=0)] = NO_SENSOR
     return choice
@@ -187,7 +193,7 @@ def rate_choice(rate_bps: np.ndarray, has_data: np.ndarray) -> np.ndarray:
     The planner's choice on its way between targets and in its look-ahead
     (``policies/planner.py``, ``sim/plans.py``): the look-ahead predicts rates only, so the
     flight takes the rule its plan was scored with. HGAD (:func:`hgad_choice`) breaks rate ties
-    by SNR instead (``tests/test_slot_contract.py::test_rate_choice_differs_from_hgad_on_ties``).
+    by SNR instead (``tests/test_rules.py::test_rate_choice_differs_from_hgad_on_ties``).
 
     Args:
         rate_bps: (N, B) rate to each sensor [bit/s].
@@ -196,10 +202,7 @@ def rate_choice(rate_bps: np.ndarray, has_data: np.ndarray) -> np.ndarray:
     Returns:
         (B,) sensor index, or NO_SENSOR where no sensor is servable.
     """
-    masked = np.where(has_data, rate_bps, -np.inf)
-    choice = first_true(masked == masked.max(axis=0))
-    choice[~has_data.any(axis=0)] = NO_SENSOR
-    return choice
+    return _best_servable(rate_bps, has_data)
 
 
 def hgad_choice(rate_bps: np.ndarray, snr_db: np.ndarray, has_data: np.ndarray) -> np.ndarray:

@@ -122,15 +122,9 @@ def _check_snr(
 ) -> None:
     """Every SNR sample within +-MAX_SNR_DB dB (a digital-twin value <= -99 dB is its
     missing-sample marker, so only the top is bounded there); one line naming the cell."""
-    low = -np.inf if fmt == "dt" else -MAX_SNR_DB
-    bad = (snr > MAX_SNR_DB) | (snr < low)
-    if bad.any():
-        r, j = (int(i) for i in np.argwhere(bad)[0])
-        raise TraceError(
-            f"{label}: row {table.lines[r]}, column {quote(table.header[snr_idx[j]])}: "
-            f"{quote(table.cells[r, snr_idx[j]])} dB is out of range (allowed: "
-            f"-{MAX_SNR_DB:g} to {MAX_SNR_DB:g} dB; a measured SNR is far inside it)"
-        )
+    low = -np.inf if fmt == "dt" else None
+    for j, col in enumerate(snr_idx):
+        check_range(label, table, col, snr[:, j], MAX_SNR_DB, "dB", low=low, value_unit="dB")
 
 
 def read_trace(path: str | os.PathLike[str], *, sensors: Sequence[str] | None = None) -> Trace:

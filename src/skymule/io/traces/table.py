@@ -161,14 +161,25 @@ def numbers(
 
 
 def check_range(
-    label: str, table: Table, col: int, values: np.ndarray, limit: float, unit: str = "degrees"
+    label: str,
+    table: Table,
+    col: int,
+    values: np.ndarray,
+    limit: float,
+    unit: str = "degrees",
+    *,
+    low: float | None = None,
+    value_unit: str = "",
 ) -> None:
-    """Every value of a column within [-limit, limit] ``unit``; else one line naming the row."""
-    bad = np.abs(values) > limit
+    """Every value of a column within [``low``, ``limit``] ``unit`` (``low`` defaults to
+    -``limit``); else one line naming the row and the cell (followed by ``value_unit``)."""
+    low = -limit if low is None else low
+    bad = (values > limit) | (values < low)
     if bad.any():
         r = int(np.argmax(bad))
+        cell = quote(table.cells[r, col]) + (f" {value_unit}" if value_unit else "")
+        allowed = f"-{limit:g} to {limit:g}" if low == -limit else f"{low:g} to {limit:g}"
         raise TraceError(
             f"{label}: row {table.lines[r]}, column {quote(table.header[col])}: "
-            f"{quote(table.cells[r, col])} is out of range "
-            f"(allowed: -{limit:g} to {limit:g} {unit})"
+            f"{cell} is out of range (allowed: {allowed} {unit})"
         )

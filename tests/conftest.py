@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
 import pytest
 
 if TYPE_CHECKING:
@@ -157,6 +158,46 @@ seed = {{ range = [0, {n}] }}
 "mission.duration_s" = [120, 200]
 """
 """A small sweep template (``.format(n=seeds)``): 2 policies x n seeds x 2 durations."""
+
+
+SKYMULE = [sys.executable, "-c", "from skymule.cli import main; main()"]
+"""``skymule`` as a process of its own, from this checkout's ``src`` (see :func:`cli_env`)."""
+
+
+def cli_env() -> dict[str, str]:
+    """This environment with ``PYTHONPATH`` at this checkout's ``src``: a process started
+    from a test runs the code under test, installed or not."""
+    return {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1] / "src")}
+
+
+def start_cli(*args: str | Path, cwd: Path | None = None) -> subprocess.Popen[str]:
+    """``skymule <args>`` started as a process (servers, Ctrl-C, several processes), its
+    output piped as text; the caller stops it."""
+    return subprocess.Popen(
+        [*SKYMULE, *(str(a) for a in args)],
+        cwd=cwd,
+        env=cli_env(),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def lawnmower(n: int) -> np.ndarray:
+    """(n, 3) a lawnmower flight in time order [m]: six east-west legs from north to south,
+    so the first 40% of the samples cover the north legs only."""
+    per_leg = n // 6
+    legs = [
+        np.column_stack(
+            [
+                np.linspace(-300, 300, per_leg)[:: -1 if i % 2 else 1],
+                np.full(per_leg, 250 - 100 * i),
+                np.full(per_leg, 30),
+            ]
+        )
+        for i in range(6)
+    ]
+    return np.vstack(legs)
 
 
 def write(tmp_path: Path, text: str, name: str = "sweep.toml") -> Path:

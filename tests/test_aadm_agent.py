@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import importlib.util
-import os
 import re
 import subprocess
 import sys
@@ -14,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import preset_mission, run_cli, two_towers
+from conftest import SKYMULE, cli_env, preset_mission, run_cli, start_cli, two_towers
 from skymule.aadm import files
 from skymule.aadm.agent import AadmAgent
 from skymule.aadm.comm import run_comm
@@ -23,8 +22,6 @@ from skymule.aadm.loopback import fly_loopback
 from skymule.policies import Greedy
 from skymule.scenario import load_scenario
 from skymule.world import build_mission
-
-SRC = Path(__file__).resolve().parents[1] / "src"
 
 
 @pytest.fixture
@@ -218,21 +215,13 @@ def test_skymule_agent_through_the_files(small: Path, tmp_path: Path) -> None:
 
 
 def test_controller_and_agent_as_separate_processes(small: Path, tmp_path: Path) -> None:
-    env = {**os.environ, "PYTHONPATH": str(SRC)}
-    command = [sys.executable, "-c", "from skymule.cli import main; main()", "aadm"]
-    controller = subprocess.Popen(
-        [
-            *command,
-            "controller",
-            str(small),
-            *("--port", "0", "--telemetry-port", "0", "--exit-on-disarm", "--log", "dl.csv"),
-            *("--clock", "poll"),
-        ],
+    controller = start_cli(
+        "aadm",
+        "controller",
+        str(small),
+        *("--port", "0", "--telemetry-port", "0", "--exit-on-disarm", "--log", "dl.csv"),
+        *("--clock", "poll"),
         cwd=tmp_path,
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
     )
     try:
         assert controller.stdout is not None
@@ -242,14 +231,15 @@ def test_controller_and_agent_as_separate_processes(small: Path, tmp_path: Path)
         assert match and told, polls + telemetry
         done = subprocess.run(
             [
-                *command,
+                *SKYMULE,
+                "aadm",
                 "agent",
                 str(small),
                 *("--policy", "hgad", "--port", match.group(1)),
                 *("--telemetry-port", told.group(1)),
             ],
             cwd=tmp_path,
-            env=env,
+            env=cli_env(),
             capture_output=True,
             text=True,
             timeout=60,

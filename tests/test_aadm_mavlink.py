@@ -10,7 +10,6 @@ errors are checked.
 from __future__ import annotations
 
 import importlib
-import os
 import re
 import signal
 import socket
@@ -22,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import run_cli, two_towers
+from conftest import run_cli, start_cli, two_towers
 from skymule.aadm.controller import ControllerCore, serve_controller
 from skymule.errors import SkymuleError
 from skymule.geo import LocalFrame
@@ -146,17 +145,7 @@ def test_a_plain_mavsdk_script_flies_the_vehicle_command(tmp_path: Path) -> None
     pytest.importorskip("pymavlink", reason="the MAVLink test vehicle needs the fly extra")
     pytest.importorskip("mavsdk_grpc", reason="the script needs MAVSDK-Python (the fly extra)")
     port = _free_udp_port()
-    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1] / "src")}
-    vehicle = subprocess.Popen(
-        [
-            *(sys.executable, "-c", "from skymule.cli import main; main()"),
-            *("aadm", "vehicle", "--mavlink", f"udp://:{port}", "--time-scale", "10"),
-        ],
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    vehicle = start_cli("aadm", "vehicle", "--mavlink", f"udp://:{port}", "--time-scale", "10")
     try:
         assert vehicle.stdout is not None
         assert "MAVLink test vehicle" in vehicle.stdout.readline()

@@ -5,32 +5,19 @@ stand-in, file agent), with free ports instead of 8005/8006 and the clock run 10
 
 from __future__ import annotations
 
-import os
 import re
 import signal
 import subprocess
-import sys
 from pathlib import Path
 
-from conftest import two_towers
+from conftest import SKYMULE, cli_env, start_cli, two_towers
 from skymule.aadm import files
-
-SRC = Path(__file__).resolve().parents[1] / "src"
-COMMAND = [sys.executable, "-c", "from skymule.cli import main; main()", "aadm"]
 
 SCENARIO = two_towers("aadm-recipe", 60, (15, 10))
 
 
 def _start(args: list[str], cwd: Path) -> subprocess.Popen[str]:
-    env = {**os.environ, "PYTHONPATH": str(SRC)}
-    return subprocess.Popen(
-        [*COMMAND, *args],
-        cwd=cwd,
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    return start_cli("aadm", *args, cwd=cwd)
 
 
 def _stop(process: subprocess.Popen[str]) -> tuple[str, str]:
@@ -65,12 +52,13 @@ def test_the_docs_file_recipe_runs_as_written(tmp_path: Path) -> None:
         )
         agent = subprocess.run(
             [
-                *COMMAND,
+                *SKYMULE,
+                "aadm",
                 *("agent", "recipe.toml", "--policy", "hgad", "--files", "agent_dir"),
                 *("--port", poll_port, "--telemetry-port", telemetry_port, "--poll-s", "0.1"),
             ],
             cwd=tmp_path,
-            env={**os.environ, "PYTHONPATH": str(SRC)},
+            env=cli_env(),
             capture_output=True,
             text=True,
             timeout=120,

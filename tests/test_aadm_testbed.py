@@ -7,12 +7,10 @@ one ``recv`` per reply, replies split on ``;`` with the braces and quotes droppe
 
 from __future__ import annotations
 
-import os
 import re
 import signal
 import socket
 import subprocess
-import sys
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -20,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import preset_mission, run_cli
+from conftest import preset_mission, run_cli, start_cli
 from skymule.aadm.controller import ControllerCore, serve_controller
 from skymule.aadm.score import aadm_score_one
 from skymule.aadm.towers import (
@@ -174,19 +172,9 @@ def test_experiment_env_file_points_every_node_at_loopback() -> None:
 
 # --- the commands, as processes ----------------------------------------------------------------
 
-COMMAND = [sys.executable, "-c", "from skymule.cli import main; main()", "aadm"]
-
 
 def _start(*args: str, cwd: Path) -> subprocess.Popen[str]:
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
-    return subprocess.Popen(
-        [*COMMAND, *args],
-        cwd=cwd,
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    return start_cli("aadm", *args, cwd=cwd)
 
 
 def _ports(process: subprocess.Popen[str], count: int) -> list[tuple[int, str]]:

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import run_cli
+from conftest import lawnmower, run_cli
 from skymule.errors import SkymuleError
 from skymule.geo import LocalFrame
 from skymule.io.traces import positions_local, read_trace, write_aadm_log
@@ -45,16 +45,6 @@ def _laps(radii: tuple[float, ...], per_lap: int = 90) -> np.ndarray:
         [np.column_stack([TOWER[0] + r * np.cos(angle), TOWER[1] + r * np.sin(angle),
                           np.full(per_lap, 30.0)]) for r in radii]
     )  # fmt: skip
-
-
-def _lawnmower(n: int) -> np.ndarray:
-    """East-west legs from north to south: the first 40% of the samples fly the north legs."""
-    legs = []
-    per_leg = n // 6
-    for i in range(6):
-        xs = np.linspace(-300, 300, per_leg)[:: -1 if i % 2 else 1]
-        legs.append(np.column_stack([xs, np.full(per_leg, 250 - 100 * i), np.full(per_leg, 30)]))
-    return np.vstack(legs)
 
 
 def _sector_loss(positions: np.ndarray) -> np.ndarray:
@@ -90,7 +80,7 @@ def _fit_first(positions: np.ndarray, measured: np.ndarray, prior: np.ndarray, s
 
 
 def test_blocked_folds_leave_a_buffer_around_each_held_out_segment() -> None:
-    positions = _lawnmower(300)
+    positions = lawnmower(300)
     segment = np.arange(300) * 5 // 300
     folds = blocked_folds(positions, segment)
     assert len(folds) == 5
@@ -105,7 +95,7 @@ def test_blocked_folds_leave_a_buffer_around_each_held_out_segment() -> None:
 def test_every_method_is_scored_on_the_same_folds() -> None:
     """The trend and free-space columns of the cross-validation are the same whatever the
     method, so the methods' map columns compare."""
-    positions = _lawnmower(240)
+    positions = lawnmower(240)
     measured, prior = _world(positions)
     samples = SensorSamples(positions, measured, np.arange(240) * 5 // 240)
     baseline = _free_space(positions)
@@ -145,7 +135,7 @@ def test_extrapolating_the_learned_twin_is_no_worse_than_its_baselines() -> None
     """The north legs seen, the south legs held out (azimuths never seen): the map is no
     worse than the twin with its seen bias removed, nor log-distance, and its 95% interval
     holds 85-99% of the held-out samples."""
-    positions = _lawnmower(360)
+    positions = lawnmower(360)
     measured, prior = _world(positions)
     fitted, cut = _fit_first(positions, measured, prior, 0.4)
     held, truth = positions[cut:], measured[cut:]
@@ -202,7 +192,7 @@ def test_a_prior_redundant_with_log_distance_is_not_an_input() -> None:
 def test_the_fit_falls_back_when_the_networks_do_not_help_and_says_so() -> None:
     """A twin that is only biased (no pattern to learn): blocked CV keeps the simpler model,
     and the fit's note names the sensor, the model and both RMSEs in one line."""
-    positions = _lawnmower(300)
+    positions = lawnmower(300)
     rng = np.random.default_rng(5)
     prior = _free_space(positions) + 8.0
     measured = prior - 8.0 + NOISE_DB * rng.standard_normal(len(positions))
@@ -221,7 +211,7 @@ def test_the_fit_falls_back_when_the_networks_do_not_help_and_says_so() -> None:
 
 def test_ensemble_is_seeded_and_its_variance_grows_away_from_the_data() -> None:
     rng = np.random.default_rng(0)
-    positions = _lawnmower(120)
+    positions = lawnmower(120)
     features = link_features(positions, TOWER)
     target = _sector_loss(positions) + 0.5 * rng.standard_normal(len(positions))
     first = fit_ensemble(features, target, FEATURES, seed=7, members=3, max_iterations=100)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import run_cli
+from conftest import lawnmower, run_cli
 from skymule.geo import LocalFrame
 from skymule.io.traces import read_trace, write_aadm_log, write_dt_export
 from skymule.radio.radiomap import read_radiomap
@@ -18,16 +18,6 @@ ROOT = Path(__file__).resolve().parents[1]
 SAMPLES = ROOT / "examples" / "samples"
 ORIGIN = (35.7274824, -78.6962749)
 TOWER = np.array([60.0, -40.0, 10.0])
-
-
-def _path(n: int) -> np.ndarray:
-    """A lawnmower in time order: the first 40% of the samples cover the north legs only."""
-    legs = []
-    per_leg = n // 6
-    for i in range(6):
-        xs = np.linspace(-300, 300, per_leg)[:: -1 if i % 2 else 1]
-        legs.append(np.column_stack([xs, np.full(per_leg, 250 - 100 * i), np.full(per_leg, 30)]))
-    return np.vstack(legs)
 
 
 def test_cli_methods_and_learned_twin_on_the_samples(tmp_path: Path) -> None:
@@ -108,7 +98,7 @@ def _real_flight(tmp_path: Path, scenario: Path, noise_db: float) -> Path:
 
     mission = build_mission(load_scenario(scenario))
     assert mission.source is not None
-    positions = _path(120)
+    positions = lawnmower(120)
     snr = mission.source.snr_db(positions)
     snr += noise_db * np.random.default_rng(4).standard_normal(snr.shape)
     lat, lon = LocalFrame(*ORIGIN).to_latlon(positions[:, 0], positions[:, 1])
@@ -126,7 +116,7 @@ def test_sim2real_of_the_true_model_is_exact_and_json_has_the_issues_shape(
     real = _real_flight(tmp_path, scenario, 0.0)
     noisy = _real_flight(tmp_path, scenario, 6.0)
     dt = tmp_path / "dt.csv"
-    positions = _path(120)
+    positions = lawnmower(120)
     write_dt_export(dt, np.arange(120.0), np.full((120, 2), 45.0), ["LW1", "LW2"],
                     positions[:, 0], positions[:, 1], positions[:, 2])  # fmt: skip
     done = run_cli(

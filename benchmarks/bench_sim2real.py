@@ -65,6 +65,7 @@ from skymule.io.traces import (
     write_aadm_log,
     write_dt_export,
 )
+from skymule.metrics.sim2real import running_median
 from skymule.radio.shadowing import ShadowingField, shadowing_field
 from skymule.radio.sources import model_source
 from skymule.scenario import Scenario, load_scenario
@@ -312,7 +313,7 @@ def noise_floor_db(trace: Trace, window: int = 5) -> float:
     for j in range(trace.snr_db.shape[1]):
         snr = trace.snr_db[:, j]
         ok = np.isfinite(snr) & (snr > -40.0)
-        smooth = scipy.ndimage.median_filter(snr[ok], size=window, mode="nearest")
+        smooth = running_median(snr[ok], window)
         floors.append(np.sqrt(np.mean((snr[ok] - smooth) ** 2)))
     return float(np.mean(floors))
 

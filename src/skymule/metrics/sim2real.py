@@ -183,16 +183,15 @@ def coverage(
 
 
 def running_median(values: np.ndarray, window: int = NOISE_WINDOW) -> np.ndarray:
-    """(S,) centred running median of ``values`` over ``window`` samples (shrunk at the ends).
+    """(S,) centred running median of ``values`` over ``window`` samples (edges repeated).
 
     Its residual ``values - running_median(values)`` is the trace's noise floor: what no
     smooth map can predict.
     """
-    values = np.asarray(values, float)
+    from scipy.ndimage import median_filter
+
     half = max(window, 1) // 2
-    padded = np.pad(values, half, mode="edge")
-    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)
-    return np.median(windows, axis=-1)
+    return median_filter(np.asarray(values, float), size=2 * half + 1, mode="nearest")
 
 
 @dataclass(frozen=True)

@@ -286,6 +286,9 @@ def test_fit_radiomap_neural_with_a_negative_seed_is_one_line(tmp_path: Path) ->
     )  # fmt: skip
     _one_line(done, "--seed -1", "0 or above")
     assert not (tmp_path / "m.json").exists()
+    done = run_cli("sim2real", "paper-sim-fixed", SAMPLES / "flight_merged.csv",
+                   "--twin", "paper-sim-fixed", "--seed", "-5")  # fmt: skip
+    _one_line(done, "--seed -5", "0 or above")
 
 
 def test_bandwidth_has_a_physical_upper_bound() -> None:

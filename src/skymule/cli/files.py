@@ -148,6 +148,12 @@ OriginOption = Annotated[
 ]
 
 
+def check_seed(seed: int) -> None:
+    """``--seed``: numpy's generators take non-negative seeds only; one line otherwise."""
+    if seed < 0:
+        raise SkymuleError(f"--seed {seed}: allowed: a whole number 0 or above")
+
+
 def fit_radiomap_command(
     traces: Annotated[list[Path], typer.Argument(help="Recorded flights (AADM log / DT export).")],
     out: Annotated[Path, typer.Option("--out", help="Map file to write (JSON).")],
@@ -182,8 +188,7 @@ def fit_radiomap_command(
     from skymule.cli.missions import _working
     from skymule.tasks.radiomaps import fit_radiomap_files, parse_origin
 
-    if seed < 0:  # numpy's generators take non-negative seeds only
-        raise SkymuleError(f"--seed {seed}: allowed: a whole number 0 or above")
+    check_seed(seed)
     with _working(f"fitting the radio map ({method})"):
         fit = fit_radiomap_files(
             traces,
@@ -292,6 +297,7 @@ def sim2real_command(
         write_sim2real,
     )
 
+    check_seed(seed)
     if out is not None:
         guard_sim2real(out, force)
     names = [p.strip() for p in policies.split(",") if p.strip()]

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import asyncio
 import importlib
+import socket
 import threading
 from collections.abc import Coroutine
 from typing import Any, Protocol
@@ -140,6 +141,15 @@ def _point(xy: tuple[float, float]) -> Any:
     return Point(xy)
 
 
+def _free_grpc_port() -> int:
+    """A free loopback TCP port for this vehicle's own ``mavsdk_server``: MAVSDK's default,
+    50051, is one port for the whole machine, so two flights at once (or a test run beside
+    another) would share one server, or fail to start theirs."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
 class MavsdkVehicle:
     """MAVSDK-Python behind the :class:`Vehicle` interface (optional extra ``fly``).
 
@@ -155,7 +165,7 @@ class MavsdkVehicle:
         self._loop = asyncio.new_event_loop()
         self._thread = threading.Thread(target=self._loop.run_forever, daemon=True)
         self._thread.start()
-        self._drone: Any = system_module.System()
+        self._drone: Any = system_module.System(port=_free_grpc_port())
         self._home_amsl_m = 0.0
         # the latest telemetry, kept by two subscriptions (a new one per call costs a round
         # trip through mavsdk_server each time)
